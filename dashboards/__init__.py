@@ -1,0 +1,1 @@
+"""Rendering only: self-contained HTML reports, maps, plots and route exports."""

@@ -1,0 +1,1 @@
+"""AIS readers, cleaning, stop points and ports, voyage segmentation, DBSCAN traffic lanes."""

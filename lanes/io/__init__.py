@@ -1,0 +1,1 @@
+"""AIS file adapters: one module per source format, each returning ``(data, metadata)``."""

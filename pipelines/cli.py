@@ -1,0 +1,48 @@
+"""The ``stormlane`` command.
+
+Every module in :mod:`pipelines.commands` exposes ``register(app)`` and adds its commands;
+heavy imports (Prefect, xarray, numba) happen inside the command functions so that
+``stormlane --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+
+import typer
+
+from pipelines import commands
+from thresholds.errors import StormlaneError
+
+app = typer.Typer(
+    name="stormlane",
+    help="Historical AIS traffic and marine weather turned into safer, faster routes.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def _register_commands() -> None:
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        importlib.import_module(f"{commands.__name__}.{info.name}").register(app)
+
+
+_register_commands()
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console entry point: user errors print one clear line on stderr and exit 2."""
+    try:
+        app(args=argv, standalone_mode=True)
+    except StormlaneError as err:
+        typer.echo(f"error: {err}", err=True)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

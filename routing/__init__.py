@@ -1,0 +1,1 @@
+"""Mesh and land, speed-loss models, time-dependent A*, deviations, emissions, evaluation."""

@@ -1,0 +1,1 @@
+"""IMO and operator criteria, units and constants: the leaf every domain package may import."""

@@ -1,0 +1,1 @@
+"""CMEMS / ERA5 acquisition, local NetCDF readers, canonical grids and regridding."""

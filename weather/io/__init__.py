@@ -1,0 +1,1 @@
+"""Weather file and network adapters: one module per product, each returning ``(data, metadata)``."""
