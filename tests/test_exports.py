@@ -1,0 +1,269 @@
+"""Route exports: GeoJSON (RFC 7946), GPX 1.1 and RTZ (IEC 61174) parse back with plain readers.
+
+Expected values are written out by hand here (coordinates, ETAs, speeds of a small
+Barcelona -> Palma route); none comes from another project function.
+"""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pandas as pd
+import pytest
+import shapely.geometry
+
+from dashboards.errors import ExportError
+from dashboards.exports import read_geojson, read_gpx, read_rtz, write_routes
+from routing.route import Route
+
+LAT = [41.3000001, 40.7512345, 40.1023456, 39.5000009]
+LON = [2.2500003, 2.4123456, 2.5678901, 2.7000005]
+TIMES = ["2025-01-31T03:00:00Z", "2025-01-31T06:20:00Z", "2025-01-31T09:45:30Z", "2025-01-31T12:00:00Z"]
+SPEEDS = [10.25, 11.5, 14.0]
+HS = [1.2, np.nan, 3.75, 2.0]
+
+GPX = "{http://www.topografix.com/GPX/1/1}"
+RTZ11 = "{http://www.cirm.org/RTZ/1/1}"
+RTZ10 = "{http://www.cirm.org/RTZ/1/0}"
+
+
+def make_route(name="optimal", **props) -> Route:
+    return Route(
+        name=name,
+        lat_deg=np.array(LAT),
+        lon_deg=np.array(LON),
+        time_utc=pd.DatetimeIndex(pd.to_datetime(TIMES, utc=True)),
+        leg_speed_kn=np.array(SPEEDS),
+        weather={"hs_m": np.array(HS), "wave_from_deg": np.array([270.0, 280.0, 300.0, 310.0])},
+        properties={"origin": "Barcelona", "destination": "Palma", **props},
+    )
+
+
+def make_other() -> Route:
+    return Route(
+        name="historical",
+        lat_deg=np.array([41.3, 39.5]),
+        lon_deg=np.array([2.25, 2.7]),
+        time_utc=pd.DatetimeIndex(pd.to_datetime(["2025-01-31T03:00:00Z", "2025-01-31T13:00:00Z"], utc=True)),
+        leg_speed_kn=np.array([10.9]),
+    )
+
+
+# ------------------------------------------------------------------ GeoJSON
+
+
+def test_geojson_parses_with_json_and_shapely(tmp_path):
+    path = tmp_path / "routes.geojson"
+    written = write_routes([make_route(), make_other()], path)
+    assert written == [path]
+    data = json.loads(path.read_text())  # strict JSON: NaN would have raised in json.dumps(allow_nan=False)
+    assert data["type"] == "FeatureCollection"
+    feats = data["features"]
+    lines = [f for f in feats if f["properties"]["feature"] == "route"]
+    points = [f for f in feats if f["properties"]["feature"] == "waypoint"]
+    assert [f["properties"]["route"] for f in lines] == ["optimal", "historical"]
+    assert len(points) == 4 + 2
+    line = shapely.geometry.shape(lines[0]["geometry"])
+    assert line.geom_type == "LineString"
+    np.testing.assert_allclose(np.array(line.coords), np.column_stack([LON, LAT]), atol=1e-7)  # [lon, lat] order
+    assert lines[0]["properties"]["depart_utc"] == "2025-01-31T03:00:00Z"
+    assert lines[0]["properties"]["arrive_utc"] == "2025-01-31T12:00:00Z"
+    assert lines[0]["properties"]["time_h"] == pytest.approx(9.0)
+    assert lines[0]["properties"]["max_hs_m"] == pytest.approx(3.75)
+    assert lines[0]["properties"]["properties"]["origin"] == "Barcelona"
+    wp = [p for p in points if p["properties"]["route"] == "optimal"]
+    assert [p["properties"]["seq"] for p in wp] == [0, 1, 2, 3]
+    assert [p["properties"]["eta_utc"] for p in wp] == TIMES
+    assert [p["properties"]["leg_speed_kn"] for p in wp] == [10.25, 11.5, 14.0, None]
+    assert [p["properties"]["hs_m"] for p in wp] == [1.2, None, 3.75, 2.0]
+    assert wp[0]["properties"]["name"] == "Barcelona" and wp[-1]["properties"]["name"] == "Palma"
+    assert wp[1]["properties"]["name"] == "WP002"
+    pt = shapely.geometry.shape(wp[2]["geometry"])
+    assert (pt.x, pt.y) == pytest.approx((LON[2], LAT[2]), abs=1e-7)
+
+
+def test_geojson_round_trip(tmp_path):
+    path = tmp_path / "r.json"
+    write_routes(make_route(), path)
+    (back,) = read_geojson(path)
+    np.testing.assert_allclose(back.lat_deg, LAT, atol=1e-6)
+    np.testing.assert_allclose(back.lon_deg, LON, atol=1e-6)
+    assert list(back.time_utc) == list(pd.to_datetime(TIMES, utc=True))
+    np.testing.assert_allclose(back.leg_speed_kn, SPEEDS)
+    np.testing.assert_allclose(back.weather["hs_m"], HS)  # NaN stays NaN
+
+
+def test_geojson_splits_at_the_antimeridian(tmp_path):
+    route = Route(
+        name="pacific",
+        lat_deg=np.array([50.0, 52.0]),
+        lon_deg=np.array([179.0, -179.0]),  # 2 deg of longitude across the antimeridian
+        time_utc=pd.DatetimeIndex(pd.to_datetime(["2025-01-01T00:00Z", "2025-01-01T10:00Z"], utc=True)),
+        leg_speed_kn=np.array([12.0]),
+    )
+    path = tmp_path / "p.geojson"
+    write_routes(route, path)
+    geom = json.loads(path.read_text())["features"][0]["geometry"]
+    assert geom["type"] == "MultiLineString"
+    # Crossing at +-180 halfway in longitude: latitude 51.0 by linear interpolation.
+    assert geom["coordinates"] == [[[179.0, 50.0], [180.0, 51.0]], [[-180.0, 51.0], [-179.0, 52.0]]]
+    assert shapely.geometry.shape(geom).is_valid
+
+
+# ------------------------------------------------------------------ GPX
+
+
+def test_gpx_has_required_elements_and_namespace(tmp_path):
+    path = tmp_path / "routes.gpx"
+    write_routes([make_route(), make_other()], path)
+    root = ET.parse(path).getroot()
+    assert root.tag == f"{GPX}gpx"
+    assert root.get("version") == "1.1" and root.get("creator") == "stormlane"
+    rtes = root.findall(f"{GPX}rte")
+    assert [r.find(f"{GPX}name").text for r in rtes] == ["optimal", "historical"]
+    pts = rtes[0].findall(f"{GPX}rtept")
+    assert len(pts) == 4
+    assert [float(p.get("lat")) for p in pts] == pytest.approx(LAT, abs=1e-7)
+    assert [float(p.get("lon")) for p in pts] == pytest.approx(LON, abs=1e-7)
+    assert [p.find(f"{GPX}time").text for p in pts] == TIMES
+    assert [p.find(f"{GPX}name").text for p in pts] == ["Barcelona", "WP002", "WP003", "Palma"]
+    # wptType child order: time comes before name (GPX 1.1 schema sequence).
+    assert [c.tag for c in pts[0]][:2] == [f"{GPX}time", f"{GPX}name"]
+    assert len(rtes[1].findall(f"{GPX}rtept")) == 2
+
+
+def test_gpx_round_trip(tmp_path):
+    path = tmp_path / "routes.gpx"
+    write_routes([make_route(), make_other()], path)
+    opt, hist = read_gpx(path)
+    np.testing.assert_allclose(opt.lat_deg, LAT, atol=1e-6)
+    np.testing.assert_allclose(opt.lon_deg, LON, atol=1e-6)
+    assert list(opt.time_utc) == list(pd.to_datetime(TIMES, utc=True))
+    np.testing.assert_allclose(opt.leg_speed_kn, SPEEDS)
+    np.testing.assert_allclose(opt.weather["hs_m"], HS)
+    assert hist.name == "historical" and hist.n_waypoints == 2
+
+
+# ------------------------------------------------------------------ RTZ
+
+
+def test_rtz_11_structure(tmp_path):
+    path = tmp_path / "BCN_PMI_optimal.rtz"
+    write_routes(make_route(vessel="MV Test", mmsi=224123450), path)
+    root = ET.parse(path).getroot()
+    assert root.tag == f"{RTZ11}route"
+    assert root.get("version") == "1.1"
+    info = root.find(f"{RTZ11}routeInfo")
+    assert info.get("routeName") == "BCN_PMI_optimal"  # equals the file stem
+    assert info.get("vesselName") == "MV Test" and info.get("vesselMMSI") == "224123450"
+    assert info.get("validityPeriodStart") == TIMES[0] and info.get("validityPeriodStop") == TIMES[-1]
+    wps = root.findall(f"{RTZ11}waypoints/{RTZ11}waypoint")
+    assert len(wps) == 4
+    assert [w.get("id") for w in wps] == ["1", "2", "3", "4"]
+    assert [w.get("name") for w in wps] == ["Barcelona", "WP002", "WP003", "Palma"]
+    assert [w.find(f"{RTZ11}position").get("lat") for w in wps] == ["41.3000001", "40.7512345", "40.1023456", "39.5000009"]
+    assert [w.find(f"{RTZ11}position").get("lon") for w in wps] == ["2.2500003", "2.4123456", "2.5678901", "2.7000005"]
+    # The leg on waypoint i is the leg arriving from i - 1: none on the first waypoint.
+    assert wps[0].find(f"{RTZ11}leg") is None
+    legs = [w.find(f"{RTZ11}leg") for w in wps[1:]]
+    assert [leg.get("speedMax") for leg in legs] == ["10.25", "11.5", "14"]
+    assert {leg.get("geometryType") for leg in legs} == {"Orthodrome"}
+    els = root.findall(f"{RTZ11}schedules/{RTZ11}schedule/{RTZ11}calculated/{RTZ11}scheduleElement")
+    assert [e.get("waypointId") for e in els] == ["1", "2", "3", "4"]
+    assert els[0].get("etd") == TIMES[0] and els[0].get("eta") is None
+    assert [e.get("eta") for e in els[1:]] == TIMES[1:]
+    assert els[-1].get("etd") is None
+    assert [e.get("speed") for e in els[1:]] == ["10.25", "11.5", "14"]
+
+
+def test_rtz_round_trip_same_coordinates_and_schedule(tmp_path):
+    path = tmp_path / "r.rtz"
+    write_routes(make_route(), path)
+    back = read_rtz(path)
+    assert back.n_waypoints == 4
+    assert np.max(np.abs(back.lat_deg - np.array(LAT))) <= 1e-6
+    assert np.max(np.abs(back.lon_deg - np.array(LON))) <= 1e-6
+    assert list(back.time_utc) == list(pd.to_datetime(TIMES, utc=True))
+    np.testing.assert_allclose(back.leg_speed_kn, SPEEDS)
+    assert back.properties["rtz_version"] == "1.1"
+
+
+def test_rtz_10_namespace_and_round_trip(tmp_path):
+    path = tmp_path / "r10.rtz"
+    write_routes(make_route(), path, rtz_version="1.0")
+    root = ET.parse(path).getroot()
+    assert root.tag == f"{RTZ10}route" and root.get("version") == "1.0"
+    assert len(root.findall(f"{RTZ10}waypoints/{RTZ10}waypoint")) == 4
+    back = read_rtz(path)
+    assert list(back.time_utc) == list(pd.to_datetime(TIMES, utc=True))
+
+
+def test_rtz_rounds_eta_to_the_second_and_writes_plain_decimals(tmp_path):
+    route = Route(
+        name="optimal",
+        lat_deg=np.array([1e-9, 0.5]),  # would print as 1e-09 with repr
+        lon_deg=np.array([180.0, 0.5]),  # 180 wraps to -180 (LongitudeType is [-180, 180))
+        time_utc=pd.DatetimeIndex(pd.to_datetime(["2025-01-01T00:00:00.4Z", "2025-01-01T03:00:00.6Z"], utc=True)),
+        leg_speed_kn=np.array([12.345678]),
+    )
+    path = tmp_path / "x.rtz"
+    write_routes(route, path)
+    root = ET.parse(path).getroot()
+    pos = root.findall(f"{RTZ11}waypoints/{RTZ11}waypoint/{RTZ11}position")
+    assert pos[0].get("lat") == "0" and pos[0].get("lon") == "-180"
+    els = root.findall(f"{RTZ11}schedules/{RTZ11}schedule/{RTZ11}calculated/{RTZ11}scheduleElement")
+    assert els[0].get("etd") == "2025-01-01T00:00:00Z" and els[1].get("eta") == "2025-01-01T03:00:01Z"
+    assert els[1].get("speed") == "12.35"
+
+
+def test_rtz_several_routes_one_file_each(tmp_path):
+    written = write_routes([make_route(), make_other()], tmp_path / "night.rtz")
+    assert [p.name for p in written] == ["night_optimal.rtz", "night_historical.rtz"]
+    assert read_rtz(written[1]).properties["route_name"] == "night_historical"
+    assert read_rtz(written[1]).n_waypoints == 2
+
+
+# ------------------------------------------------------------------ errors
+
+
+def test_unknown_suffix_and_short_route_are_clear_errors(tmp_path):
+    with pytest.raises(ExportError, match=r"\.kml"):
+        write_routes(make_route(), tmp_path / "r.kml")
+    short = Route(name="x", lat_deg=[1.0], lon_deg=[1.0], time_utc=pd.DatetimeIndex(["2025-01-01"], tz="UTC"), leg_speed_kn=[])
+    with pytest.raises(ExportError, match="at least 2"):
+        write_routes(short, tmp_path / "r.gpx")
+    with pytest.raises(ExportError, match="no routes"):
+        write_routes([], tmp_path / "r.gpx")
+
+
+def test_read_rtz_rejects_bad_files_naming_them(tmp_path):
+    bad = tmp_path / "bad.rtz"
+    bad.write_text("<route><oops></route>")
+    with pytest.raises(ExportError, match="bad.rtz: not well-formed"):
+        read_rtz(bad)
+    wrong = tmp_path / "wrong.rtz"
+    wrong.write_text('<route xmlns="http://www.cirm.org/RTZ/1/1" version="1.0"><routeInfo routeName="wrong"/></route>')
+    with pytest.raises(ExportError, match="does not match namespace"):
+        read_rtz(wrong)
+    nosched = tmp_path / "nosched.rtz"
+    nosched.write_text(
+        '<route xmlns="http://www.cirm.org/RTZ/1/1" version="1.1"><routeInfo routeName="nosched"/><waypoints>'
+        '<waypoint id="1"><position lat="1" lon="1"/></waypoint><waypoint id="2"><position lat="2" lon="2"/></waypoint>'
+        "</waypoints></route>"
+    )
+    with pytest.raises(ExportError, match="no schedule"):
+        read_rtz(nosched)
+
+
+def test_xml_special_characters_in_names_survive(tmp_path):
+    route = make_route(vessel='A&B <"x">', origin="Port <1> & co")
+    path = tmp_path / "s.rtz"
+    write_routes(route, path)
+    root = ET.parse(path).getroot()  # would raise if the text were not escaped
+    assert root.find(f"{RTZ11}routeInfo").get("vesselName") == 'A&B <"x">'
+    assert root.find(f"{RTZ11}waypoints/{RTZ11}waypoint").get("name") == "Port <1> & co"
+    gpx = tmp_path / "s.gpx"
+    write_routes(route, gpx)
+    assert read_gpx(gpx)[0].properties["waypoint_names"][0] == "Port <1> & co"
