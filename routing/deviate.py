@@ -1,0 +1,387 @@
+"""Cargo-safe deviation of a traffic lane around adverse weather (R-tree nearest safe cell).
+
+Implements Algorithm 1 of Spyrou-Sioula et al. [1]_ (§3.3): walk the lane's centroids from a
+departure time, timing each next centroid from the typical speed of the current one and the
+haversine distance; where the weather at (ETA, cell of the next centroid) breaks the vessel's
+thresholds, move to the nearest weather-grid cell that passes them, found with an R-tree
+(best-first nearest search, at most 10 candidates, within the distance sailable in 3 h at the
+centroid's speed), and continue from there.
+
+Improvements on the paper (each one is tested):
+
+* **Legs stay at sea.** Every leg between consecutive proposed points is checked with a
+  land-crossing test (``leg_at_sea``, e.g. :mod:`routing.mesh`'s "edge crosses land" check); a
+  candidate cell whose leg from the current position crosses land is rejected and the next
+  candidate is tried. A candidate is also refused when the leg from it to the *next* lane centroid
+  would cross land, so a deviation never strands the ship behind an island: the lane centroid
+  stays reachable at sea as the fall-back of the next step. The paper has no such check
+  (``ANCHORS.md``).
+* **ETAs are recomputed along the deviated path.** The time to a proposed point is the
+  great-circle distance *from the previous proposed point* at the centroid's speed, so a detour
+  arrives later and is judged in the weather of its own arrival time. The paper keeps the lane's
+  centroid timing.
+* **Candidates are judged at their own ETA and heading.** The R-tree indexes the cells that pass
+  the heading-independent limits at the ETA's weather time step; each of the ≤ 10 nearest is then
+  re-checked with the full threshold set (including beam seas, which depend on the leg's heading)
+  in the weather at its own recomputed ETA.
+* **Legs are looked at, not only points.** Algorithm 1 judges only the points; a leg between two
+  passing points can cross a storm core. Among the passing candidates, the first whose leg is
+  clear at every grid spacing (sampled at its own times) is preferred; if none is, the nearest
+  passing one is taken and the leg is flagged (``leg_rules_fired``). Every leg of the result
+  carries that flag, so reports never present an adverse leg as safe.
+* **Steps with no safe cell in reach are flagged, not silently kept.** The lane centroid is kept
+  so the route stays continuous, and the waypoint's status is ``"unresolved"`` with the rules that
+  fired; the route's ``properties`` count them. Departure and arrival points are never moved (the
+  ship must leave and reach the port); if they break a limit they are flagged too.
+
+The module is pure: weather, thresholds and the land check are passed in as callables
+(``pipelines`` wires :mod:`routing.field`, :mod:`thresholds.operator` and :mod:`routing.mesh`).
+
+References
+----------
+.. [1] K. Spyrou-Sioula, I. Kontopoulos, D. Kaklis, A. Makris, K. Tserpes, P. Eirinakis and
+       F. Oikonomou, "AIS-enabled weather routing for cargo loss prevention," J. Mar. Sci. Eng.,
+       vol. 10, no. 11, 1755, 2022, doi:10.3390/jmse10111755 (seed
+       ``ais_weather_routing_cargo_loss``), §3.2-3.3 and Algorithm 1.
+.. [2] A. Guttman, "R-trees: a dynamic index structure for spatial searching," Proc. ACM SIGMOD,
+       pp. 47-57, 1984, doi:10.1145/602259.602266.
+.. [3] G. R. Hjaltason and H. Samet, "Distance browsing in spatial databases," ACM Trans.
+       Database Syst., vol. 24, no. 2, pp. 265-318, 1999, doi:10.1145/320248.320255 (best-first
+       nearest-neighbour search).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+import pandas as pd
+
+from routing.route import Route
+from thresholds.geodesy import haversine_nmi, initial_bearing_deg, intermediate_point
+
+log = logging.getLogger(__name__)
+
+#: Search horizon of [1] §3.3: the distance sailable in 3 h at the centroid's speed. [h]
+SEARCH_HORIZON_H = 3.0
+#: At most this many nearest cells are examined per adverse step ([1] §3.3).
+MAX_CANDIDATES = 10
+
+#: ``weather_at(time_utc, lat_deg, lon_deg) -> {"hs_m": ndarray, ...}`` for 1-D arrays of points.
+WeatherAt = Callable[[pd.DatetimeIndex, np.ndarray, np.ndarray], Mapping[str, np.ndarray]]
+#: ``check(weather, heading_deg, speed_kn) -> {rule: broken (bool ndarray)}``; a point passes
+#: when no rule is broken (NaN weather must not count as broken).
+ThresholdCheck = Callable[[Mapping[str, np.ndarray], np.ndarray, np.ndarray], Mapping[str, np.ndarray]]
+#: ``leg_at_sea(lat1, lon1, lat2, lon2) -> bool``: True when the great-circle leg stays at sea.
+LegAtSea = Callable[[float, float, float, float], bool]
+
+
+class SafeCellIndex:
+    """R-trees over the weather-grid cells that pass the heading-independent limits, per time step.
+
+    Cells are indexed as points ``(lon · cos φ0, lat)`` (a local equirectangular projection about
+    the grid's mean latitude φ0), so the R-tree's best-first nearest search [2]_ [3]_ ranks them
+    nearly by great-circle distance; the few candidates returned are re-ranked by the haversine
+    distance. One tree per weather time step, built on first use (numpy bulk loading) and cached.
+
+    Parameters
+    ----------
+    lat_deg, lon_deg : array_like, shape (ny,), (nx,)
+        Cell-centre axes of the weather grid. [deg]
+    time_utc : DatetimeIndex, shape (nt,)
+        Weather time steps (tz-aware UTC).
+    passing_mask : callable
+        ``passing_mask(time_index) -> bool ndarray (ny, nx)``: sea cells passing the limits that do
+        not depend on the heading at that time step (land must be False).
+    """
+
+    def __init__(self, lat_deg, lon_deg, time_utc, passing_mask: Callable[[int], np.ndarray]):
+        self.lat_deg = np.asarray(lat_deg, dtype=float)
+        self.lon_deg = np.asarray(lon_deg, dtype=float)
+        times = pd.DatetimeIndex(time_utc)
+        if times.tz is None:
+            raise ValueError("SafeCellIndex.time_utc must be timezone-aware UTC")
+        self.time_utc = times.tz_convert("UTC")
+        self._t_ns = self.time_utc.asi8
+        self._passing_mask = passing_mask
+        self._cos0 = float(np.cos(np.deg2rad(np.mean(self.lat_deg))))
+        self._trees: dict[int, tuple] = {}
+        steps = [np.diff(a) for a in (self.lat_deg, self.lon_deg * self._cos0) if a.size > 1]
+        #: Typical cell size, the sampling step along legs. [nmi]
+        self.spacing_nmi = float(60.0 * min(np.median(np.abs(s)) for s in steps)) if steps else 0.0
+
+    def time_index(self, time_utc: pd.Timestamp) -> int:
+        """Index of the nearest weather time step ([1] §3.2: nearest available timestamp)."""
+        t = pd.Timestamp(time_utc).value
+        i = int(np.searchsorted(self._t_ns, t))
+        if i <= 0:
+            return 0
+        if i >= self._t_ns.size:
+            return self._t_ns.size - 1
+        return i if (self._t_ns[i] - t) < (t - self._t_ns[i - 1]) else i - 1
+
+    def _tree(self, k: int):
+        if k not in self._trees:
+            from rtree import index
+
+            mask = np.asarray(self._passing_mask(k), dtype=bool)
+            if mask.shape != (self.lat_deg.size, self.lon_deg.size):
+                raise ValueError(f"passing_mask({k}) has shape {mask.shape}, expected {(self.lat_deg.size, self.lon_deg.size)}")
+            iy, ix = np.nonzero(mask)
+            if iy.size == 0:
+                self._trees[k] = (None, iy, ix)
+            else:
+                x = self.lon_deg[ix] * self._cos0
+                y = self.lat_deg[iy]
+                pts = np.column_stack([x, y])
+                prop = index.Property()
+                prop.dimension = 2
+                tree = index.Index((np.arange(iy.size, dtype=np.int64), pts, pts.copy()), properties=prop)
+                self._trees[k] = (tree, iy, ix)
+        return self._trees[k]
+
+    def nearest(self, time_utc: pd.Timestamp, lat_deg: float, lon_deg: float, k: int = MAX_CANDIDATES, max_dist_nmi: float = np.inf):
+        """The ≤ ``k`` passing cells nearest to a point, nearest first.
+
+        Returns
+        -------
+        lat, lon, dist_nmi : ndarray
+            Cell centres and their great-circle distance from the point, sorted ascending, only
+            those within ``max_dist_nmi``.
+        """
+        tree, iy, ix = self._tree(self.time_index(time_utc))
+        if tree is None:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
+        q = (lon_deg * self._cos0, lat_deg, lon_deg * self._cos0, lat_deg)
+        ids = np.fromiter(tree.nearest(q, k), dtype=np.int64)[:k]
+        lat = self.lat_deg[iy[ids]]
+        lon = self.lon_deg[ix[ids]]
+        dist = np.asarray(haversine_nmi(lat_deg, lon_deg, lat, lon), dtype=float).reshape(-1)
+        order = np.argsort(dist, kind="stable")
+        keep = order[dist[order] <= max_dist_nmi]
+        return lat[keep], lon[keep], dist[keep]
+
+
+@dataclass
+class DeviationStep:
+    """What happened at one waypoint of the deviation (kept for reports and tests)."""
+
+    seq: int
+    status: str  # "endpoint", "lane", "deviated", "unresolved"
+    centroid_lat_deg: float
+    centroid_lon_deg: float
+    lat_deg: float
+    lon_deg: float
+    time_utc: pd.Timestamp
+    speed_kn: float
+    rules_fired: list = field(default_factory=list)
+    moved_nmi: float = 0.0
+    candidates_tried: int = 0
+    leg_rules_fired: list = field(default_factory=list)
+
+
+def _broken(check: ThresholdCheck, weather: Mapping[str, np.ndarray], heading_deg: float, speed_kn: float) -> list[str]:
+    flags = check(weather, np.atleast_1d(float(heading_deg)), np.atleast_1d(float(speed_kn)))
+    return [rule for rule, broken in flags.items() if bool(np.any(np.asarray(broken, dtype=bool)))]
+
+
+def _leg_broken(weather_at, check, lat1, lon1, t1, lat2, lon2, speed_kn, spacing_nmi) -> list[str]:
+    """Rules broken at interior points of a leg, one sample per grid spacing, at their own times."""
+    d = float(haversine_nmi(lat1, lon1, lat2, lon2))
+    n = int(np.ceil(d / spacing_nmi)) - 1 if spacing_nmi > 0 else 0
+    if n <= 0:
+        return []
+    frac = np.arange(1, n + 1) / (n + 1)
+    la, lo = intermediate_point(lat1, lon1, lat2, lon2, frac)
+    times = t1 + pd.to_timedelta(frac * d / speed_kn, unit="h")
+    w = weather_at(pd.DatetimeIndex(times), np.asarray(la, dtype=float), np.asarray(lo, dtype=float))
+    w = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in w.items()}
+    heading = np.asarray(initial_bearing_deg(la, lo, lat2, lon2), dtype=float).reshape(-1)
+    flags = check(w, heading, np.full(n, float(speed_kn)))
+    return [rule for rule, broken in flags.items() if bool(np.any(np.asarray(broken, dtype=bool)))]
+
+
+def _sample(weather_at: WeatherAt, time_utc: pd.Timestamp, lat: float, lon: float) -> dict:
+    w = weather_at(pd.DatetimeIndex([time_utc]), np.atleast_1d(float(lat)), np.atleast_1d(float(lon)))
+    return {k: np.asarray(v, dtype=float).reshape(-1) for k, v in w.items()}
+
+
+def deviate_lane(
+    lat_deg,
+    lon_deg,
+    speed_kn,
+    depart_utc,
+    *,
+    weather_at: WeatherAt,
+    check: ThresholdCheck,
+    cells: SafeCellIndex,
+    leg_at_sea: LegAtSea | None = None,
+    default_speed_kn: float | None = None,
+    horizon_h: float = SEARCH_HORIZON_H,
+    max_candidates: int = MAX_CANDIDATES,
+    name: str = "deviation",
+    properties: dict | None = None,
+) -> Route:
+    """Cargo-safe deviation of one lane for one departure (Algorithm 1 of [1]_, improved).
+
+    Parameters
+    ----------
+    lat_deg, lon_deg : array_like, shape (n,)
+        Lane centroids in sailing order (first = departure, last = arrival). [deg]
+    speed_kn : array_like, shape (n,)
+        Typical speed at each centroid; the leg from centroid i is sailed at ``speed_kn[i]``.
+        Missing or non-positive speeds take ``default_speed_kn``. [kn]
+    depart_utc : str or Timestamp
+        Departure time (UTC).
+    weather_at : callable
+        ``weather_at(times, lat, lon) -> {var: values}`` (e.g. :mod:`routing.field` sampling).
+    check : callable
+        ``check(weather, heading_deg, speed_kn) -> {rule: broken}``, the vessel's thresholds.
+    cells : SafeCellIndex
+        R-tree index of the weather cells passing the heading-independent limits.
+    leg_at_sea : callable, optional
+        Land-crossing test of a leg; ``None`` disables it (only for open-sea tests).
+    default_speed_kn : float, optional
+        Speed used where a centroid has none.
+    horizon_h : float, default 3
+        Search radius in hours of sailing at the centroid's speed ([1] §3.3).
+    max_candidates : int, default 10
+        Nearest cells examined per adverse step ([1] §3.3).
+
+    Returns
+    -------
+    Route
+        ``name="deviation"``; waypoints with recomputed ETAs, leg speeds and the weather met at
+        each waypoint; ``properties["steps"]`` lists each waypoint's status (``endpoint``,
+        ``lane``, ``deviated``, ``unresolved``), the rules that fired at the lane centroid and how
+        far the point moved; ``properties`` also counts ``n_deviated`` and ``n_unresolved``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two centroids, mismatched lengths, or a leg without a usable speed.
+    """
+    lat = np.asarray(lat_deg, dtype=float)
+    lon = np.asarray(lon_deg, dtype=float)
+    spd = np.asarray(speed_kn, dtype=float)
+    n = lat.size
+    if n < 2 or lon.size != n or spd.size != n:
+        raise ValueError(f"a lane needs >= 2 centroids with lat, lon and speed of equal length (got {lat.size}, {lon.size}, {spd.size})")
+    bad = ~np.isfinite(spd) | (spd <= 0.0)
+    if bad[:-1].any():
+        if default_speed_kn is None or not default_speed_kn > 0:
+            raise ValueError(f"centroids {np.flatnonzero(bad[:-1]).tolist()} have no usable speed and no default_speed_kn was given")
+        spd = np.where(bad, float(default_speed_kn), spd)
+    t0 = pd.Timestamp(depart_utc)
+    t0 = t0.tz_localize("UTC") if t0.tzinfo is None else t0.tz_convert("UTC")
+
+    steps: list[DeviationStep] = []
+    first_w = _sample(weather_at, t0, lat[0], lon[0])
+    heading0 = initial_bearing_deg(lat[0], lon[0], lat[1], lon[1])
+    fired0 = _broken(check, first_w, heading0, spd[0])
+    steps.append(DeviationStep(0, "endpoint", lat[0], lon[0], lat[0], lon[0], t0, float(spd[0]), fired0))
+    weathers = [first_w]
+
+    cur_lat, cur_lon, cur_t = float(lat[0]), float(lon[0]), t0
+    for i in range(1, n):
+        v = float(spd[i - 1])  # [1], Alg. 1 line 4: t(c_i+1) from v(c_i)
+        tgt_lat, tgt_lon = float(lat[i]), float(lon[i])
+        d = float(haversine_nmi(cur_lat, cur_lon, tgt_lat, tgt_lon))
+        eta = cur_t + pd.Timedelta(hours=d / v)
+        heading = initial_bearing_deg(cur_lat, cur_lon, tgt_lat, tgt_lon) if d > 0 else float("nan")
+        w = _sample(weather_at, eta, tgt_lat, tgt_lon)  # [1], Alg. 1 line 5
+        fired = _broken(check, w, heading, v)
+        at_sea = True if leg_at_sea is None or d == 0 else bool(leg_at_sea(cur_lat, cur_lon, tgt_lat, tgt_lon))
+        if i == n - 1:
+            # Arrival: the ship must reach the port's approach; never moved, flagged if adverse.
+            if not at_sea:
+                fired = fired + ["leg_crosses_land"]
+            leg_fired = _leg_broken(weather_at, check, cur_lat, cur_lon, cur_t, tgt_lat, tgt_lon, v, cells.spacing_nmi)
+            step = DeviationStep(i, "endpoint", tgt_lat, tgt_lon, tgt_lat, tgt_lon, eta, v, fired, leg_rules_fired=leg_fired)
+            chosen = (tgt_lat, tgt_lon, eta, w)
+        elif not fired and at_sea:
+            leg_fired = _leg_broken(weather_at, check, cur_lat, cur_lon, cur_t, tgt_lat, tgt_lon, v, cells.spacing_nmi)
+            step = DeviationStep(i, "lane", tgt_lat, tgt_lon, tgt_lat, tgt_lon, eta, v, leg_rules_fired=leg_fired)
+            chosen = (tgt_lat, tgt_lon, eta, w)
+        else:
+            if not at_sea:
+                fired = fired + ["leg_crosses_land"]
+            # [1], Alg. 1 line 7: nearest passing cell, best-first, <= 10, within 3 h of sailing.
+            c_lat, c_lon, c_dist = cells.nearest(eta, tgt_lat, tgt_lon, k=max_candidates, max_dist_nmi=v * horizon_h)
+            chosen = None
+            fallback = None
+            tried = 0
+            for la, lo, moved in zip(c_lat, c_lon, c_dist):
+                tried += 1
+                la, lo = float(la), float(lo)
+                dc = float(haversine_nmi(cur_lat, cur_lon, la, lo))
+                if dc == 0.0:
+                    continue
+                if leg_at_sea is not None and not (
+                    leg_at_sea(cur_lat, cur_lon, la, lo) and leg_at_sea(la, lo, float(lat[i + 1]), float(lon[i + 1]))
+                ):
+                    continue  # the leg there, and on to the next centroid, must stay at sea
+                eta_c = cur_t + pd.Timedelta(hours=dc / v)  # ETA recomputed along the deviated path
+                wc = _sample(weather_at, eta_c, la, lo)
+                hdg = initial_bearing_deg(cur_lat, cur_lon, la, lo)
+                if _broken(check, wc, hdg, v):
+                    continue
+                leg_fired = _leg_broken(weather_at, check, cur_lat, cur_lon, cur_t, la, lo, v, cells.spacing_nmi)
+                step = DeviationStep(i, "deviated", tgt_lat, tgt_lon, la, lo, eta_c, v, fired, float(moved), tried, leg_fired)
+                if not leg_fired:
+                    chosen = (la, lo, eta_c, wc)
+                    break
+                if fallback is None:
+                    fallback = (step, (la, lo, eta_c, wc))
+            if chosen is None and fallback is not None:
+                step, chosen = fallback
+            if chosen is None:
+                log.info("lane step %d at %s: no passing cell within %.1f nmi (%s)", i, eta, v * horizon_h, ", ".join(fired))
+                leg_fired = _leg_broken(weather_at, check, cur_lat, cur_lon, cur_t, tgt_lat, tgt_lon, v, cells.spacing_nmi)
+                step = DeviationStep(i, "unresolved", tgt_lat, tgt_lon, tgt_lat, tgt_lon, eta, v, fired, 0.0, tried, leg_fired)
+                chosen = (tgt_lat, tgt_lon, eta, w)
+        steps.append(step)
+        weathers.append(chosen[3])
+        cur_lat, cur_lon, cur_t = chosen[0], chosen[1], chosen[2]
+
+    out_lat = np.array([s.lat_deg for s in steps])
+    out_lon = np.array([s.lon_deg for s in steps])
+    times = pd.DatetimeIndex([s.time_utc for s in steps])
+    keys = sorted(set().union(*[w.keys() for w in weathers]))
+    weather = {k: np.array([float(w[k][0]) if k in w else np.nan for w in weathers]) for k in keys}
+    props = dict(properties or {})
+    props.update(
+        {
+            "algorithm": "cargo-safe deviation (Spyrou-Sioula et al. 2022, Alg. 1, with sea legs and recomputed ETAs)",
+            "depart_utc": t0.isoformat(),
+            "horizon_h": horizon_h,
+            "max_candidates": max_candidates,
+            "n_deviated": sum(s.status == "deviated" for s in steps),
+            "n_unresolved": sum(s.status == "unresolved" for s in steps),
+            "n_endpoint_adverse": sum(s.status == "endpoint" and bool(s.rules_fired) for s in steps),
+            "n_legs_adverse": sum(bool(s.leg_rules_fired) for s in steps),
+            "steps": [
+                {
+                    "seq": s.seq,
+                    "status": s.status,
+                    "rules_fired": list(s.rules_fired),
+                    "moved_nmi": round(s.moved_nmi, 4),
+                    "candidates_tried": s.candidates_tried,
+                    "leg_rules_fired": list(s.leg_rules_fired),
+                    "centroid": [s.centroid_lat_deg, s.centroid_lon_deg],
+                }
+                for s in steps
+            ],
+        }
+    )
+    return Route(
+        name=name,
+        lat_deg=out_lat,
+        lon_deg=out_lon,
+        time_utc=times,
+        leg_speed_kn=np.array([s.speed_kn for s in steps[1:]]),
+        weather=weather,
+        properties=props,
+    )
