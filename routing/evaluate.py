@@ -1,0 +1,515 @@
+"""Route evaluation: weather met, speed loss, time and distance, STEAM2 fuel and emissions, IMO
+MSC.1/Circ.1228 events, exposure over operator limits, and the seed paper's comparison metrics.
+
+Any :class:`~routing.route.Route` is evaluated *at its own ETAs*: an AIS track, a lane's centroid
+path, a cargo-safe deviation (:mod:`routing.deviate`) or an A* route. Each leg is cut into pieces
+of at most ``max_step_h`` (15 min by default) and the weather is sampled at the middle of each
+piece, at the time the ship is there, so a long leg through a storm is not judged by its end
+points alone. Every sample carries its duration, so exposures are in hours, not in counts of
+waypoints.
+
+What is computed (all reported per route by :class:`RouteEvaluation`):
+
+* weather met: Hs, period, wind, wave direction (max and time-weighted mean);
+* speed loss of each model (:mod:`routing.speed_loss`) at the vessel's service speed and each
+  piece's encounter angle (0 = head seas), and the time the route's geometry would take under
+  each model;
+* STEAM2 fuel and CO2/SO2/NOx/PM (:mod:`routing.emissions`) from each leg's own speed and the
+  speed loss of the chosen model on that leg (the wave power increase);
+* safety: every rule of :func:`thresholds.safety.assess` (operator limits ``hs``, ``period``,
+  ``wind``, ``beam_seas``; IMO ``surf_riding``, ``high_waves``, ``synchronous_roll``,
+  ``parametric_roll``) on every piece; **events** are maximal runs of consecutive pieces where a
+  rule fires (criterion, start, end, duration, where it started and where it was worst);
+  **exposure** is the hours each rule fires;
+* the comparison metrics of the cargo-loss seed paper [1]_ §4 between a reference route and an
+  alternative (:func:`comparison_metrics`): percentage decrease of mean Hs (Eq. 1), wave period
+  (Eq. 2) and wind speed (Eq. 3) over the portion of the reference where its conditions were
+  adverse, the deviation of the relative wave direction, and the length difference.
+
+References
+----------
+.. [1] K. Spyrou-Sioula, I. Kontopoulos, D. Kaklis, A. Makris, K. Tserpes, P. Eirinakis and
+       F. Oikonomou, "AIS-enabled weather routing for cargo loss prevention," J. Mar. Sci. Eng.,
+       vol. 10, no. 11, 1755, 2022, doi:10.3390/jmse10111755, §4, Eq. 1-3.
+.. [2] IMO, "Revised guidance to the master for avoiding dangerous situations in adverse weather
+       and sea conditions," MSC.1/Circ.1228, 2007.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+import pandas as pd
+
+from routing.emissions import Engine, steam2_legs, steam2_totals
+from routing.route import Route
+from thresholds.geodesy import haversine_nmi, initial_bearing_deg, intermediate_point
+
+#: Rules of IMO MSC.1/Circ.1228 (reported as "IMO events"); every other rule is an operator limit.
+IMO_RULES = ("surf_riding", "high_waves", "synchronous_roll", "parametric_roll")
+#: Operator-limit rules (the seed paper's Table 1 thresholds).
+OPERATOR_RULES = ("hs", "period", "wind", "beam_seas")
+#: Speed-loss models evaluated on every route.
+SPEED_LOSS_MODELS = ("bowditch", "aertssen", "khokhlov")
+#: Weather variables sampled along a route (those present in the data).
+WEATHER_VARS = ("hs_m", "wave_from_deg", "tp_s", "tm_s", "wind_u_ms", "wind_v_ms", "current_u_ms", "current_v_ms")
+
+#: ``weather_at(times, lat, lon) -> {var: ndarray}`` (same protocol as :mod:`routing.deviate`).
+WeatherAt = Callable[[pd.DatetimeIndex, np.ndarray, np.ndarray], Mapping[str, np.ndarray]]
+#: ``assess_fn(weather, heading_deg, speed_kn)`` returning an object with ``rules`` (name ->
+#: object with boolean ``fired`` and float ``margin`` arrays) and ``skipped`` (tuple of str), as
+#: :func:`thresholds.safety.assess` does.
+AssessFn = Callable[[Mapping[str, np.ndarray], np.ndarray, np.ndarray], object]
+
+
+def assess_with(vessel, limits=None, missing: str = "skip") -> AssessFn:
+    """The vessel's thresholds (operator ``limits`` + IMO) as an ``assess_fn`` for evaluations.
+
+    Wraps :func:`thresholds.safety.assess`; ``missing="skip"`` lists rules whose variable is not in
+    the data (e.g. wind on a wave-only product) instead of failing, and the evaluation reports them
+    as not evaluated.
+    """
+    from thresholds.safety import assess
+
+    def assess_fn(weather, heading_deg, speed_kn):
+        kwargs = {k: weather[k] for k in ("hs_m", "wave_from_deg", "tp_s", "tm_s", "wind_u_ms", "wind_v_ms") if k in weather}
+        if "hs_m" not in kwargs:
+            kwargs["hs_m"] = np.full(np.shape(heading_deg), np.nan)
+        return assess(vessel, limits, heading_deg=heading_deg, speed_kn=speed_kn, missing=missing, **kwargs)
+
+    return assess_fn
+
+
+def rule_check(assess_fn: AssessFn) -> Callable:
+    """Adapt an ``assess_fn`` to the ``check(weather, heading, speed) -> {rule: fired}`` protocol
+    of :func:`routing.deviate.deviate_lane` (missing data never counts as a broken rule)."""
+
+    def check(weather, heading_deg, speed_kn):
+        a = assess_fn(weather, heading_deg, speed_kn)
+        return {name: np.asarray(r.fired, dtype=bool) for name, r in a.rules.items()}
+
+    return check
+
+
+def densify(route: Route, max_step_h: float = 0.25) -> pd.DataFrame:
+    """Cut every leg into pieces of at most ``max_step_h`` and return the middle of each piece.
+
+    Returns
+    -------
+    DataFrame
+        One row per piece: ``leg`` (index of the leg), ``time_utc`` (when the ship is at the
+        piece's middle), ``lat_deg``, ``lon_deg``, ``dt_h`` (the piece's duration),
+        ``dist_nmi`` (its length), ``heading_deg`` (course there) and ``speed_kn`` (the leg's
+        speed made). Legs of zero duration give no piece.
+    """
+    if max_step_h <= 0:
+        raise ValueError("max_step_h must be positive")
+    n = route.n_waypoints
+    if n < 2:
+        return pd.DataFrame(columns=["leg", "time_utc", "lat_deg", "lon_deg", "dt_h", "dist_nmi", "heading_deg", "speed_kn"])
+    leg_dt_h = np.diff(route.time_utc.asi8) / 3.6e12
+    if np.any(leg_dt_h < 0):
+        raise ValueError(f"route {route.name!r}: waypoint times go backwards")
+    leg_d = route.leg_dist_nmi
+    pieces = np.where(leg_dt_h > 0, np.maximum(1, np.ceil(leg_dt_h / max_step_h - 1e-9)), 0).astype(int)
+    leg = np.repeat(np.arange(n - 1), pieces)
+    k = np.arange(pieces.sum()) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    frac = (k + 0.5) / pieces[leg]
+    lat, lon = intermediate_point(route.lat_deg[leg], route.lon_deg[leg], route.lat_deg[leg + 1], route.lon_deg[leg + 1], frac)
+    lat = np.asarray(lat, dtype=float).reshape(-1)
+    lon = np.asarray(lon, dtype=float).reshape(-1)
+    t0 = route.time_utc.asi8[leg]
+    times = pd.DatetimeIndex(t0 + np.round(frac * leg_dt_h[leg] * 3.6e12).astype(np.int64), tz="UTC")
+    heading = np.asarray(initial_bearing_deg(lat, lon, route.lat_deg[leg + 1], route.lon_deg[leg + 1]), dtype=float).reshape(-1)
+    same = (route.lat_deg[leg] == route.lat_deg[leg + 1]) & (route.lon_deg[leg] == route.lon_deg[leg + 1])
+    heading = np.where(same, np.nan, heading)
+    return pd.DataFrame(
+        {
+            "leg": leg,
+            "time_utc": times,
+            "lat_deg": lat,
+            "lon_deg": lon,
+            "dt_h": leg_dt_h[leg] / pieces[leg],
+            "dist_nmi": leg_d[leg] / pieces[leg],
+            "heading_deg": heading,
+            "speed_kn": route.leg_speed_kn[leg],
+        }
+    )
+
+
+def _events(samples: pd.DataFrame, rule: str, margin: np.ndarray) -> list[dict]:
+    """Maximal runs of consecutive pieces where ``fired_<rule>`` is True."""
+    fired = samples[f"fired_{rule}"].to_numpy(dtype=bool)
+    if not fired.any():
+        return []
+    edges = np.diff(np.concatenate([[0], fired.astype(np.int8), [0]]))
+    starts = np.flatnonzero(edges == 1)
+    ends = np.flatnonzero(edges == -1)  # exclusive
+    out = []
+    t = samples["time_utc"]
+    dt = samples["dt_h"].to_numpy()
+    for s, e in zip(starts, ends):
+        m = margin[s:e]
+        worst = s + int(np.nanargmax(m)) if np.isfinite(m).any() else s
+        out.append(
+            {
+                "criterion": rule,
+                "kind": "imo" if rule in IMO_RULES else "operator",
+                "start_utc": (t.iloc[s] - pd.Timedelta(hours=dt[s] / 2)).isoformat(),
+                "end_utc": (t.iloc[e - 1] + pd.Timedelta(hours=dt[e - 1] / 2)).isoformat(),
+                "duration_h": float(dt[s:e].sum()),
+                "start_lat_deg": float(samples["lat_deg"].iloc[s]),
+                "start_lon_deg": float(samples["lon_deg"].iloc[s]),
+                "worst_lat_deg": float(samples["lat_deg"].iloc[worst]),
+                "worst_lon_deg": float(samples["lon_deg"].iloc[worst]),
+                "worst_time_utc": t.iloc[worst].isoformat(),
+                "max_margin": float(np.nanmax(m)) if np.isfinite(m).any() else None,
+                "hs_m_at_worst": float(samples["hs_m"].iloc[worst]) if "hs_m" in samples else None,
+            }
+        )
+    return out
+
+
+def _weighted_mean(values, weights) -> float:
+    v = np.asarray(values, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    ok = np.isfinite(v) & (w > 0)
+    return float(np.sum(v[ok] * w[ok]) / np.sum(w[ok])) if ok.any() else float("nan")
+
+
+def _nanmax(values) -> float:
+    v = np.asarray(values, dtype=float)
+    return float(np.nanmax(v)) if np.isfinite(v).any() else float("nan")
+
+
+@dataclass
+class RouteEvaluation:
+    """Everything :func:`evaluate_route` found for one route.
+
+    Attributes
+    ----------
+    route : Route
+        The route, with the weather met at its waypoints filled in.
+    samples : DataFrame
+        One row per piece of leg (see :func:`densify`) with the weather, ``wind_ms``,
+        ``encounter_deg``, ``speed_loss_<model>_kn`` and ``fired_<rule>`` columns.
+    legs : DataFrame
+        STEAM2 per leg (:func:`routing.emissions.steam2_legs`) plus ``leg``.
+    summary : dict
+        Totals (JSON-serialisable): time, distance, weather met, speed loss per model, fuel and
+        emissions, exposure hours per rule, IMO/operator event counts, rules not evaluated.
+    events : list of dict
+        Runs of consecutive pieces where a rule fired.
+    """
+
+    route: Route
+    samples: pd.DataFrame
+    legs: pd.DataFrame
+    summary: dict
+    events: list = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        return self.route.name
+
+    def to_dict(self, waypoints: bool = True) -> dict:
+        """JSON shape: the route summary, the evaluation summary and the events."""
+        out = {**self.route.to_dict(waypoints=waypoints), **self.summary}
+        out["events"] = self.events
+        return out
+
+
+def evaluate_route(
+    route: Route,
+    weather_at: WeatherAt,
+    vessel,
+    *,
+    assess_fn: AssessFn | None = None,
+    limits=None,
+    speed_loss_model: str = "bowditch",
+    models: tuple = SPEED_LOSS_MODELS,
+    max_step_h: float = 0.25,
+) -> RouteEvaluation:
+    """Evaluate a route at its own ETAs.
+
+    Parameters
+    ----------
+    route : Route
+    weather_at : callable
+        ``weather_at(times, lat, lon) -> {var: values}`` in canonical names (``hs_m``,
+        ``wave_from_deg``, ``tp_s``, ``tm_s``, ``wind_u_ms``, ``wind_v_ms`` ...); NaN off the data.
+    vessel : thresholds.vessel.Vessel
+        Service speed, dimensions (speed-loss models, IMO rules) and engine (STEAM2).
+    assess_fn : callable, optional
+        Thresholds; default :func:`assess_with` ``(vessel, limits)``.
+    limits : OperatorProfile or OperatorLimits, optional
+        Operator limits for the default ``assess_fn``.
+    speed_loss_model : str, default "bowditch"
+        Model whose speed loss drives the STEAM2 wave power increase.
+    models : tuple of str
+        Speed-loss models reported.
+    max_step_h : float, default 0.25
+        Longest piece of leg sampled as one. [h]
+
+    Returns
+    -------
+    RouteEvaluation
+    """
+    from routing.speed_loss import speed_loss
+
+    if speed_loss_model not in models:
+        models = tuple(models) + (speed_loss_model,)
+    if assess_fn is None:
+        assess_fn = assess_with(vessel, limits)
+    samples = densify(route, max_step_h)
+    times = pd.DatetimeIndex(samples["time_utc"])
+    lat = samples["lat_deg"].to_numpy()
+    lon = samples["lon_deg"].to_numpy()
+    raw = weather_at(times, lat, lon) if len(samples) else {}
+    weather = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in raw.items() if k in WEATHER_VARS}
+    for k, v in weather.items():
+        samples[k] = v
+    if "wind_u_ms" in weather and "wind_v_ms" in weather:
+        samples["wind_ms"] = np.hypot(weather["wind_u_ms"], weather["wind_v_ms"])
+    hs = samples["hs_m"].to_numpy() if "hs_m" in samples else np.full(len(samples), np.nan)
+    heading = samples["heading_deg"].to_numpy()
+    if "wave_from_deg" in samples:
+        enc = np.mod(samples["wave_from_deg"].to_numpy() - heading, 360.0)  # 0 = head seas
+    else:
+        enc = np.full(len(samples), np.nan)
+    samples["encounter_deg"] = enc
+    v0 = float(vessel.speed_kn)
+    calm_hs = np.nan_to_num(hs, nan=0.0)
+    calm_enc = np.nan_to_num(enc, nan=0.0)
+    loss_summary = {}
+    dist = samples["dist_nmi"].to_numpy()
+    model_warnings = []
+    for model in models:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            loss = np.asarray(speed_loss(v0, calm_hs, calm_enc, model, vessel=vessel), dtype=float).reshape(-1) if len(samples) else np.zeros(0)
+        model_warnings += sorted({f"{model}: {w.message}" for w in caught})
+        samples[f"speed_loss_{model}_kn"] = loss
+        attained = v0 - loss
+        loss_summary[model] = {
+            "mean_kn": _weighted_mean(loss, samples["dt_h"]),
+            "max_kn": _nanmax(loss) if loss.size else float("nan"),
+            "time_h_at_service_speed": float(np.sum(dist / attained)) if loss.size else 0.0,
+        }
+    a = assess_fn(weather, heading, samples["speed_kn"].to_numpy()) if len(samples) else None
+    rules = dict(a.rules) if a is not None else {}
+    skipped = list(getattr(a, "skipped", ())) if a is not None else []
+    events: list[dict] = []
+    exposure = {}
+    any_op = np.zeros(len(samples), dtype=bool)
+    any_imo = np.zeros(len(samples), dtype=bool)
+    for name, rule in rules.items():
+        fired = np.broadcast_to(np.asarray(rule.fired, dtype=bool), (len(samples),))
+        margin = np.broadcast_to(np.asarray(rule.margin, dtype=float), (len(samples),))
+        samples[f"fired_{name}"] = fired
+        exposure[name] = float(samples.loc[fired, "dt_h"].sum())
+        events += _events(samples, name, margin)
+        if name in IMO_RULES:
+            any_imo |= fired
+        else:
+            any_op |= fired
+    samples["adverse_operator"] = any_op
+    samples["adverse_imo"] = any_imo
+    nd = getattr(a, "no_data", None) if a is not None else None
+    samples["no_data"] = np.broadcast_to(np.asarray(nd, dtype=bool), (len(samples),)) if nd is not None else False
+    events.sort(key=lambda e: (e["start_utc"], e["criterion"]))
+
+    # STEAM2 per leg: each leg's own duration and speed, the chosen model's loss on that leg.
+    n_legs = max(route.n_waypoints - 1, 0)
+    leg_dt = np.diff(route.time_utc.asi8) / 3.6e12 if n_legs else np.zeros(0)
+    col = f"speed_loss_{speed_loss_model}_kn"
+    if len(samples):
+        w = samples["dt_h"].to_numpy()
+        num = np.bincount(samples["leg"], weights=samples[col].to_numpy() * w, minlength=n_legs)
+        den = np.bincount(samples["leg"], weights=w, minlength=n_legs)
+        leg_loss = np.divide(num, den, out=np.zeros(n_legs), where=den > 0)
+    else:
+        leg_loss = np.zeros(n_legs)
+    legs = steam2_legs(leg_dt, route.leg_speed_kn, leg_loss, Engine.from_vessel(vessel))
+    legs.insert(0, "leg", np.arange(n_legs))
+    emissions = steam2_totals(legs)
+
+    # Weather at the waypoints (for maps and exports); keep what the route already had.
+    wp = {}
+    if route.n_waypoints:
+        wraw = weather_at(route.time_utc, route.lat_deg, route.lon_deg)
+        wp = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in wraw.items() if k in WEATHER_VARS}
+    evaluated = Route(
+        name=route.name, lat_deg=route.lat_deg, lon_deg=route.lon_deg, time_utc=route.time_utc,
+        leg_speed_kn=route.leg_speed_kn, weather={**wp, **route.weather}, properties=dict(route.properties),
+    )
+
+    dt = samples["dt_h"] if len(samples) else pd.Series(dtype=float)
+    summary = {
+        "name": route.name,
+        "depart_utc": route.time_utc[0].isoformat() if route.n_waypoints else None,
+        "arrive_utc": route.time_utc[-1].isoformat() if route.n_waypoints else None,
+        "time_h": route.time_h,
+        "dist_nmi": route.dist_nmi,
+        "mean_speed_kn": route.dist_nmi / route.time_h if route.time_h > 0 else float("nan"),
+        "max_hs_m": _nanmax(hs) if hs.size else float("nan"),
+        "mean_hs_m": _weighted_mean(hs, dt),
+        "max_wind_ms": _nanmax(samples["wind_ms"]) if "wind_ms" in samples else None,
+        "mean_wind_ms": _weighted_mean(samples["wind_ms"], dt) if "wind_ms" in samples else None,
+        "max_tp_s": _nanmax(samples["tp_s"]) if "tp_s" in samples else None,
+        "mean_tp_s": _weighted_mean(samples["tp_s"], dt) if "tp_s" in samples else None,
+        "speed_loss": loss_summary,
+        "speed_loss_model": speed_loss_model,
+        **emissions,
+        "exposure_h": exposure,
+        "adverse_h": float(samples.loc[samples["adverse_operator"] | samples["adverse_imo"], "dt_h"].sum()) if len(samples) else 0.0,
+        "operator_adverse_h": float(samples.loc[samples["adverse_operator"], "dt_h"].sum()) if len(samples) else 0.0,
+        "imo_adverse_h": float(samples.loc[samples["adverse_imo"], "dt_h"].sum()) if len(samples) else 0.0,
+        "n_imo_events": sum(e["kind"] == "imo" for e in events),
+        "n_operator_events": sum(e["kind"] == "operator" for e in events),
+        "no_weather_h": float(samples.loc[samples["no_data"], "dt_h"].sum()) if len(samples) else 0.0,
+        "rules_not_evaluated": skipped,
+        "speed_loss_warnings": model_warnings,
+        "weather_vars": sorted(weather),
+    }
+    return RouteEvaluation(evaluated, samples, legs, summary, events)
+
+
+def _adverse_windows(samples: pd.DataFrame, mask: np.ndarray) -> list[tuple[pd.Timestamp, pd.Timestamp]]:
+    """Time intervals covered by the pieces in ``mask`` (merged where they touch)."""
+    out: list[list[pd.Timestamp]] = []
+    for t, dt in zip(samples.loc[mask, "time_utc"], samples.loc[mask, "dt_h"]):
+        a, b = t - pd.Timedelta(hours=dt / 2), t + pd.Timedelta(hours=dt / 2)
+        if out and a <= out[-1][1] + pd.Timedelta(seconds=1):
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return [(a, b) for a, b in out]
+
+
+def _in_windows(times: pd.Series, windows) -> np.ndarray:
+    inside = np.zeros(len(times), dtype=bool)
+    for a, b in windows:
+        inside |= ((times >= a) & (times <= b)).to_numpy()
+    return inside
+
+
+def comparison_metrics(reference: RouteEvaluation, alternative: RouteEvaluation, adverse: str = "operator") -> dict:
+    """The seed paper's comparison metrics [1]_ §4 of an alternative against a reference route.
+
+    The *adverse portion* is the set of pieces of the reference where its conditions broke a limit
+    (``adverse="operator"``: the operator limits, the paper's Table 1; ``"any"``: also the IMO
+    rules). Means are time-weighted; the alternative's means are taken over its own pieces that
+    fall in the same time windows ("during the same period of time", [1] §4).
+
+    * ``hs_decrease_pct`` = (h_a − h_b)/h_a · 100 ([1] Eq. 1), likewise ``period_decrease_pct``
+      (Eq. 2; peak period, else mean period) and ``wind_decrease_pct`` (Eq. 3).
+    * ``wave_dir_deviation_pct`` = |θ_a − θ_b| / θ_a · 100, θ the mean relative angle between the
+      heading and the wave direction, folded to [0, 180] (0 = head seas) ([1] §4, Fig. 9).
+    * ``length_diff_nmi`` = L_b − L_a and ``length_diff_pct`` = that / L_a · 100 ([1] Fig. 10-11).
+
+    Positive decreases mean the alternative met calmer conditions. Values are NaN (None in JSON)
+    when the reference had no adverse portion or the alternative was not at sea then.
+    """
+    ref, alt = reference.samples, alternative.samples
+    col = "adverse_operator" if adverse == "operator" else None
+    if col is not None and col in ref:
+        mask = ref[col].to_numpy(dtype=bool)
+    elif "adverse_operator" in ref:
+        mask = (ref["adverse_operator"] | ref["adverse_imo"]).to_numpy(dtype=bool)
+    else:
+        mask = np.zeros(len(ref), dtype=bool)
+    windows = _adverse_windows(ref, mask)
+    alt_mask = _in_windows(alt["time_utc"], windows) if len(alt) else np.zeros(0, dtype=bool)
+
+    def decrease(var):
+        if var not in ref or var not in alt or not mask.any():
+            return float("nan"), float("nan"), float("nan")
+        a = _weighted_mean(ref.loc[mask, var], ref.loc[mask, "dt_h"])
+        b = _weighted_mean(alt.loc[alt_mask, var], alt.loc[alt_mask, "dt_h"]) if alt_mask.any() else float("nan")
+        pct = (a - b) / a * 100.0 if np.isfinite(a) and a != 0 and np.isfinite(b) else float("nan")  # [1], Eq. 1-3
+        return a, b, pct
+
+    hs_a, hs_b, hs_pct = decrease("hs_m")
+    pvar = "tp_s" if "tp_s" in ref else "tm_s"
+    p_a, p_b, p_pct = decrease(pvar)
+    w_a, w_b, w_pct = decrease("wind_ms")
+
+    def rel(frame, m):
+        if "encounter_deg" not in frame or not m.any():
+            return float("nan")
+        folded = 180.0 - np.abs(180.0 - np.mod(frame.loc[m, "encounter_deg"].to_numpy(), 360.0))
+        return _weighted_mean(folded, frame.loc[m, "dt_h"])
+
+    th_a = rel(ref, mask)
+    th_b = rel(alt, alt_mask) if len(alt) else float("nan")
+    dir_pct = abs(th_a - th_b) / th_a * 100.0 if np.isfinite(th_a) and th_a > 0 and np.isfinite(th_b) else float("nan")
+    la, lb = reference.route.dist_nmi, alternative.route.dist_nmi
+    return {
+        "reference": reference.name,
+        "alternative": alternative.name,
+        "adverse_portion_h": float(ref.loc[mask, "dt_h"].sum()) if mask.any() else 0.0,
+        "hs_adverse_ref_m": hs_a,
+        "hs_adverse_alt_m": hs_b,
+        "hs_decrease_pct": hs_pct,
+        "period_var": pvar,
+        "period_adverse_ref_s": p_a,
+        "period_adverse_alt_s": p_b,
+        "period_decrease_pct": p_pct,
+        "wind_adverse_ref_ms": w_a,
+        "wind_adverse_alt_ms": w_b,
+        "wind_decrease_pct": w_pct,
+        "wave_rel_dir_ref_deg": th_a,
+        "wave_rel_dir_alt_deg": th_b,
+        "wave_dir_deviation_pct": dir_pct,
+        "length_diff_nmi": lb - la,
+        "length_diff_pct": (lb - la) / la * 100.0 if la > 0 else float("nan"),
+    }
+
+
+#: Columns of :func:`comparison_table` (absolute values), in order.
+TABLE_COLUMNS = (
+    "time_h", "dist_nmi", "mean_speed_kn", "max_hs_m", "mean_hs_m", "fuel_t", "co2_t", "so2_t", "nox_t", "pm_t",
+    "adverse_h", "imo_adverse_h", "n_imo_events", "n_operator_events",
+)
+
+
+def comparison_table(evaluations: Mapping[str, RouteEvaluation], reference: str = "historical") -> pd.DataFrame:
+    """Historical versus proposed: one row per route, absolute values and deltas to the reference.
+
+    Parameters
+    ----------
+    evaluations : mapping of str -> RouteEvaluation
+        E.g. ``{"historical": ..., "deviation": ..., "time_optimal": ..., "min_distance": ...}``
+        (missing routes are simply absent rows).
+    reference : str
+        Key of the reference route (deltas are ``route − reference``; ``*_pct`` relative to it).
+
+    Returns
+    -------
+    DataFrame
+        Index = route names; the columns of :data:`TABLE_COLUMNS`, ``d_<col>`` deltas, ``d_<col>_pct``
+        for time, distance, fuel and CO2, and the seed metrics of :func:`comparison_metrics`
+        (``hs_decrease_pct``, ``period_decrease_pct``, ``wind_decrease_pct``,
+        ``wave_dir_deviation_pct``, ``length_diff_pct``) against the reference.
+    """
+    if reference not in evaluations:
+        raise KeyError(f"reference route {reference!r} not among {list(evaluations)}")
+    ref = evaluations[reference]
+    rows = {}
+    for name, ev in evaluations.items():
+        row = {c: ev.summary.get(c) for c in TABLE_COLUMNS}
+        for c in TABLE_COLUMNS:
+            a, b = row[c], ref.summary.get(c)
+            row[f"d_{c}"] = (a - b) if a is not None and b is not None else None
+        for c in ("time_h", "dist_nmi", "fuel_t", "co2_t"):
+            a, b = ev.summary.get(c), ref.summary.get(c)
+            row[f"d_{c}_pct"] = (a - b) / b * 100.0 if a is not None and b else None
+        m = comparison_metrics(ref, ev)
+        for c in ("hs_decrease_pct", "period_decrease_pct", "wind_decrease_pct", "wave_dir_deviation_pct", "length_diff_pct"):
+            row[c] = m[c]
+        rows[name] = row
+    return pd.DataFrame.from_dict(rows, orient="index").astype(float)
