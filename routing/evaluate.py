@@ -364,7 +364,10 @@ def evaluate_route(
         "speed_loss": loss_summary,
         "speed_loss_model": speed_loss_model,
         **emissions,
-        "exposure_h": exposure,
+        "exposure_by_rule_h": exposure,
+        # hours over any operator limit, and IMO events: the report's "exposure_h" / "n_safety_events"
+        "exposure_h": float(samples.loc[samples["adverse_operator"], "dt_h"].sum()) if len(samples) else 0.0,
+        "n_safety_events": sum(e["kind"] == "imo" for e in events),
         "adverse_h": float(samples.loc[samples["adverse_operator"] | samples["adverse_imo"], "dt_h"].sum()) if len(samples) else 0.0,
         "operator_adverse_h": float(samples.loc[samples["adverse_operator"], "dt_h"].sum()) if len(samples) else 0.0,
         "imo_adverse_h": float(samples.loc[samples["adverse_imo"], "dt_h"].sum()) if len(samples) else 0.0,
@@ -473,7 +476,7 @@ def comparison_metrics(reference: RouteEvaluation, alternative: RouteEvaluation,
 #: Columns of :func:`comparison_table` (absolute values), in order.
 TABLE_COLUMNS = (
     "time_h", "dist_nmi", "mean_speed_kn", "max_hs_m", "mean_hs_m", "fuel_t", "co2_t", "so2_t", "nox_t", "pm_t",
-    "adverse_h", "imo_adverse_h", "n_imo_events", "n_operator_events",
+    "exposure_h", "adverse_h", "imo_adverse_h", "n_safety_events", "n_operator_events",
 )
 
 
@@ -483,7 +486,8 @@ def comparison_table(evaluations: Mapping[str, RouteEvaluation], reference: str 
     Parameters
     ----------
     evaluations : mapping of str -> RouteEvaluation
-        E.g. ``{"historical": ..., "deviation": ..., "time_optimal": ..., "min_distance": ...}``
+        Keyed by role, as the reports expect: ``{"historical": ..., "deviation": ...,
+        "optimal": ..., "min_distance": ...}``
         (missing routes are simply absent rows).
     reference : str
         Key of the reference route (deltas are ``route − reference``; ``*_pct`` relative to it).
@@ -491,7 +495,7 @@ def comparison_table(evaluations: Mapping[str, RouteEvaluation], reference: str 
     Returns
     -------
     DataFrame
-        Index = route names; the columns of :data:`TABLE_COLUMNS`, ``d_<col>`` deltas, ``d_<col>_pct``
+        Index = route roles; the columns of :data:`TABLE_COLUMNS`, ``d_<col>`` deltas, ``d_<col>_pct``
         for time, distance, fuel and CO2, and the seed metrics of :func:`comparison_metrics`
         (``hs_decrease_pct``, ``period_decrease_pct``, ``wind_decrease_pct``,
         ``wave_dir_deviation_pct``, ``length_diff_pct``) against the reference.
@@ -513,3 +517,32 @@ def comparison_table(evaluations: Mapping[str, RouteEvaluation], reference: str 
             row[c] = m[c]
         rows[name] = row
     return pd.DataFrame.from_dict(rows, orient="index").astype(float)
+
+
+def events_frame(evaluations: Mapping[str, RouteEvaluation]) -> pd.DataFrame:
+    """All events of several routes, one row each: ``route``, ``criterion``, ``kind``,
+    ``start_utc``, ``end_utc``, ``duration_h``, ``lat_deg``, ``lon_deg`` (where it started),
+    ``max_margin``."""
+    rows = []
+    for role, ev in evaluations.items():
+        for e in ev.events:
+            rows.append(
+                {
+                    "route": role, "criterion": e["criterion"], "kind": e["kind"],
+                    "start_utc": pd.Timestamp(e["start_utc"]), "end_utc": pd.Timestamp(e["end_utc"]),
+                    "duration_h": e["duration_h"], "lat_deg": e["start_lat_deg"], "lon_deg": e["start_lon_deg"],
+                    "max_margin": e["max_margin"],
+                }
+            )
+    cols = ["route", "criterion", "kind", "start_utc", "end_utc", "duration_h", "lat_deg", "lon_deg", "max_margin"]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def exposure_frame(evaluations: Mapping[str, RouteEvaluation]) -> pd.DataFrame:
+    """Hours each rule fired on each route: ``route``, ``limit`` (rule name), ``exposure_h``."""
+    rows = [
+        {"route": role, "limit": rule, "exposure_h": hours}
+        for role, ev in evaluations.items()
+        for rule, hours in ev.summary["exposure_by_rule_h"].items()
+    ]
+    return pd.DataFrame(rows, columns=["route", "limit", "exposure_h"])

@@ -79,8 +79,8 @@ def test_calm_route_fuel_by_hand_and_no_events():
     route = make_route()
     ev = evaluate_route(route, uniform(0.0), VESSEL, limits=LIMITS)
     s = ev.summary
-    assert s["exposure_h"] == {"hs": 0.0, "wind": 0.0, "high_waves": 0.0, "surf_riding": 0.0}
-    assert ev.events == [] and s["n_imo_events"] == 0
+    assert s["exposure_by_rule_h"] == {"hs": 0.0, "wind": 0.0, "high_waves": 0.0, "surf_riding": 0.0}
+    assert ev.events == [] and s["n_imo_events"] == 0 and s["n_safety_events"] == 0 and s["exposure_h"] == 0.0
     for model in ("bowditch", "aertssen", "khokhlov"):
         assert s["speed_loss"][model]["max_kn"] == pytest.approx(0.0, abs=1e-12)
         assert s["speed_loss"][model]["time_h_at_service_speed"] == pytest.approx(route.dist_nmi / 12.0, rel=1e-9)
@@ -101,17 +101,18 @@ def test_storm_window_exposure_and_event():
     ev = evaluate_route(route, storm_window(2.0, 5.0), VESSEL, limits=LIMITS)
     s = ev.summary
     # Hs 7 m > 4.5 m for 3 h; pieces are <= 0.25 h, so the exposure is 3 h to within one piece
-    assert s["exposure_h"]["hs"] == pytest.approx(3.0, abs=0.25)
+    assert s["exposure_by_rule_h"]["hs"] == pytest.approx(3.0, abs=0.25)
     hs_events = [e for e in ev.events if e["criterion"] == "hs"]
     assert len(hs_events) == 1
     e = hs_events[0]
     assert e["kind"] == "operator"
     assert (pd.Timestamp(e["start_utc"]) - T0) / pd.Timedelta(hours=1) == pytest.approx(2.0, abs=0.25)
     assert (pd.Timestamp(e["end_utc"]) - T0) / pd.Timedelta(hours=1) == pytest.approx(5.0, abs=0.25)
-    assert e["duration_h"] == pytest.approx(s["exposure_h"]["hs"])
+    assert e["duration_h"] == pytest.approx(s["exposure_by_rule_h"]["hs"])
+    assert s["exposure_h"] == pytest.approx(s["exposure_by_rule_h"]["hs"])  # hours over any operator limit
     assert e["max_margin"] == pytest.approx(2.5)  # 7.0 - 4.5 m
     # Hs 7 m > 0.04 L = 4 m but the mean period 5 s gives a 39 m wave < 0.8 L: no high-wave attack
-    assert s["exposure_h"]["high_waves"] == 0.0
+    assert s["exposure_by_rule_h"]["high_waves"] == 0.0
     assert s["max_hs_m"] == 7.0
     # Bowditch in following seas: 0.0083 kn/ft^2 * (7 m / 0.3048)^2 = 4.378 kn in the storm
     assert s["speed_loss"]["bowditch"]["max_kn"] == pytest.approx(0.0083 * (7.0 / 0.3048) ** 2, rel=1e-3)
@@ -180,6 +181,14 @@ def test_comparison_table_rows_and_deltas():
     assert table.loc["deviation", "max_hs_m"] == 3.0 and table.loc["historical", "max_hs_m"] == 6.0
     with pytest.raises(KeyError, match="reference"):
         comparison_table(evs, reference="min_distance")
+    from routing.evaluate import events_frame, exposure_frame
+
+    ex = exposure_frame(evs)
+    assert set(ex["route"]) == {"historical", "deviation"}
+    assert ex.set_index(["route", "limit"]).loc[("historical", "hs"), "exposure_h"] == pytest.approx(evs["historical"].route.time_h, rel=1e-9)
+    assert ex.set_index(["route", "limit"]).loc[("deviation", "hs"), "exposure_h"] == 0.0
+    fr = events_frame(evs)
+    assert list(fr.columns[:3]) == ["route", "criterion", "kind"] and (fr["route"] == "historical").all()
 
 
 def test_to_dict_is_json_ready():
