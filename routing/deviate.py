@@ -385,3 +385,39 @@ def deviate_lane(
         weather=weather,
         properties=props,
     )
+
+
+def threshold_inputs(sampler, vessel, limits=None):
+    """The ``weather_at``, ``check`` and ``cells`` of :func:`deviate_lane` for a gridded field.
+
+    Parameters
+    ----------
+    sampler : routing.sampling.PointSampler
+        The weather (its grid is the candidate cells, as in [1] §3.2).
+    vessel : thresholds.vessel.Vessel
+    limits : OperatorProfile or OperatorLimits, optional
+        Operator limits (with the profile's IMO settings); ``None`` = IMO rules only.
+
+    Returns
+    -------
+    weather_at, check, cells
+        ``check`` reports every rule of :func:`thresholds.safety.assess` (operator + IMO);
+        ``cells`` indexes, per time step, the sea cells where no heading-free rule (Hs, wind,
+        period, successive high waves) fires.
+    """
+    from routing.evaluate import assess_with, rule_check
+
+    assess_fn = assess_with(vessel, limits)
+    check = rule_check(assess_fn)
+
+    def passing_mask(k: int) -> np.ndarray:
+        from thresholds.safety import assess
+
+        g = sampler.grid_slice(k)
+        kwargs = {n: g[n] for n in ("hs_m", "tp_s", "tm_s", "wind_u_ms", "wind_v_ms") if n in g}
+        if "hs_m" not in kwargs:
+            raise ValueError("the weather has no hs_m; deviations need significant wave height")
+        return np.asarray(assess(vessel, limits, missing="skip", **kwargs).safe, dtype=bool)
+
+    times = pd.DatetimeIndex(sampler.time_ns, tz="UTC")
+    return sampler, check, SafeCellIndex(sampler.lat_deg, sampler.lon_deg, times, passing_mask)

@@ -257,3 +257,23 @@ def test_bad_input_is_reported():
     np.testing.assert_allclose(route.leg_speed_kn, [10.0, 10.0])
     with pytest.raises(ValueError, match="timezone-aware"):
         SafeCellIndex(grid.lat, grid.lon, pd.date_range("2025-01-01", periods=3, freq="h"), grid.passing_mask)
+
+
+def test_threshold_inputs_from_a_gridded_field():
+    """The real thresholds on a PointSampler: the deviation avoids Hs above the Lpp < 200 m limit."""
+    from routing.deviate import threshold_inputs
+    from routing.sampling import PointSampler
+    from thresholds.operator import OperatorLimits
+    from thresholds.vessel import Vessel
+
+    grid = Grid()
+    hs = np.nan_to_num(grid.hs, nan=np.nan)
+    sampler = PointSampler(grid.times.asi8, grid.lat, grid.lon, {"hs_m": hs, "wave_from_deg": grid.wave_from, "tm_s": np.full(hs.shape, 5.0)})
+    vessel = Vessel("t", "container", 12.0, 150.0, 25.0, 8.0, 15000.0, 9000.0, 18.0, 120.0, 180.0)
+    weather_at, chk, cells = threshold_inputs(sampler, vessel, OperatorLimits(name="t", hs_max_m=4.5))
+    lat, lon, spd = lane()
+    route = deviate_lane(lat, lon, spd, T0, weather_at=weather_at, check=chk, cells=cells)
+    assert route.properties["n_deviated"] >= 1 and route.properties["n_unresolved"] == 0
+    assert np.nanmax(route.weather["hs_m"]) <= 4.5
+    # the heading-free mask is the Hs rule on sea cells
+    np.testing.assert_array_equal(cells._passing_mask(0), grid.hs[0] <= 4.5)
