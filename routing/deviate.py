@@ -182,30 +182,60 @@ class DeviationStep:
     leg_rules_fired: list = field(default_factory=list)
 
 
-def _broken(check: ThresholdCheck, weather: Mapping[str, np.ndarray], heading_deg: float, speed_kn: float) -> list[str]:
-    flags = check(weather, np.atleast_1d(float(heading_deg)), np.atleast_1d(float(speed_kn)))
-    return [rule for rule, broken in flags.items() if bool(np.any(np.asarray(broken, dtype=bool)))]
+def _times(t_ns) -> pd.DatetimeIndex:
+    return pd.DatetimeIndex(np.asarray(t_ns, dtype=np.int64).astype("datetime64[ns]")).tz_localize("UTC")
 
 
-def _leg_broken(weather_at, check, lat1, lon1, t1, lat2, lon2, speed_kn, spacing_nmi) -> list[str]:
-    """Rules broken at interior points of a leg, one sample per grid spacing, at their own times."""
-    d = float(haversine_nmi(lat1, lon1, lat2, lon2))
-    n = int(np.ceil(d / spacing_nmi)) - 1 if spacing_nmi > 0 else 0
-    if n <= 0:
-        return []
-    frac = np.arange(1, n + 1) / (n + 1)
-    la, lo = intermediate_point(lat1, lon1, lat2, lon2, frac)
-    times = t1 + pd.to_timedelta(frac * d / speed_kn, unit="h")
-    w = weather_at(pd.DatetimeIndex(times), np.asarray(la, dtype=float), np.asarray(lo, dtype=float))
-    w = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in w.items()}
-    heading = np.asarray(initial_bearing_deg(la, lo, lat2, lon2), dtype=float).reshape(-1)
-    flags = check(w, heading, np.full(n, float(speed_kn)))
-    return [rule for rule, broken in flags.items() if bool(np.any(np.asarray(broken, dtype=bool)))]
+class _Judge:
+    """Vectorised weather look-ups and threshold checks for many points or legs at once."""
 
+    def __init__(self, weather_at: WeatherAt, check: ThresholdCheck, spacing_nmi: float):
+        self.weather_at = weather_at
+        self.check = check
+        self.spacing_nmi = spacing_nmi
 
-def _sample(weather_at: WeatherAt, time_utc: pd.Timestamp, lat: float, lon: float) -> dict:
-    w = weather_at(pd.DatetimeIndex([time_utc]), np.atleast_1d(float(lat)), np.atleast_1d(float(lon)))
-    return {k: np.asarray(v, dtype=float).reshape(-1) for k, v in w.items()}
+    def points(self, t_ns, lat, lon, heading, speed):
+        """Weather at the points and, per point, the list of rules broken there."""
+        lat = np.asarray(lat, dtype=float).reshape(-1)
+        lon = np.asarray(lon, dtype=float).reshape(-1)
+        if lat.size == 0:
+            return {}, []
+        raw = self.weather_at(_times(t_ns), lat, lon)
+        w = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in raw.items()}
+        flags = self.check(w, np.asarray(heading, dtype=float).reshape(-1), np.asarray(speed, dtype=float).reshape(-1))
+        names = list(flags)
+        mat = np.zeros((lat.size, len(names)), dtype=bool)
+        for j, name in enumerate(names):
+            mat[:, j] = np.broadcast_to(np.asarray(flags[name], dtype=bool), (lat.size,))
+        return w, [[names[j] for j in np.flatnonzero(row)] for row in mat]
+
+    def legs(self, lat1, lon1, t1_ns, lat2, lon2, speed):
+        """Per leg, the rules broken at its interior points (one per grid spacing, at their own times)."""
+        lat1, lon1, lat2, lon2 = (np.asarray(x, dtype=float).reshape(-1) for x in (lat1, lon1, lat2, lon2))
+        t1 = np.asarray(t1_ns, dtype=np.int64).reshape(-1)
+        speed = np.asarray(speed, dtype=float).reshape(-1)
+        n_legs = lat1.size
+        out: list[list[str]] = [[] for _ in range(n_legs)]
+        if n_legs == 0 or self.spacing_nmi <= 0:
+            return out
+        d = np.asarray(haversine_nmi(lat1, lon1, lat2, lon2), dtype=float).reshape(-1)
+        k = np.maximum(np.ceil(d / self.spacing_nmi).astype(int) - 1, 0)
+        if k.sum() == 0:
+            return out
+        leg = np.repeat(np.arange(n_legs), k)
+        j = np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k) + 1
+        frac = j / (k[leg] + 1)
+        la, lo = intermediate_point(lat1[leg], lon1[leg], lat2[leg], lon2[leg], frac)
+        la = np.asarray(la, dtype=float).reshape(-1)
+        lo = np.asarray(lo, dtype=float).reshape(-1)
+        t = t1[leg] + np.round(frac * d[leg] / speed[leg] * 3.6e12).astype(np.int64)
+        heading = np.asarray(initial_bearing_deg(la, lo, lat2[leg], lon2[leg]), dtype=float).reshape(-1)
+        _, fired = self.points(t, la, lo, heading, speed[leg])
+        for i, rules in zip(leg, fired):
+            for r in rules:
+                if r not in out[i]:
+                    out[i].append(r)
+        return out
 
 
 def deviate_lane(
@@ -276,75 +306,100 @@ def deviate_lane(
         spd = np.where(bad, float(default_speed_kn), spd)
     t0 = pd.Timestamp(depart_utc)
     t0 = t0.tz_localize("UTC") if t0.tzinfo is None else t0.tz_convert("UTC")
+    judge = _Judge(weather_at, check, cells.spacing_nmi)
+    lane_at_sea: dict[int, bool] = {}
 
-    steps: list[DeviationStep] = []
-    first_w = _sample(weather_at, t0, lat[0], lon[0])
-    heading0 = initial_bearing_deg(lat[0], lon[0], lat[1], lon[1])
-    fired0 = _broken(check, first_w, heading0, spd[0])
-    steps.append(DeviationStep(0, "endpoint", lat[0], lon[0], lat[0], lon[0], t0, float(spd[0]), fired0))
-    weathers = [first_w]
+    def at_sea(la1, lo1, la2, lo2, lane_leg: int | None = None) -> bool:
+        if leg_at_sea is None or (la1 == la2 and lo1 == lo2):
+            return True
+        if lane_leg is not None:  # lane legs are checked once, however often a pass re-reads them
+            if lane_leg not in lane_at_sea:
+                lane_at_sea[lane_leg] = bool(leg_at_sea(la1, lo1, la2, lo2))
+            return lane_at_sea[lane_leg]
+        return bool(leg_at_sea(la1, lo1, la2, lo2))
 
-    cur_lat, cur_lon, cur_t = float(lat[0]), float(lon[0]), t0
-    for i in range(1, n):
-        v = float(spd[i - 1])  # [1], Alg. 1 line 4: t(c_i+1) from v(c_i)
-        tgt_lat, tgt_lon = float(lat[i]), float(lon[i])
-        d = float(haversine_nmi(cur_lat, cur_lon, tgt_lat, tgt_lon))
-        eta = cur_t + pd.Timedelta(hours=d / v)
-        heading = initial_bearing_deg(cur_lat, cur_lon, tgt_lat, tgt_lon) if d > 0 else float("nan")
-        w = _sample(weather_at, eta, tgt_lat, tgt_lon)  # [1], Alg. 1 line 5
-        fired = _broken(check, w, heading, v)
-        at_sea = True if leg_at_sea is None or d == 0 else bool(leg_at_sea(cur_lat, cur_lon, tgt_lat, tgt_lon))
-        if i == n - 1:
-            # Arrival: the ship must reach the port's approach; never moved, flagged if adverse.
-            if not at_sea:
-                fired = fired + ["leg_crosses_land"]
-            leg_fired = _leg_broken(weather_at, check, cur_lat, cur_lon, cur_t, tgt_lat, tgt_lon, v, cells.spacing_nmi)
-            step = DeviationStep(i, "endpoint", tgt_lat, tgt_lon, tgt_lat, tgt_lon, eta, v, fired, leg_rules_fired=leg_fired)
-            chosen = (tgt_lat, tgt_lon, eta, w)
-        elif not fired and at_sea:
-            leg_fired = _leg_broken(weather_at, check, cur_lat, cur_lon, cur_t, tgt_lat, tgt_lon, v, cells.spacing_nmi)
-            step = DeviationStep(i, "lane", tgt_lat, tgt_lon, tgt_lat, tgt_lon, eta, v, leg_rules_fired=leg_fired)
-            chosen = (tgt_lat, tgt_lon, eta, w)
-        else:
-            if not at_sea:
-                fired = fired + ["leg_crosses_land"]
-            # [1], Alg. 1 line 7: nearest passing cell, best-first, <= 10, within 3 h of sailing.
-            c_lat, c_lon, c_dist = cells.nearest(eta, tgt_lat, tgt_lon, k=max_candidates, max_dist_nmi=v * horizon_h)
-            chosen = None
-            fallback = None
-            tried = 0
-            for la, lo, moved in zip(c_lat, c_lon, c_dist):
-                tried += 1
-                la, lo = float(la), float(lo)
-                dc = float(haversine_nmi(cur_lat, cur_lon, la, lo))
-                if dc == 0.0:
-                    continue
-                if leg_at_sea is not None and not (
-                    leg_at_sea(cur_lat, cur_lon, la, lo) and leg_at_sea(la, lo, float(lat[i + 1]), float(lon[i + 1]))
-                ):
-                    continue  # the leg there, and on to the next centroid, must stay at sea
-                eta_c = cur_t + pd.Timedelta(hours=dc / v)  # ETA recomputed along the deviated path
-                wc = _sample(weather_at, eta_c, la, lo)
-                hdg = initial_bearing_deg(cur_lat, cur_lon, la, lo)
-                if _broken(check, wc, hdg, v):
-                    continue
-                leg_fired = _leg_broken(weather_at, check, cur_lat, cur_lon, cur_t, la, lo, v, cells.spacing_nmi)
-                step = DeviationStep(i, "deviated", tgt_lat, tgt_lon, la, lo, eta_c, v, fired, float(moved), tried, leg_fired)
-                if not leg_fired:
-                    chosen = (la, lo, eta_c, wc)
-                    break
-                if fallback is None:
-                    fallback = (step, (la, lo, eta_c, wc))
-            if chosen is None and fallback is not None:
-                step, chosen = fallback
-            if chosen is None:
-                log.info("lane step %d at %s: no passing cell within %.1f nmi (%s)", i, eta, v * horizon_h, ", ".join(fired))
-                leg_fired = _leg_broken(weather_at, check, cur_lat, cur_lon, cur_t, tgt_lat, tgt_lon, v, cells.spacing_nmi)
-                step = DeviationStep(i, "unresolved", tgt_lat, tgt_lon, tgt_lat, tgt_lon, eta, v, fired, 0.0, tried, leg_fired)
-                chosen = (tgt_lat, tgt_lon, eta, w)
-        steps.append(step)
-        weathers.append(chosen[3])
-        cur_lat, cur_lon, cur_t = chosen[0], chosen[1], chosen[2]
+    w0, fired0 = judge.points([t0.value], lat[:1], lon[:1], [initial_bearing_deg(lat[0], lon[0], lat[1], lon[1])], spd[:1])
+    steps: list[DeviationStep] = [DeviationStep(0, "endpoint", lat[0], lon[0], lat[0], lon[0], t0, float(spd[0]), fired0[0])]
+    weathers = [{k: v[:1] for k, v in w0.items()}]
+
+    cur_lat, cur_lon, cur_ns, cur_is_lane = float(lat[0]), float(lon[0]), t0.value, True
+    i = 1
+    while i < n:
+        # Optimistic pass: time the rest of the lane from the current point as if nothing more were
+        # moved, and judge every remaining centroid at once. Up to the first adverse centroid this
+        # is exactly what the step-by-step walk of Algorithm 1 computes.
+        prev_lat = np.concatenate([[cur_lat], lat[i : n - 1]])
+        prev_lon = np.concatenate([[cur_lon], lon[i : n - 1]])
+        tgt_lat, tgt_lon = lat[i:n], lon[i:n]
+        v = spd[i - 1 : n - 1]
+        d = np.asarray(haversine_nmi(prev_lat, prev_lon, tgt_lat, tgt_lon), dtype=float).reshape(-1)
+        eta_ns = cur_ns + np.round(np.cumsum(d / v) * 3.6e12).astype(np.int64)
+        heading = np.asarray(initial_bearing_deg(prev_lat, prev_lon, tgt_lat, tgt_lon), dtype=float).reshape(-1)
+        w, fired = judge.points(eta_ns, tgt_lat, tgt_lon, heading, v)
+        m = tgt_lat.size
+        bad = m  # first step to act on (adverse centroid or leg over land), m = none
+        sea = []
+        for j in range(m):
+            first_leg_is_lane = j > 0 or cur_is_lane
+            ok_sea = at_sea(prev_lat[j], prev_lon[j], tgt_lat[j], tgt_lon[j], lane_leg=i + j - 1 if first_leg_is_lane else None)
+            sea.append(ok_sea)
+            if (fired[j] or not ok_sea) and i + j < n - 1:
+                bad = j
+                break
+        # Accept the lane centroids before it (and the arrival, which is never moved).
+        accept = bad if bad < m else m
+        prev_ns = np.concatenate([[cur_ns], eta_ns[:-1]])
+        leg_flags = judge.legs(prev_lat[:accept], prev_lon[:accept], prev_ns[:accept], tgt_lat[:accept], tgt_lon[:accept], v[:accept])
+        for j in range(accept):
+            k = i + j
+            is_end = k == n - 1
+            rules = list(fired[j]) + ([] if sea[j] else ["leg_crosses_land"])
+            status = "endpoint" if is_end else "lane"
+            steps.append(DeviationStep(k, status, lat[k], lon[k], lat[k], lon[k], pd.Timestamp(int(eta_ns[j]), tz="UTC"),
+                                       float(v[j]), rules if is_end else [], leg_rules_fired=leg_flags[j]))
+            weathers.append({key: val[j : j + 1] for key, val in w.items()})
+        if bad >= m:
+            break
+        if accept:
+            cur_lat, cur_lon, cur_ns, cur_is_lane = float(tgt_lat[accept - 1]), float(tgt_lon[accept - 1]), int(eta_ns[accept - 1]), True
+        k = i + bad
+        vk = float(v[bad])
+        rules = list(fired[bad]) + ([] if sea[bad] else ["leg_crosses_land"])
+        # [1], Alg. 1 line 7: nearest passing cell, best-first, <= 10, within 3 h of sailing.
+        c_lat, c_lon, c_dist = cells.nearest(pd.Timestamp(int(eta_ns[bad]), tz="UTC"), float(lat[k]), float(lon[k]),
+                                             k=max_candidates, max_dist_nmi=vk * horizon_h)
+        chosen = None
+        if c_lat.size:
+            dc = np.asarray(haversine_nmi(cur_lat, cur_lon, c_lat, c_lon), dtype=float).reshape(-1)
+            eta_c = cur_ns + np.round(dc / vk * 3.6e12).astype(np.int64)  # ETAs along the deviated path
+            hdg_c = np.asarray(initial_bearing_deg(cur_lat, cur_lon, c_lat, c_lon), dtype=float).reshape(-1)
+            wc, fired_c = judge.points(eta_c, c_lat, c_lon, hdg_c, np.full(c_lat.size, vk))
+            usable = [
+                q for q in range(c_lat.size)
+                if dc[q] > 0 and not fired_c[q]
+                and at_sea(cur_lat, cur_lon, float(c_lat[q]), float(c_lon[q]))
+                and at_sea(float(c_lat[q]), float(c_lon[q]), float(lat[k + 1]), float(lon[k + 1]))
+            ]  # the leg there, and on to the next centroid, must stay at sea
+            if usable:
+                u = np.array(usable)
+                flags = judge.legs(np.full(u.size, cur_lat), np.full(u.size, cur_lon), np.full(u.size, cur_ns), c_lat[u], c_lon[u], np.full(u.size, vk))
+                clear = [q for q, f in zip(usable, flags) if not f]
+                q = clear[0] if clear else usable[0]
+                leg_fired = [] if clear else flags[0]
+                tried = int(q) + 1
+                chosen = DeviationStep(k, "deviated", lat[k], lon[k], float(c_lat[q]), float(c_lon[q]), pd.Timestamp(int(eta_c[q]), tz="UTC"),
+                                       vk, rules, float(c_dist[q]), tried, list(leg_fired))
+                weathers.append({key: val[q : q + 1] for key, val in wc.items()})
+                cur_lat, cur_lon, cur_ns, cur_is_lane = float(c_lat[q]), float(c_lon[q]), int(eta_c[q]), False
+        if chosen is None:
+            log.info("lane step %d: no passing cell within %.1f nmi (%s)", k, vk * horizon_h, ", ".join(rules))
+            leg_fired = judge.legs([cur_lat], [cur_lon], [cur_ns], [lat[k]], [lon[k]], [vk])[0]
+            chosen = DeviationStep(k, "unresolved", lat[k], lon[k], lat[k], lon[k], pd.Timestamp(int(eta_ns[bad]), tz="UTC"), vk,
+                                   rules, 0.0, int(c_lat.size), leg_fired)
+            weathers.append({key: val[bad : bad + 1] for key, val in w.items()})
+            cur_lat, cur_lon, cur_ns, cur_is_lane = float(lat[k]), float(lon[k]), int(eta_ns[bad]), True
+        steps.append(chosen)
+        i = k + 1
 
     out_lat = np.array([s.lat_deg for s in steps])
     out_lon = np.array([s.lon_deg for s in steps])
@@ -421,3 +476,28 @@ def threshold_inputs(sampler, vessel, limits=None):
 
     times = pd.DatetimeIndex(sampler.time_ns, tz="UTC")
     return sampler, check, SafeCellIndex(sampler.lat_deg, sampler.lon_deg, times, passing_mask)
+
+
+def lane_route(lat_deg, lon_deg, speed_kn, depart_utc, *, default_speed_kn: float | None = None, name: str = "historical",
+               properties: dict | None = None) -> Route:
+    """A lane's centroid path as a :class:`Route`, timed like Algorithm 1 times it.
+
+    The leg from centroid i takes ``haversine(c_i, c_i+1) / speed_kn[i]`` hours ([1] Alg. 1,
+    line 4), starting at ``depart_utc``. This is the lane-departure the deviation is compared with.
+    """
+    lat = np.asarray(lat_deg, dtype=float)
+    lon = np.asarray(lon_deg, dtype=float)
+    spd = np.asarray(speed_kn, dtype=float)
+    if lat.size < 2 or lon.size != lat.size or spd.size != lat.size:
+        raise ValueError("a lane needs >= 2 centroids with lat, lon and speed of equal length")
+    bad = ~np.isfinite(spd) | (spd <= 0.0)
+    if bad[:-1].any():
+        if default_speed_kn is None or not default_speed_kn > 0:
+            raise ValueError(f"centroids {np.flatnonzero(bad[:-1]).tolist()} have no usable speed and no default_speed_kn was given")
+        spd = np.where(bad, float(default_speed_kn), spd)
+    t0 = pd.Timestamp(depart_utc)
+    t0 = t0.tz_localize("UTC") if t0.tzinfo is None else t0.tz_convert("UTC")
+    d = np.asarray(haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]), dtype=float)
+    hours = np.concatenate([[0.0], np.cumsum(d / spd[:-1])])
+    times = pd.DatetimeIndex(t0 + pd.to_timedelta(hours, unit="h"))
+    return Route(name, lat, lon, times, spd[:-1], properties=dict(properties or {}))

@@ -46,7 +46,7 @@ import pandas as pd
 
 from routing.emissions import Engine, steam2_legs, steam2_totals
 from routing.route import Route
-from thresholds.geodesy import haversine_nmi, initial_bearing_deg, intermediate_point
+from thresholds.geodesy import initial_bearing_deg, intermediate_point
 
 #: Rules of IMO MSC.1/Circ.1228 (reported as "IMO events"); every other rule is an operator limit.
 IMO_RULES = ("surf_riding", "high_waves", "synchronous_roll", "parametric_roll")

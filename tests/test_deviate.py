@@ -277,3 +277,17 @@ def test_threshold_inputs_from_a_gridded_field():
     assert np.nanmax(route.weather["hs_m"]) <= 4.5
     # the heading-free mask is the Hs rule on sea cells
     np.testing.assert_array_equal(cells._passing_mask(0), grid.hs[0] <= 4.5)
+
+
+def test_lane_route_timing():
+    from routing.deviate import lane_route
+
+    lat, lon, spd = lane(n=4)
+    spd = np.array([12.0, 10.0, 8.0, 0.0])  # the last speed is never used
+    r = lane_route(lat, lon, spd, "2025-01-14T00:00Z")
+    hours = np.cumsum([0.0] + [hav_nmi(lat[i], lon[i], lat[i + 1], lon[i + 1]) / spd[i] for i in range(3)])
+    np.testing.assert_allclose((r.time_utc - T0) / pd.Timedelta(hours=1), hours, rtol=1e-9)
+    np.testing.assert_allclose(r.leg_speed_kn, [12.0, 10.0, 8.0])
+    assert r.name == "historical"
+    with pytest.raises(ValueError, match="no usable speed"):
+        lane_route(lat, lon, [12.0, np.nan, 8.0, 8.0], T0)
