@@ -1,0 +1,95 @@
+"""Voyage audit, pure part: AIS track to route, choice of the proposed alternative, findings."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from routing.audit import TrackError, audit_routes, propose, track_to_route
+from routing.route import Route
+from thresholds.operator import OperatorLimits
+from thresholds.vessel import Vessel
+
+R_NMI = 6371008.8 / 1852.0
+T0 = pd.Timestamp("2025-01-15T00:00Z")
+VESSEL = Vessel(
+    name="t", vessel_class="container", speed_kn=12.0, lpp_m=100.0, beam_m=16.0, draught_m=6.0, dwt_t=8000.0,
+    installed_power_kw=6000.0, design_speed_kn=15.0, engine_rpm=500.0, sfoc_g_kwh=200.0,
+)
+LIMITS = OperatorLimits(name="t", hs_max_m=4.5)
+
+
+def hav_nmi(lat1, lon1, lat2, lon2):
+    p1, p2 = math.radians(lat1), math.radians(lat2)
+    a = math.sin((p2 - p1) / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(math.radians(lon2 - lon1) / 2) ** 2
+    return 2 * R_NMI * math.asin(math.sqrt(a))
+
+
+def ais_track(n=121, step_s=30.0, lat=40.0, lon0=0.0, speed_kn=12.0):
+    """A ship sailing east along a parallel, one fix every ``step_s`` seconds, plus noise rows."""
+    t = T0 + pd.to_timedelta(np.arange(n) * step_s, unit="s")
+    dlon = speed_kn * step_s / 3600.0 / (60.0 * math.cos(math.radians(lat)))
+    df = pd.DataFrame({"mmsi": 219000001, "time_utc": t, "lat_deg": lat, "lon_deg": lon0 + dlon * np.arange(n), "sog_kn": speed_kn})
+    dup = df.iloc[[5]].copy()  # duplicated timestamp
+    nan = df.iloc[[7]].copy()
+    nan["lat_deg"] = np.nan
+    return pd.concat([df, dup, nan]).sample(frac=1.0, random_state=1)  # unsorted on purpose
+
+
+def test_track_to_route_thins_sorts_and_times():
+    df = ais_track()
+    r = track_to_route(df, min_step_s=300.0)
+    # 120 x 30 s = 1 h of sailing; one fix per 5 min -> 13 fixes
+    assert r.n_waypoints == 13
+    assert r.time_utc[0] == T0 and r.time_utc[-1] == T0 + pd.Timedelta(hours=1)
+    assert np.all(np.diff(r.time_utc.asi8) > 0)
+    np.testing.assert_allclose(r.leg_speed_kn, 12.0, rtol=2e-3)  # speed made good along the parallel
+    assert r.properties["mmsi"] == 219000001 and r.properties["n_kept"] == 13
+    assert r.name == "historical"
+    with pytest.raises(TrackError, match="at least 2"):
+        track_to_route(df.iloc[:1])
+    with pytest.raises(TrackError, match="lack"):
+        track_to_route(df.drop(columns=["lat_deg"]))
+
+
+def layered(times, lat, lon):
+    lat = np.asarray(lat, dtype=float)
+    south = lat < 40.5
+    n = lat.size
+    return {"hs_m": np.where(south, 6.0, 3.0), "wave_from_deg": np.full(n, 270.0), "tm_s": np.full(n, 5.0)}
+
+
+def route(lat, name, speed=12.0):
+    lons = [0.0, 1.0, 2.0]
+    d = [hav_nmi(lat, lons[i], lat, lons[i + 1]) for i in range(2)]
+    times = T0 + pd.to_timedelta(np.cumsum([0.0] + [x / speed for x in d]), unit="h")
+    return Route(name, [lat] * 3, lons, times, [speed, speed])
+
+
+def test_audit_prefers_the_safer_alternative_and_explains():
+    track = route(40.0, "historical")
+    alts = {"optimal": route(41.0, "optimal"), "min_distance": route(40.0, "min_distance", speed=13.0)}
+    out = audit_routes(track, layered, VESSEL, limits=LIMITS, alternatives=alts)
+    evs = out["evaluations"]
+    assert set(evs) == {"historical", "optimal", "min_distance"}
+    assert evs["historical"].summary["exposure_by_rule_h"]["hs"] == pytest.approx(track.time_h, rel=1e-9)
+    assert out["proposed"] == "optimal"  # no hours over the Hs limit (3 m < 4.5 m)
+    text = " ".join(out["findings"])
+    assert "up to 6.0 m" in text and "Proposed alternative: optimal (safer)" in text
+    assert "hs " in text  # hours over the Hs limit are listed
+    assert list(out["table"].index) == ["historical", "optimal", "min_distance"]
+
+
+def test_propose_as_safe_and_faster_or_nothing():
+    track = route(41.0, "historical")
+    faster = route(41.0, "optimal", speed=14.0)
+    slower = route(41.0, "min_distance", speed=10.0)
+    out = audit_routes(track, layered, VESSEL, limits=LIMITS, alternatives={"optimal": faster, "min_distance": slower})
+    assert out["proposed"] == "optimal"
+    assert "as safe and faster" in out["findings"][-1]
+    out = audit_routes(track, layered, VESSEL, limits=LIMITS, alternatives={"min_distance": slower})
+    assert out["proposed"] is None
+    assert propose({}) is None
