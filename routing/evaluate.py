@@ -265,22 +265,19 @@ def evaluate_route(
     if assess_fn is None:
         assess_fn = assess_with(vessel, limits)
     samples = densify(route, max_step_h)
+    n = len(samples)
+    cols: dict[str, np.ndarray] = {}
     times = pd.DatetimeIndex(samples["time_utc"])
-    lat = samples["lat_deg"].to_numpy()
-    lon = samples["lon_deg"].to_numpy()
-    raw = weather_at(times, lat, lon) if len(samples) else {}
+    raw = weather_at(times, samples["lat_deg"].to_numpy(), samples["lon_deg"].to_numpy()) if n else {}
     weather = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in raw.items() if k in WEATHER_VARS}
-    for k, v in weather.items():
-        samples[k] = v
+    cols.update(weather)
     if "wind_u_ms" in weather and "wind_v_ms" in weather:
-        samples["wind_ms"] = np.hypot(weather["wind_u_ms"], weather["wind_v_ms"])
-    hs = samples["hs_m"].to_numpy() if "hs_m" in samples else np.full(len(samples), np.nan)
+        cols["wind_ms"] = np.hypot(weather["wind_u_ms"], weather["wind_v_ms"])
+    hs = weather.get("hs_m", np.full(n, np.nan))
     heading = samples["heading_deg"].to_numpy()
-    if "wave_from_deg" in samples:
-        enc = np.mod(samples["wave_from_deg"].to_numpy() - heading, 360.0)  # 0 = head seas
-    else:
-        enc = np.full(len(samples), np.nan)
-    samples["encounter_deg"] = enc
+    enc = np.mod(weather["wave_from_deg"] - heading, 360.0) if "wave_from_deg" in weather else np.full(n, np.nan)  # 0 = head seas
+    cols["encounter_deg"] = enc
+    dt_h = samples["dt_h"].to_numpy()
     v0 = float(vessel.speed_kn)
     calm_hs = np.nan_to_num(hs, nan=0.0)
     calm_enc = np.nan_to_num(enc, nan=0.0)
@@ -290,36 +287,38 @@ def evaluate_route(
     for model in models:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            loss = np.asarray(speed_loss(v0, calm_hs, calm_enc, model, vessel=vessel), dtype=float).reshape(-1) if len(samples) else np.zeros(0)
+            loss = np.asarray(speed_loss(v0, calm_hs, calm_enc, model, vessel=vessel), dtype=float).reshape(-1) if n else np.zeros(0)
         model_warnings += sorted({f"{model}: {w.message}" for w in caught})
-        samples[f"speed_loss_{model}_kn"] = loss
-        attained = v0 - loss
+        cols[f"speed_loss_{model}_kn"] = loss
         loss_summary[model] = {
-            "mean_kn": _weighted_mean(loss, samples["dt_h"]),
+            "mean_kn": _weighted_mean(loss, dt_h),
             "max_kn": _nanmax(loss) if loss.size else float("nan"),
-            "time_h_at_service_speed": float(np.sum(dist / attained)) if loss.size else 0.0,
+            "time_h_at_service_speed": float(np.sum(dist / (v0 - loss))) if loss.size else 0.0,
         }
-    a = assess_fn(weather, heading, samples["speed_kn"].to_numpy()) if len(samples) else None
+    a = assess_fn(weather, heading, samples["speed_kn"].to_numpy()) if n else None
     rules = dict(a.rules) if a is not None else {}
     skipped = list(getattr(a, "skipped", ())) if a is not None else []
-    events: list[dict] = []
     exposure = {}
-    any_op = np.zeros(len(samples), dtype=bool)
-    any_imo = np.zeros(len(samples), dtype=bool)
+    margins = {}
+    any_op = np.zeros(n, dtype=bool)
+    any_imo = np.zeros(n, dtype=bool)
     for name, rule in rules.items():
-        fired = np.broadcast_to(np.asarray(rule.fired, dtype=bool), (len(samples),))
-        margin = np.broadcast_to(np.asarray(rule.margin, dtype=float), (len(samples),))
-        samples[f"fired_{name}"] = fired
-        exposure[name] = float(samples.loc[fired, "dt_h"].sum())
-        events += _events(samples, name, margin)
+        fired = np.broadcast_to(np.asarray(rule.fired, dtype=bool), (n,))
+        margins[name] = np.broadcast_to(np.asarray(rule.margin, dtype=float), (n,))
+        cols[f"fired_{name}"] = fired
+        exposure[name] = float(dt_h[fired].sum())
         if name in IMO_RULES:
             any_imo |= fired
         else:
             any_op |= fired
-    samples["adverse_operator"] = any_op
-    samples["adverse_imo"] = any_imo
+    cols["adverse_operator"] = any_op
+    cols["adverse_imo"] = any_imo
     nd = getattr(a, "no_data", None) if a is not None else None
-    samples["no_data"] = np.broadcast_to(np.asarray(nd, dtype=bool), (len(samples),)) if nd is not None else False
+    cols["no_data"] = np.broadcast_to(np.asarray(nd, dtype=bool), (n,)) if nd is not None else np.zeros(n, dtype=bool)
+    samples = pd.concat([samples, pd.DataFrame(cols, index=samples.index)], axis=1)
+    events: list[dict] = []
+    for name in rules:
+        events += _events(samples, name, margins[name])
     events.sort(key=lambda e: (e["start_utc"], e["criterion"]))
 
     # STEAM2 per leg: each leg's own duration and speed, the chosen model's loss on that leg.
