@@ -22,9 +22,13 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/stormlane demo --workdir $(WORKDIR)
 
+# The browser test needs headless Chromium: install Debian's package when it is missing
+# (as root, or through sudo), and make that test fail rather than skip when it is absent.
 test: $(STAMP)
+	command -v chromium >/dev/null 2>&1 || { SUDO=$$(test "$$(id -u)" -eq 0 || echo sudo); \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; }
 	$(VENV)/bin/lint-imports
-	$(PY) -m pytest -q
+	STORMLANE_REQUIRE_BROWSER=1 $(PY) -m pytest -q
 
 bench: $(STAMP)
 	for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

@@ -521,3 +521,53 @@ def read_geojson(path) -> list[Route]:
     if not routes:
         raise ExportError(f"{path}: no waypoint features")
     return routes
+
+
+def export_alternatives(routes: dict, directory, stem: str, relative_to=None) -> dict[str, str]:
+    """Write the exports for one voyage or lane-departure and return links for the report.
+
+    Writes ``<stem>.geojson`` and ``<stem>.gpx`` with every route (the historical one included,
+    for comparison) and one ``<stem>_<role>.rtz`` per alternative (every role but
+    ``historical``), the file an ECDIS imports.
+
+    Parameters
+    ----------
+    routes : dict of str -> Route
+        Keyed by role (``historical``, ``deviation``, ``optimal``, ``min_distance`` ...).
+    directory : str or Path
+        Output folder (created).
+    stem : str
+        File-name stem, e.g. ``"lane3_20250131T0600Z"``; only letters, digits, ``-`` and ``_``.
+    relative_to : str or Path, optional
+        Folder the returned paths are relative to (the report's folder); default ``directory``.
+
+    Returns
+    -------
+    dict of str -> str
+        Label -> relative POSIX path, e.g. ``{"GeoJSON": "exports/x.geojson", "RTZ optimal": ...}``;
+        put it in ``RouteSet.exports``.
+    """
+    import os
+
+    if not stem or any(not (c.isalnum() or c in "-_") for c in stem):
+        raise ExportError(f"export stem {stem!r} must be letters, digits, '-' or '_'")
+    directory = Path(directory)
+    base = Path(relative_to) if relative_to is not None else directory
+    ordered = list(routes.values())
+    if not ordered:
+        raise ExportError("no routes to export")
+    links: dict[str, str] = {}
+
+    def rel(p: Path) -> str:
+        return Path(os.path.relpath(p, base)).as_posix()
+
+    for label, suffix in (("GeoJSON", ".geojson"), ("GPX", ".gpx")):
+        (written,) = write_routes(ordered, directory / f"{stem}{suffix}")
+        links[label] = rel(written)
+    for role, route in routes.items():
+        if role == "historical":
+            continue
+        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in role)
+        (written,) = write_routes(route, directory / f"{stem}_{safe}.rtz")
+        links[f"RTZ {role}"] = rel(written)
+    return links

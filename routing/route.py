@@ -136,7 +136,7 @@ class Route:
             name=data["name"],
             lat_deg=np.asarray(data["lat_deg"], dtype=float),
             lon_deg=np.asarray(data["lon_deg"], dtype=float),
-            time_utc=pd.DatetimeIndex(pd.to_datetime(data["time_utc"], utc=True)),
+            time_utc=pd.DatetimeIndex(pd.to_datetime(data["time_utc"], utc=True, format="ISO8601")),
             leg_speed_kn=np.asarray(data["leg_speed_kn"], dtype=float),
             weather={k: np.array([np.nan if x is None else x for x in v], dtype=float) for k, v in data["weather"].items()},
             properties=data.get("properties", {}),

@@ -267,3 +267,20 @@ def test_xml_special_characters_in_names_survive(tmp_path):
     gpx = tmp_path / "s.gpx"
     write_routes(route, gpx)
     assert read_gpx(gpx)[0].properties["waypoint_names"][0] == "Port <1> & co"
+
+
+def test_export_alternatives_writes_all_formats_with_relative_links(tmp_path):
+    from dashboards.exports import export_alternatives
+
+    routes = {"historical": make_other(), "optimal": make_route("optimal"), "deviation": make_route("deviation")}
+    links = export_alternatives(routes, tmp_path / "exports", "L1_20250131T0300Z", relative_to=tmp_path)
+    assert links == {
+        "GeoJSON": "exports/L1_20250131T0300Z.geojson",
+        "GPX": "exports/L1_20250131T0300Z.gpx",
+        "RTZ optimal": "exports/L1_20250131T0300Z_optimal.rtz",
+        "RTZ deviation": "exports/L1_20250131T0300Z_deviation.rtz",
+    }
+    assert len(read_gpx(tmp_path / links["GPX"])) == 3
+    assert read_rtz(tmp_path / links["RTZ optimal"]).n_waypoints == 4
+    with pytest.raises(ExportError, match="stem"):
+        export_alternatives(routes, tmp_path, "../evil")

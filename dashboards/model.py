@@ -1,0 +1,551 @@
+"""What a report shows: plain dataclasses the nightly and audit flows fill, the renderer reads.
+
+The model holds results only; the renderer adds nothing but layout, number formatting and
+simple aggregation of what is given (sums of deltas, counts). Every field carries its unit in
+its name or in its description below. Strings that come from AIS (ship names, call signs,
+destinations, port names derived from AIS) are stored as they arrived; the renderer escapes
+every string it writes (``dashboards.html.escape``, the only path into the page).
+
+Hand-off from the flows::
+
+    model = NightlyReport(run_id=..., departures=[LaneDeparture(..., routes=RouteSet(...))], ...)
+    render_nightly_report(model, out_dir / "report.html")
+
+    audit = VoyageAudit(mmsi=..., ship_name=..., routes=RouteSet(...), ...)
+    render_audit_report(audit, "audit.html")
+
+``report_to_json`` / ``report_from_json`` store a model next to the report so that
+``stormlane report --model FILE.json --out FILE.html`` re-renders it later.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, fields
+from importlib import metadata
+
+import numpy as np
+import pandas as pd
+
+from dashboards.errors import ReportError
+from routing.route import Route
+
+#: Route roles in display order, with their legend labels.
+ROUTE_ROLES = ("historical", "deviation", "optimal", "min_distance")
+ROLE_LABELS = {
+    "historical": "historical (lane / AIS track)",
+    "deviation": "cargo-safe deviation",
+    "optimal": "time-optimal A*",
+    "min_distance": "minimum-distance A*",
+}
+
+#: Metric columns the summary understands (``RouteSet.metrics``); others are shown as given.
+METRIC_COLUMNS = {
+    "time_h": "sailing time [h]",
+    "dist_nmi": "distance sailed [nmi]",
+    "max_hs_m": "highest significant wave height met [m]",
+    "mean_hs_m": "mean significant wave height met [m]",
+    "fuel_t": "fuel burnt (STEAM2) [t]",
+    "co2_t": "CO2 emitted [t]",
+    "so2_t": "SO2 emitted [t]",
+    "nox_t": "NOx emitted [t]",
+    "pm_t": "particulate matter emitted [t]",
+    "n_safety_events": "IMO MSC.1/Circ.1228 events (count)",
+    "exposure_h": "hours over any operator limit [h]",
+}
+
+#: Package versions listed in the provenance section by :func:`software_versions`.
+SOFTWARE = ("stormlane", "numpy", "pandas", "xarray", "duckdb", "prefect", "scikit-learn", "rtree", "numba", "matplotlib", "global-land-mask")
+
+
+def _utc(t, name: str) -> pd.Timestamp | None:
+    """Timestamp as tz-aware UTC; naive input is refused (it would be ambiguous)."""
+    if t is None or (isinstance(t, float) and math.isnan(t)):
+        return None
+    ts = pd.Timestamp(t)
+    if ts is pd.NaT:
+        return None
+    if ts.tz is None:
+        raise ReportError(f"{name}: time {ts} has no timezone; give UTC times")
+    return ts.tz_convert("UTC")
+
+
+def software_versions(packages=SOFTWARE) -> dict[str, str]:
+    """Installed versions of the packages a run depends on (``"not installed"`` when absent)."""
+    out = {}
+    for name in packages:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+@dataclass
+class WeatherSnapshot:
+    """One time slice of the weather grid, drawn under a map.
+
+    Attributes
+    ----------
+    time_utc : Timestamp
+        Valid time of the slice (tz-aware UTC), normally the worst time met on the historical route.
+    lat_deg : ndarray, shape (ny,)
+        Grid latitudes, ascending. [deg]
+    lon_deg : ndarray, shape (nx,)
+        Grid longitudes, ascending, in [-180, 180). [deg]
+    hs_m : ndarray, shape (ny, nx)
+        Significant wave height; NaN on land or where there is no data. [m]
+    wave_from_deg : ndarray, shape (ny, nx), optional
+        Mean wave direction the waves come FROM, clockwise from north. [deg]
+    product : str
+        Product the slice comes from (e.g. the CMEMS dataset id).
+    """
+
+    time_utc: pd.Timestamp
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    hs_m: np.ndarray
+    wave_from_deg: np.ndarray | None = None
+    product: str = ""
+
+    def __post_init__(self):
+        self.time_utc = _utc(self.time_utc, "WeatherSnapshot.time_utc")
+        self.lat_deg = np.asarray(self.lat_deg, dtype=float)
+        self.lon_deg = np.asarray(self.lon_deg, dtype=float)
+        self.hs_m = np.asarray(self.hs_m, dtype=float)
+        shape = (self.lat_deg.size, self.lon_deg.size)
+        if self.hs_m.shape != shape:
+            raise ReportError(f"WeatherSnapshot.hs_m has shape {self.hs_m.shape}, expected (lat, lon) = {shape}")
+        if self.wave_from_deg is not None:
+            self.wave_from_deg = np.asarray(self.wave_from_deg, dtype=float)
+            if self.wave_from_deg.shape != shape:
+                raise ReportError(f"WeatherSnapshot.wave_from_deg has shape {self.wave_from_deg.shape}, expected {shape}")
+        for name in ("lat_deg", "lon_deg"):
+            axis = getattr(self, name)
+            if axis.size > 1 and not np.all(np.diff(axis) > 0):
+                raise ReportError(f"WeatherSnapshot.{name} must be strictly ascending")
+
+
+@dataclass
+class SpeedLossCurve:
+    """Attainable speed against wave height for the chosen vessel and model (manual figs. 5-8).
+
+    Attributes
+    ----------
+    vessel : str
+        Vessel profile name.
+    model : str
+        Speed-loss model (``"bowditch"``, ``"aertssen"``, ``"khokhlov"`` ...).
+    speed_kn : float
+        Calm-water service speed v0. [kn]
+    table : DataFrame
+        Long format, one row per point: ``hs_m`` [m], ``encounter_deg`` [deg, 0 = head seas],
+        ``speed_kn`` [kn] (attainable speed, after the model's floor).
+    min_speed_kn : float, optional
+        Speed floor applied by the model. [kn]
+    """
+
+    vessel: str
+    model: str
+    speed_kn: float
+    table: pd.DataFrame
+    min_speed_kn: float | None = None
+
+    def __post_init__(self):
+        missing = {"hs_m", "encounter_deg", "speed_kn"} - set(self.table.columns)
+        if missing:
+            raise ReportError(f"SpeedLossCurve.table lacks column(s) {sorted(missing)}")
+
+
+@dataclass
+class Provenance:
+    """Where the numbers come from (methods and provenance section).
+
+    Attributes
+    ----------
+    weather_products : list of str
+        Product ids or names (e.g. ``cmems_mod_glo_wav_anfc_0.083deg_PT3H-i``, ``ERA5 single levels``).
+    weather_files : list of str
+        Files read (names, not contents).
+    weather_start_utc, weather_end_utc : Timestamp, optional
+        Time span the weather covers (tz-aware UTC).
+    weather_source : str
+        ``"local files"``, ``"copernicusmarine"``, ``"cdsapi"`` ...
+    ais_sources : list of str
+        AIS files or feeds the lanes/tracks come from.
+    speed_loss_model : str
+        Model used for speed loss along routes.
+    thresholds_profile : str
+        Operator-limit profile applied (e.g. ``container<200m``).
+    limits : dict of str -> float
+        The profile's numeric limits in project names (``hs_m``, ``wind_ms``, ``tp_min_s`` ...);
+        ``limits["hs_m"]`` is drawn as a contour on maps and a line on Hs plots.
+    vessel : dict
+        Vessel particulars (``Vessel.to_dict()``).
+    software : dict of str -> str
+        Package versions (see :func:`software_versions`).
+    methods : list of str
+        Method notes printed as given (sources, known limits).
+    """
+
+    weather_products: list = field(default_factory=list)
+    weather_files: list = field(default_factory=list)
+    weather_start_utc: pd.Timestamp | None = None
+    weather_end_utc: pd.Timestamp | None = None
+    weather_source: str = ""
+    ais_sources: list = field(default_factory=list)
+    speed_loss_model: str = ""
+    thresholds_profile: str = ""
+    limits: dict = field(default_factory=dict)
+    vessel: dict = field(default_factory=dict)
+    software: dict = field(default_factory=software_versions)
+    methods: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.weather_start_utc = _utc(self.weather_start_utc, "Provenance.weather_start_utc")
+        self.weather_end_utc = _utc(self.weather_end_utc, "Provenance.weather_end_utc")
+
+
+@dataclass
+class RouteSet:
+    """The alternatives for one voyage or lane-departure, and how they compare.
+
+    Attributes
+    ----------
+    routes : dict of str -> Route
+        Keyed by role: ``historical``, ``deviation``, ``optimal``, ``min_distance`` (others are
+        drawn too, in grey). Each carries its ETAs, leg speeds and the weather met.
+    metrics : DataFrame, optional
+        One row per role (index = role), columns named with units (see :data:`METRIC_COLUMNS`:
+        ``time_h``, ``dist_nmi``, ``max_hs_m``, ``mean_hs_m``, ``fuel_t``, ``co2_t``,
+        ``n_safety_events``, ``exposure_h`` ...). When absent, the renderer tabulates what the
+        routes themselves carry (time, distance, max and mean Hs met).
+    events : DataFrame, optional
+        Safety events, one row each: ``route``, ``criterion`` (e.g. ``surf-riding``), ``start_utc``,
+        ``end_utc``, ``duration_h`` [h], ``lat_deg``, ``lon_deg`` [deg].
+    exposure : DataFrame, optional
+        Exposure per route and limit: ``route``, ``limit`` (e.g. ``hs_m > 4.5``), ``exposure_h`` [h].
+    weather : WeatherSnapshot, optional
+        Field drawn under the map.
+    proposed : str, optional
+        Role of the recommended alternative (``None``: no proposal, e.g. nothing better found).
+    exports : dict of str -> str
+        Export files for this case, label -> path relative to the report (linked, never loaded).
+    """
+
+    routes: dict
+    metrics: pd.DataFrame | None = None
+    events: pd.DataFrame | None = None
+    exposure: pd.DataFrame | None = None
+    weather: WeatherSnapshot | None = None
+    proposed: str | None = None
+    exports: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        for role, route in self.routes.items():
+            if not isinstance(route, Route):
+                raise ReportError(f"RouteSet.routes[{role!r}] is {type(route).__name__}, not a Route")
+        if self.proposed is not None and self.proposed not in self.routes:
+            raise ReportError(f"RouteSet.proposed = {self.proposed!r} is not one of the routes {sorted(self.routes)}")
+
+    @property
+    def ordered_roles(self) -> list[str]:
+        """Roles in display order: the known ones first, then the rest alphabetically."""
+        known = [r for r in ROUTE_ROLES if r in self.routes]
+        return known + sorted(r for r in self.routes if r not in ROUTE_ROLES)
+
+    def metrics_table(self) -> pd.DataFrame:
+        """The metrics as given, or else what the routes carry (time, distance, Hs met)."""
+        if self.metrics is not None:
+            table = self.metrics.copy()
+            order = [r for r in self.ordered_roles if r in table.index] + [r for r in table.index if r not in self.routes]
+            return table.loc[order]
+        rows = {}
+        for role in self.ordered_roles:
+            route = self.routes[role]
+            hs = route.weather.get("hs_m")
+            mean_hs = float(np.nanmean(hs)) if hs is not None and np.isfinite(hs).any() else float("nan")
+            rows[role] = {"time_h": route.time_h, "dist_nmi": route.dist_nmi, "max_hs_m": route.max_hs_m, "mean_hs_m": mean_hs}
+        return pd.DataFrame.from_dict(rows, orient="index")
+
+    def deltas(self, reference: str = "historical") -> pd.DataFrame:
+        """Numeric metrics minus the reference row (empty when the reference is absent)."""
+        table = self.metrics_table()
+        if reference not in table.index:
+            return table.iloc[0:0]
+        numeric = table.select_dtypes("number")
+        return numeric.sub(numeric.loc[reference], axis=1)
+
+
+@dataclass
+class LaneDeparture:
+    """One lane sailed from one departure time that the run flagged (adverse) or could not finish.
+
+    Attributes
+    ----------
+    lane_id : str
+        Lane identifier in the workspace.
+    origin, destination : str
+        Port names (may come from AIS; escaped on output).
+    depart_utc : Timestamp
+        Departure time checked (tz-aware UTC).
+    status : {"adverse", "failed", "ok"}
+        ``adverse``: a rule fired; ``failed``: the lane's work raised (see ``error``).
+    rules : list of str
+        The rule(s) that fired, as the thresholds module words them (e.g. ``hs_m 5.2 > 4.5``).
+    worst_time_utc : Timestamp, optional
+        When the worst weather is met on the historical route.
+    worst_lat_deg, worst_lon_deg : float, optional
+        Where. [deg]
+    worst_hs_m : float, optional
+        Significant wave height there. [m]
+    routes : RouteSet, optional
+        Alternatives and comparison (absent for failed lanes).
+    error : str, optional
+        What went wrong, for ``failed``.
+    risk_avoided : float, optional
+        The run's ranking score (higher first), shown as given.
+    """
+
+    lane_id: str
+    origin: str
+    destination: str
+    depart_utc: pd.Timestamp
+    status: str = "adverse"
+    rules: list = field(default_factory=list)
+    worst_time_utc: pd.Timestamp | None = None
+    worst_lat_deg: float | None = None
+    worst_lon_deg: float | None = None
+    worst_hs_m: float | None = None
+    routes: RouteSet | None = None
+    error: str | None = None
+    risk_avoided: float | None = None
+
+    def __post_init__(self):
+        self.lane_id = str(self.lane_id)
+        self.depart_utc = _utc(self.depart_utc, f"LaneDeparture({self.lane_id}).depart_utc")
+        self.worst_time_utc = _utc(self.worst_time_utc, f"LaneDeparture({self.lane_id}).worst_time_utc")
+        if self.status not in ("adverse", "failed", "ok"):
+            raise ReportError(f"LaneDeparture({self.lane_id}).status = {self.status!r}; use adverse, failed or ok")
+        if self.status == "failed" and not self.error:
+            raise ReportError(f"LaneDeparture({self.lane_id}) is failed but has no error message")
+
+
+def metric_delta(routes: RouteSet | None, column: str) -> float:
+    """Proposed minus historical for one metric (NaN when either is missing)."""
+    if routes is None or routes.proposed is None:
+        return float("nan")
+    d = routes.deltas()
+    if column not in d.columns or routes.proposed not in d.index:
+        return float("nan")
+    return float(d.loc[routes.proposed, column])
+
+
+@dataclass
+class NightlyReport:
+    """One night's reroute run.
+
+    Attributes
+    ----------
+    run_id : str
+        Identifier of the run (tables in the workspace are keyed by it).
+    started_utc, finished_utc : Timestamp
+        Wall-clock start and end of the run (tz-aware UTC).
+    now_utc : Timestamp
+        Forecast reference time (``--now``).
+    window_start_utc, window_end_utc : Timestamp
+        Departure window checked.
+    departure_step_h : float
+        Spacing of the departures in the window. [h]
+    lanes_checked : int
+        Lanes (or planned voyages) checked.
+    departures_checked : int
+        Lane-departures checked (lanes x departures).
+    departures : list of LaneDeparture
+        The adverse and failed lane-departures, in the run's ranking order.
+    provenance : Provenance
+    speed_loss : SpeedLossCurve, optional
+    title : str
+    max_detail : int
+        At most this many adverse lane-departures get a map and plots (the rest are in the table).
+    """
+
+    run_id: str
+    started_utc: pd.Timestamp
+    finished_utc: pd.Timestamp
+    now_utc: pd.Timestamp
+    window_start_utc: pd.Timestamp
+    window_end_utc: pd.Timestamp
+    departure_step_h: float
+    lanes_checked: int
+    departures_checked: int
+    departures: list = field(default_factory=list)
+    provenance: Provenance = field(default_factory=Provenance)
+    speed_loss: SpeedLossCurve | None = None
+    title: str = "stormlane nightly reroute report"
+    max_detail: int = 20
+
+    def __post_init__(self):
+        for name in ("started_utc", "finished_utc", "now_utc", "window_start_utc", "window_end_utc"):
+            setattr(self, name, _utc(getattr(self, name), f"NightlyReport.{name}"))
+        for d in self.departures:
+            if not isinstance(d, LaneDeparture):
+                raise ReportError(f"NightlyReport.departures holds a {type(d).__name__}, not a LaneDeparture")
+
+    @property
+    def adverse(self) -> list[LaneDeparture]:
+        return [d for d in self.departures if d.status == "adverse"]
+
+    @property
+    def failed(self) -> list[LaneDeparture]:
+        return [d for d in self.departures if d.status == "failed"]
+
+    @property
+    def reroutes(self) -> list[LaneDeparture]:
+        """Adverse lane-departures with a proposed alternative."""
+        return [d for d in self.adverse if d.routes is not None and d.routes.proposed is not None]
+
+    def totals(self) -> dict[str, float]:
+        """Sums over proposed reroutes of (proposed - historical): time, fuel, CO2, events.
+
+        ``safety_events_avoided`` is the negated sum of the ``n_safety_events`` deltas. A total is
+        NaN when no reroute carries that metric.
+        """
+        out = {}
+        for column in ("time_h", "dist_nmi", "fuel_t", "co2_t", "n_safety_events", "exposure_h"):
+            values = [metric_delta(d.routes, column) for d in self.reroutes]
+            values = [v for v in values if math.isfinite(v)]
+            out[f"delta_{column}"] = float(sum(values)) if values else float("nan")
+        events = out.pop("delta_n_safety_events")
+        out["safety_events_avoided"] = -events if math.isfinite(events) else float("nan")
+        return out
+
+
+@dataclass
+class VoyageAudit:
+    """A retrospective audit of one sailed voyage.
+
+    Attributes
+    ----------
+    mmsi : int
+        Ship's MMSI.
+    ship_name, callsign, ais_destination : str, optional
+        As reported in AIS static data (untrusted text; escaped on output).
+    imo : int, optional
+    ship_type : int, optional
+        AIS ship-type code.
+    voyage_id : str, optional
+        Voyage identifier in the workspace.
+    origin, destination : str, optional
+        Port names of the voyage.
+    depart_utc, arrive_utc : Timestamp
+        Sailed departure and arrival (tz-aware UTC).
+    vessel_profile : str
+        Vessel profile used for the alternatives.
+    routes : RouteSet
+        ``historical`` is the sailed AIS track; alternatives for the same departure.
+    findings : list of str
+        Plain-language findings from the audit (printed as given).
+    provenance : Provenance
+    speed_loss : SpeedLossCurve, optional
+    generated_utc : Timestamp
+        When the audit was computed.
+    title : str
+    """
+
+    mmsi: int
+    depart_utc: pd.Timestamp
+    arrive_utc: pd.Timestamp
+    routes: RouteSet
+    ship_name: str | None = None
+    callsign: str | None = None
+    ais_destination: str | None = None
+    imo: int | None = None
+    ship_type: int | None = None
+    voyage_id: str | None = None
+    origin: str | None = None
+    destination: str | None = None
+    vessel_profile: str = ""
+    findings: list = field(default_factory=list)
+    provenance: Provenance = field(default_factory=Provenance)
+    speed_loss: SpeedLossCurve | None = None
+    generated_utc: pd.Timestamp = field(default_factory=lambda: pd.Timestamp.now(tz="UTC"))
+    title: str = "stormlane voyage audit"
+
+    def __post_init__(self):
+        for name in ("depart_utc", "arrive_utc", "generated_utc"):
+            setattr(self, name, _utc(getattr(self, name), f"VoyageAudit.{name}"))
+        if not isinstance(self.routes, RouteSet):
+            raise ReportError("VoyageAudit.routes must be a RouteSet")
+
+
+# ----------------------------------------------------------------------------- JSON round trip
+
+_CLASSES = {c.__name__: c for c in (WeatherSnapshot, SpeedLossCurve, Provenance, RouteSet, LaneDeparture, NightlyReport, VoyageAudit)}
+
+
+def _encode(obj):
+    if isinstance(obj, Route):
+        return {"__route__": json.loads(obj.to_json())}
+    if isinstance(obj, pd.DataFrame):
+        frame = obj.copy()
+        for col in frame.columns:
+            if isinstance(frame[col].dtype, pd.DatetimeTZDtype):
+                frame[col] = frame[col].map(lambda t: None if pd.isna(t) else t.isoformat())
+        return {"__frame__": json.loads(frame.to_json(orient="split", date_format="iso", default_handler=str))}
+    if isinstance(obj, pd.Timestamp):
+        return {"__time__": obj.isoformat()}
+    if isinstance(obj, np.ndarray):
+        return {"__array__": [None if (isinstance(x, float) and math.isnan(x)) else x for x in obj.ravel().tolist()], "shape": list(obj.shape)}
+    if isinstance(obj, np.generic):
+        return _encode(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if type(obj).__name__ in _CLASSES and hasattr(obj, "__dataclass_fields__"):
+        return {"__class__": type(obj).__name__, **{f.name: _encode(getattr(obj, f.name)) for f in fields(obj)}}
+    if isinstance(obj, dict):
+        return {str(k): _encode(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_encode(v) for v in obj]
+    return obj
+
+
+def _decode(obj):
+    if isinstance(obj, list):
+        return [_decode(v) for v in obj]
+    if not isinstance(obj, dict):
+        return obj
+    if "__route__" in obj:
+        return Route.from_json(json.dumps(obj["__route__"]))
+    if "__frame__" in obj:
+        spec = obj["__frame__"]
+        frame = pd.DataFrame(spec["data"], index=spec["index"], columns=spec["columns"])
+        for col in frame.columns:
+            if str(col).endswith("_utc"):
+                frame[col] = pd.to_datetime(frame[col], utc=True)
+        return frame
+    if "__time__" in obj:
+        return pd.Timestamp(obj["__time__"])
+    if "__array__" in obj:
+        return np.array([np.nan if x is None else x for x in obj["__array__"]], dtype=float).reshape(obj["shape"])
+    if "__class__" in obj:
+        cls = _CLASSES[obj["__class__"]]
+        return cls(**{k: _decode(v) for k, v in obj.items() if k != "__class__"})
+    return {k: _decode(v) for k, v in obj.items()}
+
+
+def report_to_json(model) -> str:
+    """Serialise a :class:`NightlyReport` or :class:`VoyageAudit` (round-trips through :func:`report_from_json`)."""
+    return json.dumps(_encode(model), allow_nan=False)
+
+
+def report_from_json(text: str):
+    """Inverse of :func:`report_to_json`."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise ReportError(f"report model is not valid JSON ({err})") from None
+    if not isinstance(data, dict) or data.get("__class__") not in ("NightlyReport", "VoyageAudit"):
+        raise ReportError("report model JSON must hold a NightlyReport or a VoyageAudit")
+    return _decode(data)

@@ -1,0 +1,250 @@
+"""Static figures for the reports, drawn with matplotlib's object API (no pyplot state, Agg).
+
+Every function returns PNG bytes that the renderer inlines as a ``data:`` URI, so a report
+needs no file but itself and no network (no tile server, no Natural Earth download: land comes
+from the 30-arc-second mask bundled with ``global-land-mask``, sampled at the map's resolution).
+Only numbers and the project's own labels are drawn; AIS-supplied text never enters a figure
+(it is written, escaped, into the HTML around it).
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pandas as pd
+
+from dashboards.model import ROLE_LABELS, SpeedLossCurve, WeatherSnapshot
+from routing.route import Route
+
+#: Line styles per route role (Okabe-Ito colours, readable by colour-blind readers).
+ROLE_STYLE = {
+    "historical": {"color": "#000000", "linestyle": (0, (5, 3)), "linewidth": 2.0},
+    "deviation": {"color": "#009E73", "linestyle": "-", "linewidth": 2.4},
+    "optimal": {"color": "#0072B2", "linestyle": "-", "linewidth": 2.4},
+    "min_distance": {"color": "#CC79A7", "linestyle": (0, (6, 2, 1, 2)), "linewidth": 2.0},
+}
+OTHER_STYLE = {"color": "#7f7f7f", "linestyle": ":", "linewidth": 1.8}
+HS_CMAP = "YlOrRd"
+LAND_RGB = (0.85, 0.83, 0.78)
+LIMIT_COLOR = "#7a0177"
+
+
+def style_for(role: str) -> dict:
+    return dict(ROLE_STYLE.get(role, OTHER_STYLE))
+
+
+def label_for(role: str) -> str:
+    return ROLE_LABELS.get(role, role.replace("_", " "))
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", bbox_inches="tight", metadata={"Software": None})
+    return buf.getvalue()
+
+
+def _naive_utc(times: pd.DatetimeIndex) -> np.ndarray:
+    return pd.DatetimeIndex(times).tz_convert("UTC").tz_localize(None).to_numpy()
+
+
+def map_extent(routes: dict, weather: WeatherSnapshot | None = None, pad_frac: float = 0.15, min_pad_deg: float = 0.4):
+    """Lon/lat box around all routes (padded); the whole weather grid when there is no route."""
+    lats = [r.lat_deg for r in routes.values() if r.n_waypoints]
+    lons = [r.lon_deg for r in routes.values() if r.n_waypoints]
+    if lats:
+        lat = np.concatenate(lats)
+        lon = np.concatenate(lons)
+    elif weather is not None:
+        lat, lon = weather.lat_deg, weather.lon_deg
+    else:
+        raise ValueError("nothing to draw: no route and no weather")
+    lat0, lat1, lon0, lon1 = float(np.min(lat)), float(np.max(lat)), float(np.min(lon)), float(np.max(lon))
+    pad_lat = max((lat1 - lat0) * pad_frac, min_pad_deg)
+    pad_lon = max((lon1 - lon0) * pad_frac, min_pad_deg)
+    return lon0 - pad_lon, lon1 + pad_lon, max(lat0 - pad_lat, -89.9), min(lat1 + pad_lat, 89.9)
+
+
+def land_mask(lon0: float, lon1: float, lat0: float, lat1: float, n: int = 500):
+    """Boolean land grid over the box from ``global_land_mask`` (30" mask), ``n`` samples on the long side.
+
+    Returns ``(lon_centres, lat_centres, is_land[lat, lon])``.
+    """
+    from global_land_mask import globe
+
+    span = max(lon1 - lon0, lat1 - lat0)
+    step = span / n
+    lon = np.arange(lon0 + step / 2, lon1, step)
+    lat = np.arange(lat0 + step / 2, lat1, step)
+    lon_w = (lon + 180.0) % 360.0 - 180.0
+    lat_g, lon_g = np.meshgrid(lat, lon_w, indexing="ij")
+    return lon, lat, globe.is_land(lat_g, lon_g)
+
+
+def route_map_png(
+    routes: dict,
+    weather: WeatherSnapshot | None = None,
+    *,
+    hs_limit_m: float | None = None,
+    worst: tuple | None = None,
+    width_in: float = 6.2,
+    dpi: int = 100,
+) -> bytes:
+    """Map: land, Hs field and wave-direction arrows at the snapshot time, routes with a legend.
+
+    Parameters
+    ----------
+    routes : dict of str -> Route
+        Keyed by role; drawn in :data:`ROLE_STYLE` colours.
+    weather : WeatherSnapshot, optional
+        Hs field (colour) and mean wave direction (arrows pointing where the waves travel TO,
+        i.e. ``wave_from_deg + 180``).
+    hs_limit_m : float, optional
+        Vessel's Hs limit, drawn as a contour. [m]
+    worst : (lat_deg, lon_deg), optional
+        Where the worst weather is met, marked with a star.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patheffects import withStroke
+
+    lon0, lon1, lat0, lat1 = map_extent(routes, weather)
+    mid_lat = np.deg2rad(0.5 * (lat0 + lat1))
+    coslat = max(np.cos(mid_lat), 0.05)
+    aspect = 1.0 / coslat
+    # Keep the map between 1:1 and 2:1 (width:height on screen) by widening the short side.
+    screen_w, screen_h = (lon1 - lon0) * coslat, lat1 - lat0
+    if screen_w < screen_h:
+        grow = (screen_h / coslat - (lon1 - lon0)) / 2
+        lon0, lon1 = lon0 - grow, lon1 + grow
+    elif screen_w > 2 * screen_h:
+        grow = (screen_w / 2 - screen_h) / 2
+        lat0, lat1 = max(lat0 - grow, -89.9), min(lat1 + grow, 89.9)
+    height_in = width_in * (lat1 - lat0) * aspect / (lon1 - lon0) * 0.9 + 1.6
+    fig = Figure(figsize=(width_in, height_in), dpi=dpi)
+    ax = fig.add_subplot()
+    ax.set_facecolor("white")
+    handles = []
+
+    if weather is not None:
+        hs = np.ma.masked_invalid(weather.hs_m)
+        vmax = max(1.0, float(np.ceil(np.nanmax(weather.hs_m)))) if np.isfinite(weather.hs_m).any() else 1.0
+        mesh = ax.pcolormesh(weather.lon_deg, weather.lat_deg, hs, cmap=HS_CMAP, vmin=0.0, vmax=vmax, shading="nearest", zorder=1)
+        cbar = fig.colorbar(mesh, ax=ax, shrink=0.8, pad=0.02, fraction=0.04)
+        cbar.set_label("significant wave height Hs [m]")
+        if hs_limit_m is not None and np.nanmax(weather.hs_m) > hs_limit_m > np.nanmin(weather.hs_m):
+            ax.contour(weather.lon_deg, weather.lat_deg, weather.hs_m, levels=[hs_limit_m], colors=LIMIT_COLOR, linewidths=1.3, zorder=2)
+            handles.append(Line2D([], [], color=LIMIT_COLOR, linewidth=1.3, label=f"Hs limit {hs_limit_m:g} m"))
+        if weather.wave_from_deg is not None:
+            inside_lon = (weather.lon_deg >= lon0) & (weather.lon_deg <= lon1)
+            inside_lat = (weather.lat_deg >= lat0) & (weather.lat_deg <= lat1)
+            n_lon = max(int(inside_lon.sum()), 1)
+            step = max(1, int(np.ceil(n_lon / 14)))
+            ii = np.flatnonzero(inside_lat)[::step]
+            jj = np.flatnonzero(inside_lon)[::step]
+            if ii.size and jj.size:
+                d_from = weather.wave_from_deg[np.ix_(ii, jj)]
+                ok = np.isfinite(d_from) & np.isfinite(weather.hs_m[np.ix_(ii, jj)])
+                to_rad = np.deg2rad(d_from + 180.0)
+                lon_g, lat_g = np.meshgrid(weather.lon_deg[jj], weather.lat_deg[ii])
+                # angles="uv": arrow direction on screen; with the aspect set to 1/cos(lat) the
+                # screen is locally conformal, so (sin, cos) of the bearing points the right way.
+                ax.quiver(lon_g[ok], lat_g[ok], np.sin(to_rad[ok]), np.cos(to_rad[ok]), angles="uv", pivot="middle", color="#333333", scale=28, width=0.0028, headwidth=4, zorder=3)
+                handles.append(Line2D([], [], color="#333333", marker=r"$\rightarrow$", markersize=12, linestyle="none", label="mean wave direction (travelling to)"))
+
+    lon_c, lat_c, land = land_mask(lon0, lon1, lat0, lat1)
+    rgba = np.zeros(land.shape + (4,))
+    rgba[land] = (*LAND_RGB, 1.0)
+    ax.imshow(rgba, extent=(lon0, lon1, lat0, lat1), origin="lower", interpolation="nearest", zorder=4, aspect="auto")
+
+    halo = [withStroke(linewidth=4.5, foreground="white")]
+    for role, route in routes.items():
+        st = style_for(role)
+        ax.plot(route.lon_deg, route.lat_deg, zorder=6, solid_capstyle="round", path_effects=halo, label=label_for(role), **st)
+        handles.append(Line2D([], [], label=f"{label_for(role)}: {route.dist_nmi:.0f} nmi, {route.time_h:.1f} h", **st))
+    if routes:
+        first = next(iter(routes.values()))
+        ax.plot(first.lon_deg[0], first.lat_deg[0], "o", color="white", markeredgecolor="black", markersize=8, zorder=7)
+        ax.plot(first.lon_deg[-1], first.lat_deg[-1], "s", color="white", markeredgecolor="black", markersize=8, zorder=7)
+        handles.append(Line2D([], [], marker="o", color="white", markeredgecolor="black", linestyle="none", label="departure"))
+        handles.append(Line2D([], [], marker="s", color="white", markeredgecolor="black", linestyle="none", label="arrival"))
+    if worst is not None and all(v is not None and np.isfinite(v) for v in worst):
+        ax.plot(worst[1], worst[0], marker="*", color="white", markeredgecolor="black", markersize=17, linestyle="none", zorder=8)
+        handles.append(Line2D([], [], marker="*", color="white", markeredgecolor="black", markersize=12, linestyle="none", label="worst weather on historical"))
+
+    ax.set_xlim(lon0, lon1)
+    ax.set_ylim(lat0, lat1)
+    ax.set_aspect(aspect)
+    ax.set_xlabel("longitude [deg E]")
+    ax.set_ylabel("latitude [deg N]")
+    ax.grid(True, color="#999999", linewidth=0.4, alpha=0.5, zorder=5)
+    if weather is not None:
+        ax.set_title(f"Hs and mean wave direction at {weather.time_utc:%Y-%m-%d %H:%M} UTC", fontsize=11)
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8, frameon=False)
+    return _png(fig)
+
+
+def series_png(routes: dict, *, hs_limit_m: float | None = None, width_in: float = 5.8, dpi: int = 100) -> bytes:
+    """Hs met (top) and speed over ground (bottom) along each route against time (UTC)."""
+    from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, 5.6), dpi=dpi)
+    ax_hs, ax_v = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [1.2, 1.0]})
+    for role, route in routes.items():
+        st = style_for(role)
+        t = _naive_utc(route.time_utc)
+        hs = route.weather.get("hs_m")
+        if hs is not None:
+            ax_hs.plot(t, hs, marker="." if route.n_waypoints < 80 else None, label=label_for(role), **st)
+        if route.n_waypoints >= 2:
+            ax_v.step(t, np.append(route.leg_speed_kn, route.leg_speed_kn[-1]), where="post", label=label_for(role), **st)
+    if hs_limit_m is not None:
+        ax_hs.axhline(hs_limit_m, color=LIMIT_COLOR, linewidth=1.2, label=f"Hs limit {hs_limit_m:g} m")
+    ax_hs.set_ylabel("Hs met [m]")
+    ax_hs.set_ylim(bottom=0)
+    ax_v.set_ylabel("speed over ground [kn]")
+    ax_v.set_xlabel("time [UTC]")
+    ax_v.set_ylim(bottom=0)
+    for ax in (ax_hs, ax_v):
+        ax.grid(True, linewidth=0.4, alpha=0.6)
+    locator = AutoDateLocator(minticks=3, maxticks=7)
+    ax_v.xaxis.set_major_locator(locator)
+    ax_v.xaxis.set_major_formatter(ConciseDateFormatter(locator))
+    handles, labels = ax_hs.get_legend_handles_labels()
+    ax_v.legend(handles, labels, fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.32), ncol=2, frameon=False)
+    fig.align_ylabels()
+    return _png(fig)
+
+
+def _sector_name(encounter_deg: float) -> str:
+    a = abs(((encounter_deg + 180.0) % 360.0) - 180.0)
+    if a <= 45:
+        return "head"
+    if a < 135:
+        return "beam"
+    return "following"
+
+
+def speed_loss_png(curve: SpeedLossCurve, *, width_in: float = 6.4, dpi: int = 100) -> bytes:
+    """Attainable speed against Hs, one line per encounter angle (0 = head seas)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, 4.0), dpi=dpi)
+    ax = fig.add_subplot()
+    angles = sorted(curve.table["encounter_deg"].unique())
+    colors = ["#b3261e", "#E69F00", "#009E73", "#56B4E9", "#0072B2", "#CC79A7", "#000000"]
+    for k, angle in enumerate(angles):
+        part = curve.table[curve.table["encounter_deg"] == angle].sort_values("hs_m")
+        ax.plot(part["hs_m"], part["speed_kn"], color=colors[k % len(colors)], linewidth=2, label=f"{angle:g}\u00b0 ({_sector_name(angle)} seas)")
+    ax.axhline(curve.speed_kn, color="#555555", linestyle="--", linewidth=1, label=f"calm water {curve.speed_kn:g} kn")
+    if curve.min_speed_kn is not None:
+        ax.axhline(curve.min_speed_kn, color="#555555", linestyle=":", linewidth=1, label=f"floor {curve.min_speed_kn:g} kn")
+    ax.set_xlabel("significant wave height Hs [m]")
+    ax.set_ylabel("attainable speed [kn]")
+    ax.set_ylim(bottom=0)
+    ax.set_xlim(left=0)
+    ax.grid(True, linewidth=0.4, alpha=0.6)
+    ax.set_title(f"speed loss, model {curve.model}", fontsize=11)
+    ax.legend(fontsize=8, loc="lower left", framealpha=0.92)
+    return _png(fig)

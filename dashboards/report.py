@@ -1,0 +1,399 @@
+"""Self-contained HTML reports: the nightly reroute report and the voyage audit report.
+
+``render_nightly_report(model, path)`` and ``render_audit_report(model, path)`` write one HTML
+file that opens from disk with no network request and no script (a Content-Security-Policy
+meta tag forbids both): maps and plots are PNGs inlined as ``data:`` URIs, the style sheet is
+inline. All text goes through :func:`dashboards.html.escape`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from dashboards import plots
+from dashboards.errors import ReportError
+from dashboards.html import Markup, el, escape, fmt, fmt_time, img_png, join, page, table
+from dashboards.model import METRIC_COLUMNS, metric_delta, LaneDeparture, NightlyReport, Provenance, RouteSet, SpeedLossCurve, VoyageAudit
+
+DASH = "\u2013"
+
+#: Metrics where a lower value is better (deltas coloured accordingly).
+LOWER_IS_BETTER = {"time_h", "dist_nmi", "max_hs_m", "mean_hs_m", "fuel_t", "co2_t", "so2_t", "nox_t", "pm_t", "n_safety_events", "exposure_h"}
+
+
+def _decimals(column: str) -> int:
+    if column.startswith("n_"):
+        return 0
+    for suffix, d in (("_nmi", 1), ("_h", 2), ("_kn", 2), ("_m", 2), ("_t", 2), ("_pct", 1), ("_deg", 0), ("_s", 1), ("_ms", 1)):
+        if column.endswith(suffix):
+            return d
+    return 3
+
+
+COLUMN_LABELS = {
+    "start_utc": "start [UTC]",
+    "end_utc": "end [UTC]",
+    "duration_h": "duration [h]",
+    "lat_deg": "lat [deg]",
+    "lon_deg": "lon [deg]",
+    "exposure_h": "exposure [h]",
+}
+
+
+def _header(column: str) -> str:
+    return COLUMN_LABELS.get(column) or METRIC_COLUMNS.get(column, column)
+
+
+def _hours(h: float) -> str:
+    if h is None or not math.isfinite(h):
+        return "\u2013"
+    return f"{h:+.2f} h"
+
+
+def _card(value, label) -> Markup:
+    return el("div", el("b", value), el("span", label), class_="card")
+
+
+def _delta_span(column: str, delta: float) -> Markup:
+    if delta is None or not math.isfinite(delta):
+        return Markup("")
+    cls = None
+    if column in LOWER_IS_BETTER and round(delta, _decimals(column)) != 0:
+        cls = "good" if delta < 0 else "bad"
+    return el("span", f" ({fmt(delta, _decimals(column), signed=True)})", class_=cls)
+
+
+# ----------------------------------------------------------------------------- shared sections
+
+
+def _route_label(role: str) -> str:
+    return plots.label_for(role)
+
+
+def metrics_section(routes: RouteSet) -> Markup:
+    """Comparison table: one row per route, values with the delta to the historical route."""
+    metrics = routes.metrics_table()
+    deltas = routes.deltas()
+    columns = list(metrics.columns)
+    rows = []
+    for role in metrics.index:
+        label = _route_label(role) + (" \u2605 proposed" if role == routes.proposed else "")
+        cells = [label]
+        for col in columns:
+            value = metrics.loc[role, col]
+            if isinstance(value, (float, np.floating, int, np.integer)) and not isinstance(value, bool):
+                cell = Markup(escape(fmt(value, _decimals(col))))
+                if role != "historical" and role in deltas.index and col in deltas.columns:
+                    cell = cell + _delta_span(col, float(deltas.loc[role, col]))
+                cells.append(cell)
+            else:
+                cells.append(fmt(value))
+        rows.append(cells)
+    note = el("p", "Values per route; in brackets the difference to the historical route (green: lower, red: higher).", class_="muted") if "historical" in metrics.index else Markup("")
+    return join([table(["route"] + [_header(c) for c in columns], rows, numeric=set(range(1, len(columns) + 1))), note])
+
+
+def events_section(routes: RouteSet) -> Markup:
+    parts = []
+    if routes.events is not None:
+        ev = routes.events
+        if len(ev):
+            cols = [c for c in ("route", "criterion", "start_utc", "end_utc", "duration_h", "lat_deg", "lon_deg") if c in ev.columns]
+            cols += [c for c in ev.columns if c not in cols]
+            rows = [[_route_label(v) if c == "route" else fmt(v, _decimals(c)) for c, v in zip(cols, rec)] for rec in ev[cols].itertuples(index=False)]
+            parts.append(el("h4", "IMO MSC.1/Circ.1228 and operator events"))
+            parts.append(table([_header(c) for c in cols], rows))
+        else:
+            parts.append(el("p", "No IMO MSC.1/Circ.1228 event on any route.", class_="muted"))
+    if routes.exposure is not None and len(routes.exposure):
+        ex = routes.exposure
+        cols = list(ex.columns)
+        rows = [[_route_label(v) if c == "route" else fmt(v, _decimals(c)) for c, v in zip(cols, rec)] for rec in ex.itertuples(index=False)]
+        parts.append(el("h4", "Exposure over operator limits"))
+        parts.append(table([_header(c) for c in cols], rows, numeric={i for i, c in enumerate(cols) if c.endswith("_h")}))
+    return join(parts)
+
+
+def figures_section(routes: RouteSet, provenance: Provenance, worst=None) -> Markup:
+    hs_limit = provenance.limits.get("hs_m") if provenance.limits else None
+    ordered = {role: routes.routes[role] for role in routes.ordered_roles}
+    if not ordered:
+        return Markup("")
+    map_png = plots.route_map_png(ordered, routes.weather, hs_limit_m=hs_limit, worst=worst)
+    series = plots.series_png(ordered, hs_limit_m=hs_limit)
+    return el(
+        "div",
+        img_png(map_png, "map: land, Hs field, wave direction and the routes"),
+        img_png(series, "Hs and speed along each route against time"),
+        class_="figrow",
+    )
+
+
+def exports_section(routes: RouteSet) -> Markup:
+    if not routes.exports:
+        return Markup("")
+    links = join([el("a", label, href=path) for label, path in routes.exports.items()], sep=" \u00b7 ")
+    return el("p", "Exports: ", links)
+
+
+def waypoints_section(routes: RouteSet) -> Markup:
+    parts = []
+    for role in routes.ordered_roles:
+        route = routes.routes[role]
+        frame = route.to_frame()
+        cols = list(frame.columns)
+        rows = [[fmt_time(v) if c == "time_utc" else fmt(v, 5 if c.endswith("_deg") and c in ("lat_deg", "lon_deg") else _decimals(c)) for c, v in zip(cols, rec)] for rec in frame.itertuples(index=False)]
+        parts.append(el("details", el("summary", f"Waypoints of the {_route_label(role)} route ({route.n_waypoints})"), table(cols, rows, numeric=set(range(len(cols))) - {cols.index("time_utc")})))
+    return join(parts)
+
+
+def speed_loss_section(curve: SpeedLossCurve | None) -> Markup:
+    if curve is None:
+        return Markup("")
+    text = f"Vessel profile {curve.vessel}, calm-water speed {curve.speed_kn:g} kn, model {curve.model}; encounter angle 0\u00b0 = head seas, 180\u00b0 = following seas."
+    return join([el("h2", "Speed-loss curve"), el("p", text), img_png(plots.speed_loss_png(curve), "attainable speed against wave height")])
+
+
+def provenance_section(prov: Provenance) -> Markup:
+    span = f"{fmt_time(prov.weather_start_utc)} \u2192 {fmt_time(prov.weather_end_utc)}" if prov.weather_start_utc is not None else "\u2013"
+    rows = [
+        ["weather source", prov.weather_source or "\u2013"],
+        ["weather products", ", ".join(map(str, prov.weather_products)) or "\u2013"],
+        ["weather span", span],
+        ["weather files", ", ".join(map(str, prov.weather_files)) or "\u2013"],
+        ["AIS sources", ", ".join(map(str, prov.ais_sources)) or "\u2013"],
+        ["speed-loss model", prov.speed_loss_model or "\u2013"],
+        ["thresholds profile", prov.thresholds_profile or "\u2013"],
+        ["limits", ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}" for k, v in prov.limits.items()) or "\u2013"],
+    ]
+    parts = [el("h2", "Methods and provenance"), table(["item", "value"], rows)]
+    if prov.vessel:
+        parts.append(el("h4", "Vessel"))
+        parts.append(table(["particular", "value"], [[k, fmt(v, 2)] for k, v in prov.vessel.items() if k != "extra" and v not in (None, "")]))
+    if prov.methods:
+        parts.append(el("h4", "Methods"))
+        parts.append(el("ul", *(el("li", m) for m in prov.methods)))
+    parts.append(el("h4", "Software"))
+    parts.append(table(["package", "version"], [[k, v] for k, v in prov.software.items()]))
+    return join(parts)
+
+
+# ----------------------------------------------------------------------------- nightly
+
+
+def _rules(dep: LaneDeparture) -> Markup:
+    return join([el("div", r) for r in dep.rules]) if dep.rules else Markup("\u2013")
+
+
+def _departure_title(dep: LaneDeparture) -> str:
+    return f"Lane {dep.lane_id}: {dep.origin} \u2192 {dep.destination}, departing {fmt_time(dep.depart_utc)}"
+
+
+def lanes_at_risk_table(model: NightlyReport) -> Markup:
+    """One row per adverse or failed lane-departure, in the run's order, with the rule that fired."""
+    if not model.departures:
+        return el("p", "No adverse lane-departure in the window: every lane passed every threshold.")
+    rows = []
+    for k, dep in enumerate(model.departures, start=1):
+        worst = "\u2013"
+        if dep.worst_hs_m is not None and math.isfinite(dep.worst_hs_m):
+            where = f" at {dep.worst_lat_deg:.2f}N {dep.worst_lon_deg:.2f}E" if dep.worst_lat_deg is not None else ""
+            worst = f"{dep.worst_hs_m:.2f} m{where}, {fmt_time(dep.worst_time_utc)}"
+        rs = dep.routes
+        proposed = _route_label(rs.proposed) if rs is not None and rs.proposed else "\u2013"
+        d_time = metric_delta(rs, "time_h")
+        d_fuel = metric_delta(rs, "fuel_t")
+        d_co2 = metric_delta(rs, "co2_t")
+        d_events = metric_delta(rs, "n_safety_events")
+        status = el("span", "failed: ", dep.error, class_="status-failed") if dep.status == "failed" else dep.status
+        link = el("a", str(k), href=f"#case-{k}") if dep.status == "adverse" and dep.routes is not None and k <= model.max_detail else str(k)
+        rows.append(
+            [
+                link,
+                dep.lane_id,
+                f"{dep.origin} \u2192 {dep.destination}",
+                fmt_time(dep.depart_utc),
+                _rules(dep),
+                worst,
+                proposed,
+                fmt(d_time, 2, signed=True),
+                fmt(d_fuel, 3, signed=True),
+                fmt(d_co2, 3, signed=True),
+                fmt(-d_events if math.isfinite(d_events) else d_events, 0),
+                status,
+            ]
+        )
+    cols = ["#", "lane", "route", "departure", "rule(s) fired", "worst Hs on lane", "proposed", "\u0394 time [h]", "\u0394 fuel [t]", "\u0394 CO2 [t]", "events avoided", "status"]
+    return table(cols, rows, numeric={7, 8, 9, 10})
+
+
+def _nightly_summary(model: NightlyReport) -> Markup:
+    totals = model.totals()
+    prov = model.provenance
+    duration_s = (model.finished_utc - model.started_utc).total_seconds() if model.started_utc is not None and model.finished_utc is not None else float("nan")
+    cards = el(
+        "div",
+        _card(fmt(model.lanes_checked), "lanes checked"),
+        _card(fmt(model.departures_checked), "lane-departures checked"),
+        _card(fmt(len(model.adverse)), "adverse lane-departures"),
+        _card(fmt(len(model.reroutes)), "proposed reroutes"),
+        _card(fmt(len(model.failed)), "failed lanes"),
+        _card(_hours(totals["delta_time_h"]), "\u0394 sailing time (sum)"),
+        _card(fmt(totals["delta_fuel_t"], 2, signed=True) + " t", "\u0394 fuel (sum)"),
+        _card(fmt(totals["delta_co2_t"], 2, signed=True) + " t", "\u0394 CO2 (sum)"),
+        _card(fmt(totals["safety_events_avoided"], 0), "safety events avoided"),
+        class_="cards",
+    )
+    span = f"{fmt_time(prov.weather_start_utc)} \u2192 {fmt_time(prov.weather_end_utc)}" if prov.weather_start_utc is not None else "\u2013"
+    rows = [
+        ["run", model.run_id],
+        ["run time", f"{fmt_time(model.started_utc)} \u2192 {fmt_time(model.finished_utc)} ({fmt(duration_s, 1)} s)"],
+        ["forecast reference (now)", fmt_time(model.now_utc)],
+        ["departure window", f"{fmt_time(model.window_start_utc)} \u2192 {fmt_time(model.window_end_utc)}, every {fmt(model.departure_step_h, 1)} h"],
+        ["weather", f"{prov.weather_source or 'unknown source'}: {', '.join(map(str, prov.weather_products)) or DASH}; {span}"],
+        ["vessel / model / limits", f"{prov.vessel.get('name', DASH) if prov.vessel else DASH} / {prov.speed_loss_model or DASH} / {prov.thresholds_profile or DASH}"],
+    ]
+    note = el("p", "Deltas are proposed minus historical, summed over the proposed reroutes; negative time, fuel and CO2 are savings.", class_="muted")
+    return join([el("h2", "Summary"), cards, table(None, rows), note])
+
+
+def _case_section(k: int, dep: LaneDeparture, provenance: Provenance) -> Markup:
+    rs = dep.routes
+    worst = (dep.worst_lat_deg, dep.worst_lon_deg) if dep.worst_lat_deg is not None else None
+    rules = el("p", el("b", "Rule(s) fired: "), join(dep.rules, sep="; ") if dep.rules else "\u2013")
+    return el(
+        "section",
+        el("h3", f"{k}. {_departure_title(dep)}", id=f"case-{k}"),
+        rules,
+        figures_section(rs, provenance, worst=worst),
+        metrics_section(rs),
+        events_section(rs),
+        exports_section(rs),
+        waypoints_section(rs),
+        class_="case",
+    )
+
+
+def nightly_html(model: NightlyReport) -> str:
+    """The nightly report as an HTML string."""
+    if not isinstance(model, NightlyReport):
+        raise ReportError(f"render_nightly_report needs a NightlyReport, got {type(model).__name__}")
+    detailed = [(k, d) for k, d in enumerate(model.departures, start=1) if d.status == "adverse" and d.routes is not None][: model.max_detail]
+    parts = [
+        _nightly_summary(model),
+        el("h2", "Lanes at risk"),
+        lanes_at_risk_table(model),
+    ]
+    if detailed:
+        parts.append(el("h2", "Adverse lane-departures"))
+        n_adverse = sum(1 for d in model.departures if d.status == "adverse" and d.routes is not None)
+        if n_adverse > len(detailed):
+            parts.append(el("p", f"Maps and plots for the first {len(detailed)} of {n_adverse} in ranking order; the others are in the table above.", class_="muted"))
+        parts.extend(_case_section(k, d, model.provenance) for k, d in detailed)
+    parts.append(speed_loss_section(model.speed_loss))
+    parts.append(provenance_section(model.provenance))
+    subtitle = f"run {model.run_id} \u00b7 forecast from {fmt_time(model.now_utc)} \u00b7 departures {fmt_time(model.window_start_utc)} \u2192 {fmt_time(model.window_end_utc)}"
+    return page(model.title, subtitle, join(parts))
+
+
+# ----------------------------------------------------------------------------- audit
+
+
+def audit_html(model: VoyageAudit) -> str:
+    """The voyage audit report as an HTML string."""
+    if not isinstance(model, VoyageAudit):
+        raise ReportError(f"render_audit_report needs a VoyageAudit, got {type(model).__name__}")
+    rs = model.routes
+    ship = model.ship_name or f"MMSI {model.mmsi}"
+    ident = [
+        ["ship name (AIS)", model.ship_name or "\u2013"],
+        ["MMSI", model.mmsi],
+        ["IMO", model.imo if model.imo is not None else "\u2013"],
+        ["call sign (AIS)", model.callsign or "\u2013"],
+        ["AIS ship type", model.ship_type if model.ship_type is not None else "\u2013"],
+        ["destination reported (AIS)", model.ais_destination or "\u2013"],
+        ["voyage", model.voyage_id or "\u2013"],
+        ["from \u2192 to", f"{model.origin or DASH} \u2192 {model.destination or DASH}"],
+        ["departure \u2192 arrival", f"{fmt_time(model.depart_utc)} \u2192 {fmt_time(model.arrive_utc)}"],
+        ["vessel profile for the alternatives", model.vessel_profile or "\u2013"],
+        ["audit computed", fmt_time(model.generated_utc)],
+    ]
+    metrics = rs.metrics_table()
+    cards = []
+    if "historical" in metrics.index:
+        hist = metrics.loc["historical"]
+        cards.append(_card(f"{fmt(hist.get('time_h'), 2)} h", "sailed time"))
+        cards.append(_card(f"{fmt(hist.get('dist_nmi'), 1)} nmi", "sailed distance"))
+        cards.append(_card(f"{fmt(hist.get('max_hs_m'), 2)} m", "highest Hs met"))
+        if "n_safety_events" in metrics.columns:
+            cards.append(_card(fmt(hist.get("n_safety_events"), 0), "IMO events on the sailed track"))
+    if rs.proposed is not None:
+        deltas = rs.deltas()
+        if rs.proposed in deltas.index:
+            d = deltas.loc[rs.proposed]
+            cards.append(_card(_hours(d.get("time_h", float("nan"))), f"\u0394 time, {_route_label(rs.proposed)}"))
+            if "fuel_t" in d:
+                cards.append(_card(fmt(d["fuel_t"], 2, signed=True) + " t", f"\u0394 fuel, {_route_label(rs.proposed)}"))
+            if "max_hs_m" in d:
+                cards.append(_card(fmt(d["max_hs_m"], 2, signed=True) + " m", f"\u0394 highest Hs, {_route_label(rs.proposed)}"))
+    worst = None
+    hist_route = rs.routes.get("historical")
+    if hist_route is not None and "hs_m" in hist_route.weather and np.isfinite(hist_route.weather["hs_m"]).any():
+        i = int(np.nanargmax(hist_route.weather["hs_m"]))
+        worst = (hist_route.lat_deg[i], hist_route.lon_deg[i])
+    parts = [
+        el("h2", "Ship and voyage"),
+        table(None, ident),
+        el("div", *cards, class_="cards"),
+    ]
+    if model.findings:
+        parts += [el("h2", "Findings"), el("ul", *(el("li", f) for f in model.findings))]
+    parts += [
+        el("h2", "Sailed track and alternatives"),
+        figures_section(rs, model.provenance, worst=worst),
+        metrics_section(rs),
+        events_section(rs),
+        exports_section(rs),
+        waypoints_section(rs),
+        speed_loss_section(model.speed_loss),
+        provenance_section(model.provenance),
+    ]
+    subtitle = f"{ship} \u00b7 MMSI {model.mmsi} \u00b7 {fmt_time(model.depart_utc)} \u2192 {fmt_time(model.arrive_utc)}"
+    return page(f"{model.title}: {ship}", subtitle, join(parts))
+
+
+# ----------------------------------------------------------------------------- entry points
+
+
+def _write(text: str, path) -> Path:
+    path = Path(path)
+    if path.suffix.lower() not in (".html", ".htm"):
+        raise ReportError(f"{path}: a report is an .html file")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def render_nightly_report(model: NightlyReport, path) -> Path:
+    """Write the nightly reroute report to ``path`` (one self-contained HTML file); returns the path."""
+    return _write(nightly_html(model), path)
+
+
+def render_audit_report(model: VoyageAudit, path) -> Path:
+    """Write the voyage audit report to ``path`` (one self-contained HTML file); returns the path."""
+    return _write(audit_html(model), path)
+
+
+def render_report(model, path) -> Path:
+    """Render whichever report the model describes."""
+    if isinstance(model, NightlyReport):
+        return render_nightly_report(model, path)
+    if isinstance(model, VoyageAudit):
+        return render_audit_report(model, path)
+    raise ReportError(f"no report for a {type(model).__name__}")
+
+
+__all__ = ["render_nightly_report", "render_audit_report", "render_report", "nightly_html", "audit_html"]

@@ -1,0 +1,275 @@
+"""HTML reports: self-contained, escaped, and showing what the model holds.
+
+The model is the fixture in ``tests/_report_fixtures.py`` (real ``Route`` objects, numbers typed
+in by hand, title marked TEST FIXTURE). Expected values below are hand-computed from those
+typed numbers.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import re
+from html.parser import HTMLParser
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import _report_fixtures as fx
+from dashboards.errors import ReportError
+from dashboards.html import Markup, el, escape, fmt, table
+from dashboards.model import LaneDeparture, RouteSet, WeatherSnapshot, report_from_json, report_to_json
+from dashboards.plots import land_mask
+from dashboards.report import audit_html, nightly_html, render_audit_report, render_nightly_report
+
+XSS = "<script>alert(1)</script>"
+XSS_ESCAPED = "&lt;script&gt;alert(1)&lt;/script&gt;"
+
+
+class Collector(HTMLParser):
+    """Collects tags, attributes and table cell texts of a page."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.tags: list[tuple[str, dict]] = []
+        self.tables: list[list[list[str]]] = []
+        self._cell: list[str] | None = None
+        self._row: list[str] | None = None
+        self.text: list[str] = []
+
+    def handle_starttag(self, tag, attrs):
+        self.tags.append((tag, dict(attrs)))
+        if tag == "table":
+            self.tables.append([])
+        elif tag == "tr":
+            self._row = []
+        elif tag in ("td", "th"):
+            self._cell = []
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self._row.append(" ".join("".join(self._cell).split()))
+            self._cell = None
+        elif tag == "tr" and self._row is not None:
+            self.tables[-1].append(self._row)
+            self._row = None
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._cell is not None:
+            self._cell.append(data)
+
+
+def parse(html_text: str) -> Collector:
+    c = Collector()
+    c.feed(html_text)
+    return c
+
+
+@pytest.fixture(scope="module")
+def nightly_page():
+    return nightly_html(fx.nightly())
+
+
+@pytest.fixture(scope="module")
+def audit_page():
+    return audit_html(fx.audit())
+
+
+# ------------------------------------------------------------------ escaping path
+
+
+def test_escape_and_markup():
+    assert escape(XSS) == XSS_ESCAPED
+    assert escape('a"b\'c&') == "a&quot;b&#x27;c&amp;"
+    assert escape(Markup("<b>x</b>")) == "<b>x</b>"
+    assert escape(None) == ""
+    assert el("td", XSS) == f"<td>{XSS_ESCAPED}</td>"
+    assert el("a", "x", href='" onmouseover="alert(1)') == '<a href="&quot; onmouseover=&quot;alert(1)">x</a>'
+    assert el("img", src="data:x", alt="<") == '<img src="data:x" alt="&lt;">'
+    # Markup + plain string escapes the plain part.
+    assert Markup("<i>") + "<" == "<i>&lt;"
+    assert table(["<h>"], [[XSS]]).count("&lt;") == 3
+
+
+def test_fmt_numbers():
+    assert fmt(1.23456, 2) == "1.23"
+    assert fmt(-0.001, 2) == "0.00"
+    assert fmt(-1.5, 1, signed=True) == "-1.5"
+    assert fmt(2.0, 1, signed=True) == "+2.0"
+    assert fmt(float("nan")) == "\u2013" and fmt(None) == "\u2013"
+    assert fmt(np.int64(3)) == "3"
+    assert fmt(pd.Timestamp("2025-01-31T06:00Z")) == "2025-01-31 06:00 UTC"
+
+
+def test_ais_strings_are_escaped_in_audit_report(tmp_path):
+    audit = fx.audit(ship_name=XSS)
+    audit.callsign = '"><img src=x onerror=alert(2)>'
+    audit.ais_destination = "<b>PALMA</b>"
+    path = render_audit_report(audit, tmp_path / "audit.html")
+    text = path.read_text(encoding="utf-8")
+    assert XSS not in text
+    assert XSS_ESCAPED in text
+    assert "<img src=x" not in text and "&lt;img src=x onerror=alert(2)&gt;" in text
+    assert "<b>PALMA</b>" not in text and "&lt;b&gt;PALMA&lt;/b&gt;" in text
+    page = parse(text)
+    assert not [t for t, _ in page.tags if t == "script"]
+    # The browser-visible text is the literal name, shown as text.
+    assert XSS in "".join(page.text)
+
+
+def test_port_names_and_rules_are_escaped_in_nightly_report():
+    model = fx.nightly(origin=XSS)
+    model.departures[0].rules.append("<i>rule</i>")
+    model.departures[-1].error = "<iframe>"
+    text = nightly_html(model)
+    assert XSS not in text and "<i>rule</i>" not in text and "<iframe>" not in text
+    assert text.count(XSS_ESCAPED) >= 3  # lanes table x2, case headings x2
+    assert not [t for t, _ in parse(text).tags if t in ("script", "iframe")]
+
+
+# ------------------------------------------------------------------ self-contained
+
+
+@pytest.mark.parametrize("which", ["nightly", "audit"])
+def test_report_is_self_contained(which, nightly_page, audit_page):
+    text = nightly_page if which == "nightly" else audit_page
+    page = parse(text)
+    tags = [t for t, _ in page.tags]
+    assert "script" not in tags and "link" not in tags and "iframe" not in tags
+    srcs = [a["src"] for t, a in page.tags if "src" in a]
+    assert srcs and all(s.startswith("data:image/png;base64,") for s in srcs)
+    assert not re.search(r"""(src|href)\s*=\s*["']?\s*(https?:)?//""", text)
+    assert "url(" not in text  # no CSS fetch
+    csp = [a for t, a in page.tags if t == "meta" and a.get("http-equiv") == "Content-Security-Policy"]
+    assert csp and "default-src 'none'" in csp[0]["content"] and "script-src" not in csp[0]["content"]
+    # Each inline image is a real PNG with content (not a blank canvas).
+    from PIL import Image
+
+    for src in srcs:
+        img = Image.open(io.BytesIO(base64.b64decode(src.split(",", 1)[1]))).convert("L")
+        assert img.size[0] > 300 and img.size[1] > 200
+        assert np.asarray(img).std() > 10
+
+
+def test_nightly_summary_and_lanes_at_risk(nightly_page):
+    page = parse(nightly_page)
+    text = " ".join(" ".join(page.text).split())
+    # Summary cards: counts from the model; sums hand-computed from the typed metrics:
+    # fuel 2 x (29.1 - 30.0) = -1.8 t, CO2 2 x (90.8 - 93.6) = -5.6 t, events 2 x (3 - 0) = 6.
+    for value, label in (("7", "lanes checked"), ("112", "lane-departures checked"), ("2", "adverse lane-departures"), ("2", "proposed reroutes"), ("1", "failed lanes")):
+        assert f"{value} {label}" in text
+    assert "-1.80 t \u0394 fuel (sum)" in text
+    assert "-5.60 t \u0394 CO2 (sum)" in text
+    assert "6 safety events avoided" in text
+    lanes = next(t for t in page.tables if t[0][:3] == ["#", "lane", "route"])
+    assert len(lanes) == 1 + 3
+    row1 = dict(zip(lanes[0], lanes[1]))
+    assert row1["lane"] == "L1" and row1["route"] == "Barcelona \u2192 Palma"
+    assert "operator: hs_m 6.31 > 4.5" in row1["rule(s) fired"] and "surf-riding/broaching" in row1["rule(s) fired"]
+    assert row1["worst Hs on lane"].startswith("6.31 m at 40.50N 2.20E")
+    assert row1["\u0394 fuel [t]"] == "-0.900" and row1["\u0394 CO2 [t]"] == "-2.800" and row1["events avoided"] == "3"
+    failed = dict(zip(lanes[0], lanes[3]))
+    assert failed["lane"] == "L9" and failed["status"].startswith("failed: NoRouteError")
+    # Two detailed cases, each with a map and a time plot, plus the speed-loss curve.
+    imgs = [a for t, a in page.tags if t == "img"]
+    assert len(imgs) == 2 * 2 + 1
+    assert [a["id"] for t, a in page.tags if t == "h3" and "id" in a] == ["case-1", "case-2"]
+    assert "Methods and provenance" in text and "container<200m" in text and "bowditch" in text
+
+
+def test_comparison_table_shows_values_and_deltas(nightly_page):
+    page = parse(nightly_page)
+    comp = next(t for t in page.tables if t[0][0] == "route" and "fuel burnt (STEAM2) [t]" in t[0])
+    rows = {r[0]: dict(zip(comp[0], r)) for r in comp[1:]}
+    assert rows["historical (lane / AIS track)"]["fuel burnt (STEAM2) [t]"] == "30.00"
+    assert rows["time-optimal A* \u2605 proposed"]["fuel burnt (STEAM2) [t]"] == "29.10 (-0.90)"
+    assert rows["minimum-distance A*"]["IMO MSC.1/Circ.1228 events (count)"] == "4 (+1)"
+    assert rows["cargo-safe deviation"]["highest significant wave height met [m]"] == "3.20 (-3.11)"
+
+
+def test_max_detail_limits_maps(tmp_path):
+    model = fx.nightly(n_adverse=3)
+    model.max_detail = 1
+    page = parse(nightly_html(model))
+    assert len([a for t, a in page.tags if t == "img"]) == 2 + 1
+    assert "Maps and plots for the first 1 of 3" in " ".join(" ".join(page.text).split())
+
+
+def test_empty_night_says_so():
+    model = fx.nightly(n_adverse=0)
+    model.departures = []
+    text = " ".join(" ".join(parse(nightly_html(model)).text).split())
+    assert "No adverse lane-departure in the window" in text
+    assert "0 adverse lane-departures" in text
+
+
+def test_audit_report_content(audit_page):
+    page = parse(audit_page)
+    text = " ".join(" ".join(page.text).split())
+    ident = next(t for t in page.tables if t[0][0] == "ship name (AIS)")
+    fields = {r[0]: r[1] for r in ident}
+    assert fields["ship name (AIS)"] == "MV FIXTURE" and fields["MMSI"] == "224000001" and fields["call sign (AIS)"] == "EA1234"
+    assert fields["departure \u2192 arrival"] == "2025-01-31 06:00 UTC \u2192 2025-01-31 15:06 UTC"
+    assert "Fixture finding" in text
+    assert "3 IMO events on the sailed track" in text
+    assert len([a for t, a in page.tags if t == "img"]) == 3
+
+
+def test_render_writes_html_file_and_refuses_other_suffix(tmp_path):
+    path = render_nightly_report(fx.nightly(), tmp_path / "sub" / "night.html")
+    assert path.exists() and path.read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
+    with pytest.raises(ReportError, match=r"\.html"):
+        render_nightly_report(fx.nightly(), tmp_path / "night.pdf")
+    with pytest.raises(ReportError, match="NightlyReport"):
+        render_nightly_report(fx.audit(), tmp_path / "x.html")
+
+
+# ------------------------------------------------------------------ model
+
+
+def test_model_json_round_trip_renders_identically():
+    for model, render in ((fx.nightly(), nightly_html), (fx.audit(), audit_html)):
+        back = report_from_json(report_to_json(model))
+        assert type(back) is type(model)
+        assert render(back) == render(model)
+
+
+def test_model_validation_names_the_field():
+    with pytest.raises(ReportError, match="depart_utc"):
+        LaneDeparture(lane_id=1, origin="a", destination="b", depart_utc=pd.Timestamp("2025-01-01T00:00"))
+    with pytest.raises(ReportError, match="hs_m has shape"):
+        WeatherSnapshot(time_utc=pd.Timestamp("2025-01-01T00:00Z"), lat_deg=[1, 2], lon_deg=[1, 2, 3], hs_m=np.zeros((3, 2)))
+    with pytest.raises(ReportError, match="proposed"):
+        RouteSet(routes=fx.routes(), proposed="nonexistent")
+    with pytest.raises(ReportError, match="no error message"):
+        LaneDeparture(lane_id=1, origin="a", destination="b", depart_utc=pd.Timestamp("2025-01-01T00:00Z"), status="failed")
+    with pytest.raises(ReportError, match="NightlyReport or a VoyageAudit"):
+        report_from_json('{"a": 1}')
+
+
+def test_metrics_fall_back_to_route_values():
+    rs = RouteSet(routes=fx.routes())
+    table_ = rs.metrics_table()
+    assert list(table_.index) == ["historical", "deviation", "optimal", "min_distance"]
+    hs = fx.routes()["historical"].weather["hs_m"]
+    assert table_.loc["historical", "max_hs_m"] == pytest.approx(hs.max())
+    assert table_.loc["historical", "mean_hs_m"] == pytest.approx(hs.mean())
+    assert rs.deltas().loc["historical"].abs().max() == 0
+
+
+# ------------------------------------------------------------------ maps
+
+
+def test_land_mask_at_map_resolution():
+    lon, lat, land = land_mask(2.0, 3.6, 39.0, 40.2, n=160)
+    assert land.shape == (lat.size, lon.size)
+    assert abs(lon[1] - lon[0] - 0.01) < 1e-9
+
+    def at(la, lo):
+        return land[np.argmin(abs(lat - la)), np.argmin(abs(lon - lo))]
+
+    assert at(39.62, 2.95)  # inland Mallorca
+    assert not at(39.3, 2.2)  # open sea south-west of Mallorca
+    assert not at(40.1, 2.5)  # between Mallorca and the mainland
