@@ -1,0 +1,249 @@
+"""AIS writers: DMA-style CSV and raw NMEA 0183 (``!AIVDM`` with NMEA 4.0 tag blocks).
+
+They write what :func:`lanes.scenario.generate_scenario` produced (``records`` plus the
+``vessels`` table) into one file per UTC day and return, for every record, the file and the
+1-based line it went to, so the scenario's ground truth can point at each dirty row.
+
+DMA CSV
+    The Danish Maritime Authority's export (aisdata.ais.dk): header
+    ``# Timestamp,Type of mobile,MMSI,Latitude,Longitude,Navigational status,ROT,SOG,COG,Heading,
+    IMO,Callsign,Name,Ship type,Cargo type,Width,Length,Type of position fixing device,Draught,
+    Destination,ETA,Data source type,A,B,C,D``; day-first timestamps ``31/12/2015 23:59:59``;
+    status and ship type as words; static fields repeated on every row; raw AIS "not available"
+    values (SOG 102.3, COG 360, heading 511, lat 91, lon 181) written as received.
+NMEA
+    Every message is preceded by a tag block ``\\s:<source>,c:<unix seconds>*hh\\`` (IEC 61162-1
+    ed. 4 / NMEA 4.0: ``c`` = UNIX time of reception); message 5 spans two sentences grouped by
+    the tag-block ``g:<n>-<total>-<group id>`` parameter, the first carrying ``s`` and ``c``.
+    Payloads are encoded with pyais' encoder (ITU-R M.1371-5 messages 1, 3 and 5).
+
+References
+----------
+.. [1] Danish Maritime Authority, "AIS data" (historical CSV export, column description),
+       https://web.ais.dk/aisdata/
+.. [2] ITU-R M.1371-5, Annex 8 (message 1/3 and 5 fields, not-available values), 2014.
+.. [3] NMEA 0183 v4.10 / IEC 61162-1:2016, section 7.9 (TAG blocks: c, g, s parameters).
+"""
+
+from __future__ import annotations
+
+import gzip as _gzip
+import io
+from functools import reduce
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+DMA_HEADER = (
+    "# Timestamp,Type of mobile,MMSI,Latitude,Longitude,Navigational status,ROT,SOG,COG,Heading,IMO,"
+    "Callsign,Name,Ship type,Cargo type,Width,Length,Type of position fixing device,Draught,Destination,"
+    "ETA,Data source type,A,B,C,D"
+)
+#: Navigational status words as the DMA export prints them (ITU-R M.1371-5 codes).
+DMA_NAV_STATUS = {
+    0: "Under way using engine",
+    1: "At anchor",
+    2: "Not under command",
+    3: "Restricted manoeuverability",
+    4: "Constrained by her draught",
+    5: "Moored",
+    6: "Aground",
+    7: "Engaged in fishing",
+    8: "Under way sailing",
+    15: "Unknown value",
+}
+#: Cargo category from the second digit of the AIS ship type (ITU-R M.1371-5 Table 53).
+_CARGO_CATEGORY = {0: "No additional information", 1: "Category X", 2: "Category Y", 3: "Category Z",
+                   4: "Category OS"}
+
+
+def dma_ship_type(code: int) -> str:
+    """The DMA export's ship-type word for an AIS ship-type code."""
+    first = int(code) // 10
+    return {3: "Other", 4: "HSC", 5: "Other", 6: "Passenger", 7: "Cargo", 8: "Tanker", 9: "Other"}.get(
+        first, "Undefined"
+    )
+
+
+def _open(path: Path, gzip: bool):
+    """A text handle; gzip output is byte-identical across runs (no name, mtime 0)."""
+    if gzip:
+        raw = open(path, "wb")
+        gz = _gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0)
+        return io.TextIOWrapper(gz, encoding="ascii", newline="\n"), (gz, raw)
+    return open(path, "w", encoding="ascii", newline="\n"), ()
+
+
+def _close(handle, extra) -> None:
+    handle.close()
+    for h in extra:
+        h.close()
+
+
+_HMS = None
+
+
+def _hms_table() -> np.ndarray:
+    global _HMS
+    if _HMS is None:
+        s = np.arange(86400)
+        _HMS = np.array([f"{a:02d}:{b:02d}:{c:02d}" for a, b, c in zip(s // 3600, s // 60 % 60, s % 60)],
+                        dtype=object)
+    return _HMS
+
+
+def _dma_times(time_s: np.ndarray) -> np.ndarray:
+    """Unix seconds to ``dd/mm/YYYY HH:MM:SS`` (day first, as the DMA export)."""
+    days = time_s // 86400
+    out = np.empty(len(time_s), dtype=object)
+    hms = _hms_table()[time_s % 86400]
+    for d in np.unique(days):
+        sel = days == d
+        prefix = pd.Timestamp(int(d) * 86400, unit="s").strftime("%d/%m/%Y ")
+        out[sel] = prefix + hms[sel]
+    return out
+
+
+def _day_groups(records: pd.DataFrame):
+    """(day string, positional index array) per UTC day of ``sort_s``, in day order."""
+    day = records["sort_s"].to_numpy() // 86400
+    for d in np.unique(day):
+        yield pd.Timestamp(int(d) * 86400, unit="s").strftime("%Y-%m-%d"), np.flatnonzero(day == d)
+
+
+def write_dma_csv(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, gzip: bool = False,
+                  prefix: str = "aisdk") -> pd.DataFrame:
+    """Write the ``dma_csv`` records, one file per UTC day (``{prefix}-YYYY-MM-DD.csv[.gz]``).
+
+    Returns a DataFrame indexed like the written records with ``file`` (name) and ``line``
+    (1-based; the header is line 1).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    recs = records[(records["fmt"] == "dma_csv") & (records["msg_type"] != 5)]
+    statics = []
+    for v in vessels.itertuples(index=False):
+        ident = f"{v.imo},{v.callsign},{v.name},{dma_ship_type(v.ship_type)},{_CARGO_CATEGORY.get(v.ship_type % 10, '')}"
+        statics.append((f"{ident},{v.beam_m:g},{v.length_m:g},GPS",
+                        f"{v.to_bow},{v.to_stern},{v.to_port},{v.to_starboard}"))
+    unknown_static = ("Unknown,Unknown,,Undefined,,,,Undefined", ",,,")
+    locs = []
+    for day, pos in _day_groups(recs):
+        sub = recs.iloc[pos]
+        name = f"{prefix}-{day}.csv" + (".gz" if gzip else "")
+        ts = _dma_times(sub["time_s"].to_numpy())
+        kind = sub["dirty_kind"].to_numpy()
+        bad_ts = kind == "bad_timestamp"
+        ts[bad_ts] = sub["time_text"].to_numpy()[bad_ts]
+        eta = _dma_times(np.maximum(sub["eta_s"].to_numpy(), 0))
+        lines = []
+        for row in zip(ts, sub["mmsi"].tolist(), sub["lat_deg"].tolist(), sub["lon_deg"].tolist(),
+                       sub["nav_status"].tolist(), sub["sog_kn"].tolist(), sub["cog_deg"].tolist(),
+                       sub["heading_deg"].tolist(), sub["vessel_index"].tolist(), sub["draught_m"].tolist(),
+                       sub["destination"].tolist(), eta, sub["eta_s"].tolist(), kind):
+            t, mmsi, lat, lon, nav, sog, cog, hdg, vi, dr, dest, eta_txt, eta_s, k = row
+            st, dims = statics[vi] if vi >= 0 else unknown_static
+            nav_txt = DMA_NAV_STATUS.get(nav, "Unknown value")
+            head = f"{t},Class A,{mmsi},{lat:.6f},{lon:.6f},{nav_txt}"
+            if k == "malformed_row":  # a line cut off after the navigational status
+                lines.append(head)
+                continue
+            if vi < 0:
+                tail = f",,,,AIS,{dims}"
+            else:
+                tail = f",{dr:.1f},{dest},{eta_txt if eta_s >= 0 else ''},AIS,{dims}"
+            lines.append(f"{head},,{sog:.1f},{cog:.1f},{int(hdg)},{st}{tail}")
+        handle, extra = _open(out_dir / name, gzip)
+        handle.write(DMA_HEADER + "\n")
+        handle.write("\n".join(lines) + "\n")
+        _close(handle, extra)
+        locs.append(pd.DataFrame({"file": name, "line": np.arange(2, len(sub) + 2)}, index=sub.index))
+    if not locs:
+        return pd.DataFrame({"file": pd.Series(dtype=object), "line": pd.Series(dtype=np.int64)})
+    return pd.concat(locs)
+
+
+def nmea_checksum(body: str) -> str:
+    """XOR of the characters between the delimiters, as two upper-case hex digits (NMEA 0183)."""
+    return format(reduce(lambda a, b: a ^ b, body.encode("ascii"), 0), "02X")
+
+
+def tag_block(params: str) -> str:
+    """``\\params*hh\\`` with the NMEA 4.0 tag-block checksum."""
+    return f"\\{params}*{nmea_checksum(params)}\\"
+
+
+def _corrupt(sentence: str) -> str:
+    """Flip one payload character of a sentence and keep the old checksum (a transmission error)."""
+    parts = sentence.split(",")
+    payload = parts[5]
+    i = min(12, len(payload) - 1)
+    ch = payload[i]
+    parts[5] = payload[:i] + ("w" if ch != "w" else "0") + payload[i + 1:]
+    return ",".join(parts)
+
+
+def write_nmea(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, gzip: bool = False,
+               prefix: str = "nmea", source: str = "stormlane") -> pd.DataFrame:
+    """Write the ``nmea`` records as ``!AIVDM`` sentences with tag blocks, one file per UTC day.
+
+    Returns ``file`` and the 1-based ``line`` of each record's first sentence.
+    """
+    from pyais.encode import encode_dict
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    recs = records[records["fmt"] == "nmea"]
+    vess = vessels.to_dict("records")
+    locs = []
+    group_id = 0
+    for day, pos in _day_groups(recs):
+        sub = recs.iloc[pos]
+        name = f"{prefix}-{day}.nmea" + (".gz" if gzip else "")
+        lines: list[str] = []
+        first_line = np.empty(len(sub), dtype=np.int64)
+        cols = zip(sub["msg_type"].tolist(), sub["mmsi"].tolist(), sub["time_s"].tolist(),
+                   sub["lat_deg"].tolist(), sub["lon_deg"].tolist(), sub["sog_kn"].tolist(),
+                   sub["cog_deg"].tolist(), sub["heading_deg"].tolist(), sub["nav_status"].tolist(),
+                   sub["channel"].tolist(), sub["vessel_index"].tolist(), sub["destination"].tolist(),
+                   sub["eta_s"].tolist(), sub["draught_m"].tolist(), sub["dirty_kind"].tolist())
+        for j, (mt, mmsi, t, lat, lon, sog, cog, hdg, nav, ch, vi, dest, eta_s, dr, kind) in enumerate(cols):
+            first_line[j] = len(lines) + 1
+            tb = tag_block(f"s:{source},c:{t}")
+            if mt == 5:
+                v = vess[vi]
+                eta = pd.Timestamp(max(eta_s, 0), unit="s")
+                data = {
+                    "type": 5, "mmsi": mmsi, "ais_version": 0, "imo": int(v["imo"]), "callsign": v["callsign"],
+                    "shipname": v["name"], "ship_type": int(v["ship_type"]), "to_bow": int(v["to_bow"]),
+                    "to_stern": int(v["to_stern"]), "to_port": int(v["to_port"]),
+                    "to_starboard": int(v["to_starboard"]), "epfd": 1,
+                    "month": eta.month if eta_s >= 0 else 0, "day": eta.day if eta_s >= 0 else 0,
+                    "hour": eta.hour if eta_s >= 0 else 24, "minute": eta.minute if eta_s >= 0 else 60,
+                    "draught": float(dr) if dr == dr else 0.0, "destination": dest or "", "dte": 0,
+                }
+                sentences = encode_dict(data, talker_id="AI", sentence_type="VDM", radio_channel=ch,
+                                        seq_id=group_id % 10)
+                group_id += 1
+                n = len(sentences)
+                for k, sen in enumerate(sentences, start=1):
+                    params = f"g:{k}-{n}-{group_id},s:{source},c:{t}" if k == 1 else f"g:{k}-{n}-{group_id}"
+                    lines.append(tag_block(params) + sen)
+                continue
+            data = {
+                "type": mt, "mmsi": mmsi, "status": nav if nav >= 0 else 15, "turn": -128,
+                "speed": sog, "accuracy": 1, "lon": lon, "lat": lat, "course": cog, "heading": int(hdg),
+                "second": t % 60, "maneuver": 0, "raim": 0, "radio": 0,
+            }
+            (sen,) = encode_dict(data, talker_id="AI", sentence_type="VDM", radio_channel=ch)
+            if kind == "bad_checksum":
+                sen = _corrupt(sen)
+            lines.append(tb + sen)
+        handle, extra = _open(out_dir / name, gzip)
+        handle.write("\n".join(lines) + "\n")
+        _close(handle, extra)
+        locs.append(pd.DataFrame({"file": name, "line": first_line}, index=sub.index))
+    if not locs:
+        return pd.DataFrame({"file": pd.Series(dtype=object), "line": pd.Series(dtype=np.int64)})
+    return pd.concat(locs)

@@ -1,0 +1,28 @@
+"""`stormlane demo`: generate the demo scenario and run every step on it."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import typer
+
+from pipelines.commands._common import JsonOption, emit_json
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("demo")
+    def demo(
+        workdir: Path = typer.Option(Path("demo"), "--workdir", help="Folder for the scenario files and the workspace stormlane.duckdb."),
+        seed: int = typer.Option(0, "--seed", help="Scenario seed."),
+        days: float = typer.Option(30.0, "--days", min=0.5, help="Days of AIS to generate (from 2025-01-01T00:00Z)."),
+        json_out: bool = JsonOption,
+    ) -> None:
+        """Generate the demo scenario and run the pipeline on it (scenario, ingest, ...), printing each summary."""
+        from pipelines.demo import run_demo
+
+        echo = (lambda line: typer.echo(line, err=True)) if json_out else typer.echo
+        results = run_demo(workdir, seed=seed, days=days, echo=echo)
+        if json_out:
+            emit_json({"workdir": str(workdir), "steps": results})
+        sys.stdout.flush()
