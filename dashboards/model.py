@@ -44,6 +44,7 @@ ROLE_LABELS = {
 METRIC_COLUMNS = {
     "time_h": "sailing time [h]",
     "dist_nmi": "distance sailed [nmi]",
+    "mean_speed_kn": "mean speed over ground [kn]",
     "max_hs_m": "highest significant wave height met [m]",
     "mean_hs_m": "mean significant wave height met [m]",
     "fuel_t": "fuel burnt (STEAM2) [t]",
@@ -52,7 +53,19 @@ METRIC_COLUMNS = {
     "nox_t": "NOx emitted [t]",
     "pm_t": "particulate matter emitted [t]",
     "n_safety_events": "IMO MSC.1/Circ.1228 events (count)",
+    "n_operator_events": "operator-limit events (count)",
     "exposure_h": "hours over any operator limit [h]",
+    "adverse_h": "hours over an operator limit or in an IMO situation [h]",
+    "imo_adverse_h": "hours in an IMO MSC.1/Circ.1228 situation [h]",
+}
+
+#: Comparison metrics of the cargo-loss seed paper (section 4), alternative against the reference.
+SEED_COLUMNS = {
+    "hs_decrease_pct": "decrease of mean Hs over the adverse portion [%]",
+    "period_decrease_pct": "decrease of mean wave period over the adverse portion [%]",
+    "wind_decrease_pct": "decrease of mean wind speed over the adverse portion [%]",
+    "wave_dir_deviation_pct": "wave-direction deviation [%]",
+    "length_diff_pct": "length difference [%]",
 }
 
 #: Package versions listed in the provenance section by :func:`software_versions`.
@@ -269,13 +282,42 @@ class RouteSet:
             rows[role] = {"time_h": route.time_h, "dist_nmi": route.dist_nmi, "max_hs_m": route.max_hs_m, "mean_hs_m": mean_hs}
         return pd.DataFrame.from_dict(rows, orient="index")
 
+    def value_columns(self) -> list[str]:
+        """Metric columns to show as values: known ones in :data:`METRIC_COLUMNS` order, then the
+        rest, leaving out given deltas (``d_*``) and the seed comparison metrics."""
+        cols = list(self.metrics_table().columns)
+        plain = [c for c in cols if not str(c).startswith("d_") and c not in SEED_COLUMNS]
+        return [c for c in METRIC_COLUMNS if c in plain] + [c for c in plain if c not in METRIC_COLUMNS]
+
     def deltas(self, reference: str = "historical") -> pd.DataFrame:
-        """Numeric metrics minus the reference row (empty when the reference is absent)."""
+        """Each value column minus the reference row (empty when the reference is absent).
+
+        Deltas handed over in ``d_<column>`` columns (as ``routing.evaluate.comparison_table``
+        gives them) are used as they are; the others are differences of the values.
+        """
         table = self.metrics_table()
         if reference not in table.index:
             return table.iloc[0:0]
-        numeric = table.select_dtypes("number")
-        return numeric.sub(numeric.loc[reference], axis=1)
+        out = {}
+        for col in self.value_columns():
+            given = f"d_{col}"
+            if given in table.columns:
+                out[col] = pd.to_numeric(table[given], errors="coerce")
+            else:
+                values = pd.to_numeric(table[col], errors="coerce")
+                out[col] = values - values.loc[reference]
+        return pd.DataFrame(out, index=table.index)
+
+    def delta_pct(self, column: str, role: str) -> float:
+        """Relative delta ``d_<column>_pct`` if it was handed over, else NaN. [%]"""
+        table = self.metrics_table()
+        key = f"d_{column}_pct"
+        if key in table.columns and role in table.index:
+            try:
+                return float(table.loc[role, key])
+            except (TypeError, ValueError):
+                return float("nan")
+        return float("nan")
 
 
 @dataclass

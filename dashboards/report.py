@@ -12,21 +12,27 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from dashboards import plots
 from dashboards.errors import ReportError
 from dashboards.html import Markup, el, escape, fmt, fmt_time, img_png, join, page, table
-from dashboards.model import METRIC_COLUMNS, metric_delta, LaneDeparture, NightlyReport, Provenance, RouteSet, SpeedLossCurve, VoyageAudit
+from dashboards.model import METRIC_COLUMNS, SEED_COLUMNS, metric_delta, LaneDeparture, NightlyReport, Provenance, RouteSet, SpeedLossCurve, VoyageAudit
 
 DASH = "\u2013"
 
 #: Metrics where a lower value is better (deltas coloured accordingly).
-LOWER_IS_BETTER = {"time_h", "dist_nmi", "max_hs_m", "mean_hs_m", "fuel_t", "co2_t", "so2_t", "nox_t", "pm_t", "n_safety_events", "exposure_h"}
+LOWER_IS_BETTER = {
+    "time_h", "dist_nmi", "max_hs_m", "mean_hs_m", "fuel_t", "co2_t", "so2_t", "nox_t", "pm_t",
+    "n_safety_events", "n_operator_events", "exposure_h", "adverse_h", "imo_adverse_h",
+}
 
 
 def _decimals(column: str) -> int:
     if column.startswith("n_"):
         return 0
+    if column in ("lat_deg", "lon_deg"):
+        return 3
     for suffix, d in (("_nmi", 1), ("_h", 2), ("_kn", 2), ("_m", 2), ("_t", 2), ("_pct", 1), ("_deg", 0), ("_s", 1), ("_ms", 1)):
         if column.endswith(suffix):
             return d
@@ -40,7 +46,16 @@ COLUMN_LABELS = {
     "lat_deg": "lat [deg]",
     "lon_deg": "lon [deg]",
     "exposure_h": "exposure [h]",
+    "max_margin": "max margin",
 }
+
+
+def _num(value) -> float:
+    """A table value as float (NaN when missing or not numeric)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")
 
 
 def _header(column: str) -> str:
@@ -57,13 +72,16 @@ def _card(value, label) -> Markup:
     return el("div", el("b", value), el("span", label), class_="card")
 
 
-def _delta_span(column: str, delta: float) -> Markup:
+def _delta_span(column: str, delta: float, pct: float = float("nan")) -> Markup:
     if delta is None or not math.isfinite(delta):
         return Markup("")
     cls = None
-    if column in LOWER_IS_BETTER and round(delta, _decimals(column)) != 0:
+    d = _decimals(column)
+    if column in LOWER_IS_BETTER and round(delta, d) != 0:
         cls = "good" if delta < 0 else "bad"
-    return el("span", f" ({fmt(delta, _decimals(column), signed=True)})", class_=cls)
+    shown = int(round(delta)) if column.startswith("n_") else delta
+    text = fmt(shown, d, signed=True) + (f", {fmt(pct, 1, signed=True)} %" if math.isfinite(pct) else "")
+    return el("span", f" ({text})", class_=cls)
 
 
 # ----------------------------------------------------------------------------- shared sections
@@ -74,26 +92,36 @@ def _route_label(role: str) -> str:
 
 
 def metrics_section(routes: RouteSet) -> Markup:
-    """Comparison table: one row per route, values with the delta to the historical route."""
+    """Comparison table: one row per metric, one column per route; values with the delta to the
+    historical route (and the relative delta when handed over); then the seed's comparison metrics."""
     metrics = routes.metrics_table()
     deltas = routes.deltas()
-    columns = list(metrics.columns)
+    roles = list(metrics.index)
+    head = ["metric"] + [_route_label(r) + (" \u2605 proposed" if r == routes.proposed else "") for r in roles]
     rows = []
-    for role in metrics.index:
-        label = _route_label(role) + (" \u2605 proposed" if role == routes.proposed else "")
-        cells = [label]
-        for col in columns:
+    for col in routes.value_columns():
+        cells = [METRIC_COLUMNS.get(col) or _header(col)]
+        for role in roles:
             value = metrics.loc[role, col]
-            if isinstance(value, (float, np.floating, int, np.integer)) and not isinstance(value, bool):
-                cell = Markup(escape(fmt(value, _decimals(col))))
+            if isinstance(value, (float, np.floating, int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+                d = _decimals(col)
+                shown = value if not col.startswith("n_") or not math.isfinite(float(value)) else int(round(float(value)))
+                cell = Markup(escape(fmt(shown, d)))
                 if role != "historical" and role in deltas.index and col in deltas.columns:
-                    cell = cell + _delta_span(col, float(deltas.loc[role, col]))
+                    cell = cell + _delta_span(col, float(deltas.loc[role, col]), routes.delta_pct(col, role))
                 cells.append(cell)
             else:
                 cells.append(fmt(value))
         rows.append(cells)
-    note = el("p", "Values per route; in brackets the difference to the historical route (green: lower, red: higher).", class_="muted") if "historical" in metrics.index else Markup("")
-    return join([table(["route"] + [_header(c) for c in columns], rows, numeric=set(range(1, len(columns) + 1))), note])
+    parts = [table(head, rows, numeric=set(range(1, len(roles) + 1)))]
+    if "historical" in metrics.index:
+        parts.append(el("p", "In brackets: difference to the historical route (green: lower, red: higher).", class_="muted"))
+    seed = [c for c in SEED_COLUMNS if c in metrics.columns]
+    others = [r for r in roles if r != "historical"]
+    if seed and others and "historical" in metrics.index:
+        seed_rows = [[SEED_COLUMNS[c]] + [fmt(_num(metrics.loc[r, c]), 1) for r in others] for c in seed]
+        parts.append(el("details", el("summary", "Comparison metrics of the cargo-loss seed paper (each alternative against the historical route)"), table(["metric"] + [_route_label(r) for r in others], seed_rows, numeric=set(range(1, len(others) + 1)))))
+    return join(parts)
 
 
 def events_section(routes: RouteSet) -> Markup:
@@ -110,10 +138,15 @@ def events_section(routes: RouteSet) -> Markup:
             parts.append(el("p", "No IMO MSC.1/Circ.1228 event on any route.", class_="muted"))
     if routes.exposure is not None and len(routes.exposure):
         ex = routes.exposure
+        if "exposure_h" in ex.columns:
+            ex = ex[pd.to_numeric(ex["exposure_h"], errors="coerce") > 0]
         cols = list(ex.columns)
         rows = [[_route_label(v) if c == "route" else fmt(v, _decimals(c)) for c, v in zip(cols, rec)] for rec in ex.itertuples(index=False)]
         parts.append(el("h4", "Exposure over operator limits"))
-        parts.append(table([_header(c) for c in cols], rows, numeric={i for i, c in enumerate(cols) if c.endswith("_h")}))
+        if rows:
+            parts.append(table([_header(c) for c in cols], rows, numeric={i for i, c in enumerate(cols) if c.endswith("_h")}))
+        else:
+            parts.append(el("p", "No route spent time over an operator limit.", class_="muted"))
     return join(parts)
 
 

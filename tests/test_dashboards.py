@@ -179,14 +179,46 @@ def test_nightly_summary_and_lanes_at_risk(nightly_page):
     assert "Methods and provenance" in text and "container<200m" in text and "bowditch" in text
 
 
+def _comparison(page):
+    comp = next(t for t in page.tables if t[0][0] == "metric" and len(t[0]) == 5)
+    return {r[0]: dict(zip(comp[0], r)) for r in comp[1:]}
+
+
 def test_comparison_table_shows_values_and_deltas(nightly_page):
-    page = parse(nightly_page)
-    comp = next(t for t in page.tables if t[0][0] == "route" and "fuel burnt (STEAM2) [t]" in t[0])
-    rows = {r[0]: dict(zip(comp[0], r)) for r in comp[1:]}
-    assert rows["historical (lane / AIS track)"]["fuel burnt (STEAM2) [t]"] == "30.00"
-    assert rows["time-optimal A* \u2605 proposed"]["fuel burnt (STEAM2) [t]"] == "29.10 (-0.90)"
-    assert rows["minimum-distance A*"]["IMO MSC.1/Circ.1228 events (count)"] == "4 (+1)"
-    assert rows["cargo-safe deviation"]["highest significant wave height met [m]"] == "3.20 (-3.11)"
+    rows = _comparison(parse(nightly_page))
+    fuel = rows["fuel burnt (STEAM2) [t]"]
+    assert fuel["historical (lane / AIS track)"] == "30.00"
+    assert fuel["time-optimal A* \u2605 proposed"] == "29.10 (-0.90)"
+    assert rows["IMO MSC.1/Circ.1228 events (count)"]["minimum-distance A*"] == "4 (+1)"
+    assert rows["highest significant wave height met [m]"]["cargo-safe deviation"] == "3.20 (-3.11)"
+    # Rows in the documented order, only the columns that were given.
+    assert list(rows) == ["sailing time [h]", "distance sailed [nmi]", "highest significant wave height met [m]", "fuel burnt (STEAM2) [t]", "CO2 emitted [t]", "IMO MSC.1/Circ.1228 events (count)"]
+
+
+def test_comparison_uses_given_deltas_and_shows_seed_metrics():
+    """A metrics frame shaped like routing.evaluate.comparison_table (typed in by hand here):
+    given ``d_*`` deltas are shown as they are (not recomputed), ``d_*_pct`` next to them, the
+    seed's metrics in their own table."""
+    metrics = pd.DataFrame(
+        {
+            "time_h": [10.0, 9.0], "d_time_h": [0.0, -1.0], "d_time_h_pct": [0.0, -10.0],
+            "fuel_t": [20.0, 19.0], "d_fuel_t": [0.0, -1.25],  # deliberately not 19 - 20: must be taken as given
+            "n_safety_events": [2.0, 0.0], "d_n_safety_events": [0.0, -2.0],
+            "hs_decrease_pct": [0.0, 41.5], "length_diff_pct": [0.0, 3.25],
+        },
+        index=["historical", "optimal"],
+    )
+    audit = fx.audit()
+    audit.routes = RouteSet(routes={k: v for k, v in fx.routes().items() if k in ("historical", "optimal")}, metrics=metrics, proposed="optimal")
+    page = parse(audit_html(audit))
+    comp = next(t for t in page.tables if t[0][0] == "metric" and len(t[0]) == 3)
+    rows = {r[0]: r[1:] for r in comp[1:]}
+    assert list(rows) == ["sailing time [h]", "fuel burnt (STEAM2) [t]", "IMO MSC.1/Circ.1228 events (count)"]
+    assert rows["sailing time [h]"] == ["10.00", "9.00 (-1.00, -10.0 %)"]
+    assert rows["fuel burnt (STEAM2) [t]"] == ["20.00", "19.00 (-1.25)"]
+    assert rows["IMO MSC.1/Circ.1228 events (count)"] == ["2", "0 (-2)"]
+    seed = next(t for t in page.tables if t[0] == ["metric", "time-optimal A*"])
+    assert seed[1:] == [["decrease of mean Hs over the adverse portion [%]", "41.5"], ["length difference [%]", "3.2"]]
 
 
 def test_max_detail_limits_maps(tmp_path):
@@ -273,3 +305,47 @@ def test_land_mask_at_map_resolution():
     assert at(39.62, 2.95)  # inland Mallorca
     assert not at(39.3, 2.2)  # open sea south-west of Mallorca
     assert not at(40.1, 2.5)  # between Mallorca and the mainland
+
+
+# ------------------------------------------------------------------ with the evaluation's own output
+
+
+def test_audit_report_renders_routing_audit_output(tmp_path):
+    """The audit's real output (routing.audit.audit_routes on a two-layer sea: Hs 6 m south of
+    40.5N, 3 m north) goes into the model unchanged and every number shown is the table's."""
+    from routing.audit import audit_routes
+    from routing.evaluate import events_frame, exposure_frame
+    from routing.route import Route
+    from thresholds.operator import OperatorLimits
+    from thresholds.vessel import Vessel
+
+    t0 = pd.Timestamp("2025-01-15T00:00Z")
+    vessel = Vessel(name="t", vessel_class="container", speed_kn=12.0, lpp_m=100.0, beam_m=16.0, draught_m=6.0, dwt_t=8000.0,
+                    installed_power_kw=6000.0, design_speed_kn=15.0, engine_rpm=500.0, sfoc_g_kwh=200.0)
+
+    def weather(times, lat, lon):
+        lat = np.asarray(lat, dtype=float)
+        return {"hs_m": np.where(lat < 40.5, 6.0, 3.0), "wave_from_deg": np.full(lat.size, 270.0), "tm_s": np.full(lat.size, 5.0)}
+
+    def straight(lat, name, hours=(0.0, 4.6, 9.2)):
+        return Route(name, [lat] * 3, [0.0, 1.0, 2.0], t0 + pd.to_timedelta(list(hours), unit="h"), [10.0, 10.0])
+
+    out = audit_routes(straight(40.0, "historical"), weather, vessel, limits=OperatorLimits(name="t", hs_max_m=4.5),
+                       alternatives={"optimal": straight(41.0, "optimal")})
+    evs = out["evaluations"]
+    rs = RouteSet(routes={k: e.route for k, e in evs.items()}, metrics=out["table"], events=events_frame(evs),
+                  exposure=exposure_frame(evs), proposed=out["proposed"])
+    audit = fx.audit()
+    audit.routes, audit.findings = rs, out["findings"]
+    path = render_audit_report(audit, tmp_path / "a.html")
+    page = parse(path.read_text(encoding="utf-8"))
+    comp = next(t for t in page.tables if t[0][0] == "metric" and len(t[0]) == 3)
+    assert comp[0][2] == "time-optimal A* \u2605 proposed"
+    rows = {r[0]: r[1:] for r in comp[1:]}
+    table_ = out["table"]
+    assert rows["fuel burnt (STEAM2) [t]"][0] == f"{table_.loc['historical', 'fuel_t']:.2f}"
+    assert rows["fuel burnt (STEAM2) [t]"][1].startswith(f"{table_.loc['optimal', 'fuel_t']:.2f} ({table_.loc['optimal', 'd_fuel_t']:+.2f}")
+    assert rows["highest significant wave height met [m]"] == ["6.00", "3.00 (-3.00)"]
+    text = " ".join(" ".join(page.text).split())
+    assert "Proposed alternative: optimal (safer)" in text
+    assert len([a for t, a in page.tags if t == "img"]) == 3
