@@ -180,6 +180,7 @@ def test_nmea_dirty_rows_match_scenario_json(scen):
     df = df[df.checksum_ok]
     assert df.t.notna().all()
     pos = df[df.msg_type.isin([1, 3])].copy()
+    assert (pos.msg_type == 3).sum() > 0 and (pos.msg_type == 1).sum() > 0
     static = df[df.msg_type == 5]
     assert len(static) > 0 and set(static.mmsi) <= {v["mmsi"] for v in truth["vessels"]}
     assert len(pos) + len(static) + counts["bad_checksum"] == sum(
@@ -367,3 +368,51 @@ def test_cli_scenario_rejects_a_bad_start(tmp_path):
     with pytest.raises(SystemExit) as ex:
         main(["scenario", "--out", str(tmp_path / "s"), "--start", "yesterday-ish"])
     assert ex.value.code == 2
+
+
+def _small_spec(anchorage_prob=0.0):
+    from lanes.scenario import parse_scenario_spec
+
+    ports = pd.DataFrame({"locode": ["ESBCN", "ESPMI"], "name": ["Barcelona", "Palma de Mallorca"],
+                          "lat_deg": [41.352, 39.56], "lon_deg": [2.17, 2.63],
+                          "approach_lat_deg": [41.31, 39.52], "approach_lon_deg": [2.22, 2.62]})
+    doc = {
+        "routes": {"ESBCN-ESPMI": {"waypoints": [[41.31, 2.22], [39.62, 2.20], [39.44, 2.36], [39.40, 2.53],
+                                                 [39.52, 2.62]]}},
+        "services": [{"id": "T", "vessel_class": "tanker", "rotation": ["ESBCN", "ESPMI"], "stay_h": [2, 3],
+                      "anchorage_wait_prob": anchorage_prob, "anchorage_wait_h": [4, 5]}],
+        "vessels": [{"mmsi": 224776000, "imo": 9245782, "name": "MONTSENY", "callsign": "EAMT", "flag": "ES",
+                     "service": "T", "ship_type": 80, "length_m": 150, "beam_m": 24, "draught_m": 9.2,
+                     "dwt_t": 17900, "service_speed_kn": 13, "to_bow": 124, "to_stern": 26, "to_port": 12,
+                     "to_starboard": 12}],
+    }
+    return parse_scenario_spec(doc, ports)
+
+
+def test_generator_period_rates_and_anchorage_waits():
+    from lanes.scenario import DIRTY_KINDS, ScenarioConfigError, ScenarioSettings, generate_scenario
+
+    st = ScenarioSettings(seed=1, start_utc="2025-03-01T00:00Z", days=3,
+                          dirty_rates={k: 0.0 for k in DIRTY_KINDS}, gap_prob_per_voyage=0.0,
+                          outage_prob_per_vessel=0.0)
+    sc = generate_scenario(_small_spec(anchorage_prob=1.0), st)
+    t = pd.to_datetime(sc.records.time_s, unit="s", utc=True)
+    assert t.min() >= pd.Timestamp("2025-03-01T00:00Z") and t.max() < pd.Timestamp("2025-03-04T00:00Z")
+    assert (sc.records.dirty_kind == "").all() and sc.fixes.received.all()
+    # every voyage waited 4-5 h at an anchorage 1.5 nmi from the destination's approach point
+    waited = sc.voyages[sc.voyages.anchorage_wait_h > 0]
+    assert len(waited) >= 2 and waited.anchorage_wait_h.between(4, 5).all()
+    anchor = sc.fixes[sc.fixes.phase == "anchor"]
+    assert (anchor.nav_status == 1).all() and (anchor.sog_kn < 1.0).all()
+    appr = {"ESBCN": (41.31, 2.22), "ESPMI": (39.52, 2.62)}
+    for v in waited.itertuples():
+        la, lo = appr[v.dest]
+        d = GEOD.inv(lo, la, v.anchorage_lon_deg, v.anchorage_lat_deg)[2] / NMI
+        assert d == pytest.approx(1.5, abs=0.01)
+        a = anchor[anchor.voyage_id == v.voyage_id]
+        if len(a):
+            assert not globe.is_land(a.lat_deg.to_numpy(), a.lon_deg.to_numpy()).any()
+    with pytest.raises(ScenarioConfigError, match="days must be positive"):
+        ScenarioSettings(days=0)
+    with pytest.raises(ScenarioConfigError, match="unknown dirty kind"):
+        ScenarioSettings(dirty_rates={"cosmic_ray": 0.1})

@@ -215,7 +215,7 @@ def write_nmea(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, g
                 v = vess[vi]
                 eta = pd.Timestamp(max(eta_s, 0), unit="s")
                 data = {
-                    "type": 5, "mmsi": mmsi, "ais_version": 0, "imo": int(v["imo"]), "callsign": v["callsign"],
+                    "type": 5, "msg_type": 5, "mmsi": mmsi, "ais_version": 0, "imo": int(v["imo"]), "callsign": v["callsign"],
                     "shipname": v["name"], "ship_type": int(v["ship_type"]), "to_bow": int(v["to_bow"]),
                     "to_stern": int(v["to_stern"]), "to_port": int(v["to_port"]),
                     "to_starboard": int(v["to_starboard"]), "epfd": 1,
@@ -232,7 +232,8 @@ def write_nmea(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, g
                     lines.append(tag_block(params) + sen)
                 continue
             data = {
-                "type": mt, "mmsi": mmsi, "status": nav if nav >= 0 else 15, "turn": -128,
+                # pyais needs "msg_type" as well as "type" to encode a message 3 as 3
+                "type": mt, "msg_type": mt, "mmsi": mmsi, "status": nav if nav >= 0 else 15, "turn": -128,
                 "speed": sog, "accuracy": 1, "lon": lon, "lat": lat, "course": cog, "heading": int(hdg),
                 "second": t % 60, "maneuver": 0, "raim": 0, "radio": 0,
             }
