@@ -313,8 +313,8 @@ def test_land_mask_at_map_resolution():
 def test_audit_report_renders_routing_audit_output(tmp_path):
     """The audit's real output (routing.audit.audit_routes on a two-layer sea: Hs 6 m south of
     40.5N, 3 m north) goes into the model unchanged and every number shown is the table's."""
+    from pipelines.reporting import route_set_from_evaluations
     from routing.audit import audit_routes
-    from routing.evaluate import events_frame, exposure_frame
     from routing.route import Route
     from thresholds.operator import OperatorLimits
     from thresholds.vessel import Vessel
@@ -332,9 +332,7 @@ def test_audit_report_renders_routing_audit_output(tmp_path):
 
     out = audit_routes(straight(40.0, "historical"), weather, vessel, limits=OperatorLimits(name="t", hs_max_m=4.5),
                        alternatives={"optimal": straight(41.0, "optimal")})
-    evs = out["evaluations"]
-    rs = RouteSet(routes={k: e.route for k, e in evs.items()}, metrics=out["table"], events=events_frame(evs),
-                  exposure=exposure_frame(evs), proposed=out["proposed"])
+    rs = route_set_from_evaluations(out["evaluations"], out["table"], out["proposed"])
     audit = fx.audit()
     audit.routes, audit.findings = rs, out["findings"]
     path = render_audit_report(audit, tmp_path / "a.html")

@@ -1,0 +1,154 @@
+"""Glue from the flows' results to the report model (``dashboards.model``).
+
+The nightly and audit flows call these plain functions to hand the renderer what it draws:
+the weather slice under a map, the speed-loss curve of the chosen vessel and model, the route
+set of one case (from ``routing.evaluate`` results) and the provenance record. Nothing here
+computes a new result: it selects, reshapes and calls the domain functions that own the numbers
+(``routing.speed_loss.attained_speed_kn`` for the curve).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from dashboards.model import Provenance, RouteSet, SpeedLossCurve, WeatherSnapshot, software_versions
+
+
+def weather_snapshot(ds, time_utc, bbox=None, pad_deg: float = 1.0, product: str | None = None) -> WeatherSnapshot:
+    """The slice of a canonical weather Dataset nearest to ``time_utc``, cut to a box.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Canonical weather (dims ``time_utc, lat, lon``; ``hs_m`` and optionally ``wave_from_deg``).
+    time_utc : Timestamp
+        Wanted time (tz-aware or naive UTC); the nearest time step is taken.
+    bbox : (lon_min, lon_max, lat_min, lat_max), optional
+        Area of interest, widened by ``pad_deg`` on every side; default the whole grid.
+    product : str, optional
+        Label; default the Dataset's ``product`` attribute.
+    """
+    if "hs_m" not in ds:
+        raise KeyError("weather has no hs_m variable to draw")
+    t = pd.Timestamp(time_utc)
+    t = t.tz_convert("UTC").tz_localize(None) if t.tz is not None else t
+    sl = ds.sel(time_utc=np.datetime64(t, "ns"), method="nearest")
+    if bbox is not None:
+        lon0, lon1, lat0, lat1 = bbox
+        sl = sl.sel(lon=slice(lon0 - pad_deg, lon1 + pad_deg), lat=slice(lat0 - pad_deg, lat1 + pad_deg))
+    wave = sl["wave_from_deg"].values if "wave_from_deg" in sl else None
+    return WeatherSnapshot(
+        time_utc=pd.Timestamp(sl["time_utc"].values).tz_localize("UTC"),
+        lat_deg=sl["lat"].values,
+        lon_deg=sl["lon"].values,
+        hs_m=sl["hs_m"].values,
+        wave_from_deg=wave,
+        product=product if product is not None else str(ds.attrs.get("product", "")),
+    )
+
+
+def routes_bbox(routes) -> tuple[float, float, float, float]:
+    """``(lon_min, lon_max, lat_min, lat_max)`` around a collection of routes."""
+    routes = list(routes.values()) if isinstance(routes, dict) else list(routes)
+    lat = np.concatenate([r.lat_deg for r in routes])
+    lon = np.concatenate([r.lon_deg for r in routes])
+    return float(lon.min()), float(lon.max()), float(lat.min()), float(lat.max())
+
+
+def worst_point(route) -> dict:
+    """Where a route meets its highest Hs: ``time_utc``, ``lat_deg``, ``lon_deg``, ``hs_m`` (None when no Hs)."""
+    hs = route.weather.get("hs_m")
+    if hs is None or not np.isfinite(hs).any():
+        return {"time_utc": None, "lat_deg": None, "lon_deg": None, "hs_m": None}
+    i = int(np.nanargmax(hs))
+    return {"time_utc": route.time_utc[i], "lat_deg": float(route.lat_deg[i]), "lon_deg": float(route.lon_deg[i]), "hs_m": float(hs[i])}
+
+
+def speed_loss_curve(vessel, model: str, hs_max_m: float = 8.0, step_m: float = 0.25, angles_deg=(0.0, 45.0, 90.0, 135.0, 180.0)) -> SpeedLossCurve:
+    """Attainable speed of ``vessel`` against Hs for a few encounter angles, by ``model``.
+
+    Values come from :func:`routing.speed_loss.attained_speed_kn` (with the vessel's floor).
+    """
+    from routing.speed_loss import attained_speed_kn
+
+    hs = np.arange(0.0, hs_max_m + 1e-9, step_m)
+    frames = []
+    for angle in angles_deg:
+        speed = np.asarray(attained_speed_kn(vessel.speed_kn, hs, np.full(hs.shape, float(angle)), model, vessel=vessel), dtype=float)
+        frames.append(pd.DataFrame({"hs_m": hs, "encounter_deg": float(angle), "speed_kn": speed}))
+    return SpeedLossCurve(vessel=vessel.name, model=model, speed_kn=float(vessel.speed_kn), table=pd.concat(frames, ignore_index=True), min_speed_kn=getattr(vessel, "min_speed_kn", None))
+
+
+def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = None, proposed: str | None = None, weather: WeatherSnapshot | None = None, exports: dict | None = None) -> RouteSet:
+    """A report ``RouteSet`` from ``routing.evaluate`` results keyed by role.
+
+    ``table`` is :func:`routing.evaluate.comparison_table` (computed here when absent), events
+    and exposure come from :func:`routing.evaluate.events_frame` / ``exposure_frame``; routes
+    are the evaluated ones (weather met filled in).
+    """
+    from routing.evaluate import comparison_table, events_frame, exposure_frame
+
+    if table is None and "historical" in evaluations:
+        table = comparison_table(evaluations, reference="historical")
+    return RouteSet(
+        routes={role: ev.route for role, ev in evaluations.items()},
+        metrics=table,
+        events=events_frame(evaluations),
+        exposure=exposure_frame(evaluations),
+        weather=weather,
+        proposed=proposed,
+        exports=dict(exports or {}),
+    )
+
+
+def limits_for_report(limits) -> dict:
+    """Operator limits in the report's names (``hs_m`` is drawn on maps and plots)."""
+    if limits is None:
+        return {}
+    out = {}
+    for src, dst in (("hs_max_m", "hs_m"), ("wind_max_ms", "wind_ms"), ("period_min_s", "period_min_s"), ("period_max_s", "period_max_s"), ("gate_hs_m", "gate_hs_m")):
+        value = getattr(limits, src, None)
+        if value is not None and (not isinstance(value, float) or math.isfinite(value)):
+            out[dst] = value
+    for src in ("period_forbidden_s", "beam_sectors_deg"):
+        value = getattr(limits, src, ())
+        if value:
+            out[src] = ", ".join(f"{lo:g}-{hi:g}" for lo, hi in value)
+    return out
+
+
+def provenance(*, weather_meta: dict | None = None, weather_ds=None, vessel=None, speed_loss_model: str = "", limits=None, profile_name: str = "", ais_sources=(), methods=(), weather_source: str = "") -> Provenance:
+    """A provenance record from what a flow has at hand (weather metadata/Dataset, vessel, limits)."""
+    meta = dict(weather_meta or {})
+    products, files = meta.get("products") or meta.get("product") or [], meta.get("source_files") or meta.get("files") or []
+    if isinstance(products, str):
+        products = [products]
+    if isinstance(files, str):
+        files = [files]
+    start = end = None
+    if weather_ds is not None:
+        if not products and weather_ds.attrs.get("product"):
+            products = [str(weather_ds.attrs["product"])]
+        if not files and weather_ds.attrs.get("source_files"):
+            sf = weather_ds.attrs["source_files"]
+            files = [sf] if isinstance(sf, str) else list(sf)
+        times = pd.DatetimeIndex(weather_ds["time_utc"].values)
+        if len(times):
+            start, end = times.min().tz_localize("UTC"), times.max().tz_localize("UTC")
+    return Provenance(
+        weather_products=[str(p) for p in products],
+        weather_files=[str(f) for f in files],
+        weather_start_utc=start,
+        weather_end_utc=end,
+        weather_source=weather_source or str(meta.get("source", "")),
+        ais_sources=[str(a) for a in ais_sources],
+        speed_loss_model=speed_loss_model,
+        thresholds_profile=profile_name or (getattr(limits, "name", "") if limits is not None else ""),
+        limits=limits_for_report(limits),
+        vessel=vessel.to_dict() if vessel is not None else {},
+        software=software_versions(),
+        methods=list(methods),
+    )
