@@ -1,0 +1,164 @@
+"""Opening AIS files: gzip by content, fingerprints, format detection by content.
+
+Formats: ``dma`` (Danish Maritime Authority CSV), ``noaa`` (NOAA MarineCadastre CSV), ``nmea``
+(raw ``!AIVDM``/``!AIVDO`` sentences with optional tag blocks and ``$PGHP`` lines) and
+``parquet`` (canonical column names, or the mapped aliases in :mod:`lanes.io.parquet`).
+Gzip is recognised by its magic bytes, whatever the file is called.
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from lanes.errors import AisFormatError, AisInputError
+
+FORMATS = ("dma", "noaa", "nmea", "parquet")
+GZIP_MAGIC = b"\x1f\x8b"
+PARQUET_MAGIC = b"PAR1"
+#: File names a directory scan picks up (content decides the format; case-insensitive).
+AIS_SUFFIXES = (".csv", ".txt", ".nmea", ".nm4", ".ais", ".log", ".parquet", ".pq")
+
+
+@dataclass(frozen=True)
+class AisFile:
+    """One input file: where it is, what it is, and its content fingerprint."""
+
+    path: Path
+    format: str
+    gzip: bool
+    size_bytes: int
+    fingerprint: str  # "sha256:<hex>" of the bytes on disk
+
+
+def is_gzip(path: str | Path) -> bool:
+    with open(path, "rb") as fh:
+        return fh.read(2) == GZIP_MAGIC
+
+
+def open_binary(path: str | Path):
+    """Open for binary reading, decompressing gzip transparently."""
+    return gzip.open(path, "rb") if is_gzip(path) else open(path, "rb")
+
+
+def fingerprint(path: str | Path, chunk: int = 1 << 22) -> str:
+    """SHA-256 of the file's bytes (as stored, i.e. still compressed): ``"sha256:<hex>"``."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(chunk):
+            h.update(block)
+    return "sha256:" + h.hexdigest()
+
+
+def head_text(path: str | Path, n_bytes: int = 65536) -> str:
+    """The first ``n_bytes`` of the (decompressed) content as text (undecodable bytes replaced)."""
+    try:
+        with open_binary(path) as fh:
+            data = fh.read(n_bytes)
+    except (OSError, EOFError) as err:
+        raise AisInputError(path, f"cannot read: {err}") from err
+    return data.decode("utf-8", errors="replace").lstrip("\ufeff")
+
+
+def normalise_header_name(name: str) -> str:
+    """Header names compare trimmed, unquoted, lower-case and without a leading ``#``."""
+    s = name.strip().strip('"').strip()
+    if s.startswith("#"):
+        s = s[1:].strip()
+    return s.lower()
+
+
+def detect_format(path: str | Path) -> str:
+    """The AIS format of a file, from its content (see module docstring).
+
+    Raises
+    ------
+    AisFormatError
+        When the content matches no supported format; the message shows the first line.
+    """
+    path = Path(path)
+    with open(path, "rb") as fh:
+        magic = fh.read(4)
+    if magic == PARQUET_MAGIC:
+        return "parquet"
+    text = head_text(path)
+    lines = [ln.strip() for ln in text.split("\n")]
+    first = next((ln for ln in lines if ln), "")
+    if not first:
+        raise AisFormatError(path, "empty file: no AIS content to detect the format from")
+    if first[0] in "!$\\":
+        return "nmea"
+    names = {normalise_header_name(x) for x in first.split(",")}
+    if {"mmsi", "basedatetime"} <= names:
+        return "noaa"
+    if {"timestamp", "mmsi", "latitude", "longitude"} <= names:
+        return "dma"
+    shown = first if len(first) <= 120 else first[:117] + "..."
+    raise AisFormatError(
+        path,
+        f"unknown AIS format (first line: {shown!r}); expected a DMA CSV header ('# Timestamp,...,MMSI,"
+        "Latitude,Longitude,...'), a NOAA MarineCadastre header ('MMSI,BaseDateTime,...'), NMEA "
+        "sentences ('!AIVDM,...') or Parquet; use --format to force one",
+        line=1,
+    )
+
+
+def expand_paths(paths) -> list[Path]:
+    """Files named by ``paths``: a directory means every AIS-looking file inside it (recursive,
+    sorted, hidden entries skipped; names ending in one of :data:`AIS_SUFFIXES`, optionally
+    followed by ``.gz``).
+
+    Raises
+    ------
+    AisInputError
+        For a path that does not exist or a directory with no AIS file.
+    """
+    out: list[Path] = []
+    for p in paths:
+        p = Path(p)
+        if p.is_dir():
+            found = []
+            for root, dirs, files in os.walk(p):
+                dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+                for f in sorted(files):
+                    name = f.lower()
+                    if f.startswith("."):
+                        continue
+                    base = name[:-3] if name.endswith(".gz") else name
+                    if base.endswith(AIS_SUFFIXES):
+                        found.append(Path(root) / f)
+            if not found:
+                raise AisInputError(p, f"directory contains no AIS file (looked for {', '.join(AIS_SUFFIXES)}, optionally .gz)")
+            out.extend(found)
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise AisInputError(p, "no such file or directory")
+    # The same file named twice is loaded once.
+    seen, unique = set(), []
+    for p in out:
+        key = p.resolve()
+        if key not in seen:
+            seen.add(key)
+            unique.append(p)
+    return unique
+
+
+def inspect(path: str | Path, fmt: str | None = None, with_fingerprint: bool = True) -> AisFile:
+    """Format (detected unless forced), compression, size and fingerprint of one file."""
+    path = Path(path)
+    if not path.is_file():
+        raise AisInputError(path, "no such file")
+    if fmt is not None and fmt not in FORMATS:
+        raise AisFormatError(path, f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
+    found = fmt or detect_format(path)
+    return AisFile(
+        path=path,
+        format=found,
+        gzip=is_gzip(path),
+        size_bytes=path.stat().st_size,
+        fingerprint=fingerprint(path) if with_fingerprint else "",
+    )

@@ -1,0 +1,200 @@
+"""AIS ingest: files -> cleaned ``ais_positions``, ``vessels``, ``ais_quarantine``.
+
+``ingest_paths`` is the plain entry point (used by the CLI, the demo and tests);
+``ingest_flow`` is the same work as a Prefect flow: a discovery task, then per file a reader
+task (stage the file), a cleaning-and-commit task (the rules of :mod:`lanes.clean` run as SQL
+in :mod:`pipelines.storage.ais`, one transaction per file), and a summary.
+
+Each file is loaded at most once (SHA-256 of its bytes in ``ais_files``); rows whose
+(mmsi, time_utc) is already stored count as duplicates, so overlapping files add nothing twice.
+Counts of the summary, per file and in total: ``read = loaded + quarantined + duplicates``.
+For CSV and Parquet ``read`` counts data rows (empty lines are ``ignored``); for NMEA it
+counts AIS messages after multipart assembly plus sentences that could not form one (see
+:mod:`lanes.io.nmea`); static messages 5/24 are counted in ``static`` and joined to
+``vessels``.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Callable, Iterable
+
+from prefect import flow, task
+
+from lanes.clean import DEFAULT_MAX_SPEED_KN
+from lanes.io.files import AisFile, expand_paths, inspect
+from thresholds.errors import StormlaneError
+
+log = logging.getLogger(__name__)
+
+SUMMARY_KEYS = ("files", "read", "loaded", "quarantined", "duplicates", "reasons", "static", "ignored", "already_loaded")
+
+
+def empty_summary() -> dict:
+    return {"files": 0, "read": 0, "loaded": 0, "quarantined": 0, "duplicates": 0, "reasons": {},
+            "static": 0, "ignored": 0, "already_loaded": 0}
+
+
+def add_to_summary(summary: dict, counts: dict) -> dict:
+    """Add one file's counts to a running summary (in place) and return it."""
+    summary["files"] += 1
+    for k in ("read", "loaded", "quarantined", "duplicates", "static", "ignored"):
+        summary[k] += int(counts.get(k, 0))
+    if counts.get("already_loaded"):
+        summary["already_loaded"] += 1
+    for code, n in counts.get("reasons", {}).items():
+        summary["reasons"][code] = summary["reasons"].get(code, 0) + int(n)
+    summary["reasons"] = dict(sorted(summary["reasons"].items()))
+    return summary
+
+
+def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) -> dict:
+    """Reader step: put one file's typed rows into the workspace's temporary stage."""
+    from pipelines.storage import ais as store
+
+    if f.format in ("dma", "noaa"):
+        from lanes.io.csv_formats import SPECS, resolve_columns, split_csv_line
+        from lanes.io.files import head_text
+
+        spec = SPECS[f.format]
+        first = head_text(f.path, 1 << 16).split("\n", 1)[0].rstrip("\r")
+        header = split_csv_line(first)
+        index = resolve_columns(spec, header, f.path)
+        info = store.stage_csv(ws, f.path, f.gzip, spec, index, len(header))
+    elif f.format == "parquet":
+        from lanes.io.parquet import column_mapping
+
+        cols = [c for c, _ in store.parquet_columns(ws, f.path)]
+        info = store.stage_parquet(ws, f.path, column_mapping(cols, f.path))
+    else:
+        from lanes.io.nmea import read_nmea
+
+        stage, meta = read_nmea(f.path)
+        info = store.stage_frame(ws, stage)
+        info["ignored"] = meta["ignored"]
+    if progress is not None:
+        progress(f.size_bytes // 2)
+    return info
+
+
+def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
+                progress: Callable[[int], None] | None = None, crash_hook=None) -> dict:
+    """Load one AIS file into an open workspace; returns its counts (see module docstring)."""
+    from pipelines.storage import ais as store
+
+    f = inspect(path, fmt)
+    done = store.file_record(ws, f.fingerprint)
+    if done is not None:
+        log.info("%s: already loaded as file %s (%s), skipped", f.path, done["file_id"], done["path"])
+        if progress is not None:
+            progress(f.size_bytes)
+        return {"path": str(f.path), "format": f.format, "read": 0, "loaded": 0, "quarantined": 0, "duplicates": 0,
+                "static": 0, "ignored": 0, "reasons": {}, "already_loaded": True, "file_id": done["file_id"]}
+    try:
+        info = stage_file(ws, f, progress)
+        meta = {"fingerprint": f.fingerprint, "path": str(f.path), "format": f.format,
+                "size_bytes": f.size_bytes, "ignored": info["ignored"]}
+        counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, crash_hook=crash_hook)
+    except BaseException:
+        store.discard_stage(ws)
+        raise
+    if progress is not None:
+        progress(f.size_bytes - f.size_bytes // 2)
+    log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", f.path, f.format, counts["read"],
+             counts["loaded"], counts["quarantined"], counts["duplicates"])
+    return {"path": str(f.path), "format": f.format, **counts, "already_loaded": False}
+
+
+def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
+                 progress: Callable[[int], None] | None = None) -> dict:
+    """Ingest AIS files (or directories of them) into the workspace ``db``.
+
+    Parameters
+    ----------
+    paths : iterable of path-like
+        Files, or directories (every AIS file inside, recursively).
+    db : path-like
+        The DuckDB workspace file (created when missing).
+    fmt : {"dma", "noaa", "nmea", "parquet"}, optional
+        Force the format of every file instead of detecting it from the content.
+    max_speed_kn : float
+        Implied-speed limit between consecutive fixes of one MMSI. [kn]
+    progress : callable, optional
+        Called with a number of bytes as files are processed (total: :func:`total_bytes`).
+
+    Returns
+    -------
+    dict
+        ``{"files", "read", "loaded", "quarantined", "duplicates", "reasons", "static",
+        "ignored", "already_loaded"}`` summed over the files, plus ``"per_file"``.
+    """
+    from pipelines.storage import open_workspace
+
+    files = expand_paths(paths)
+    summary = empty_summary()
+    per_file = []
+    with open_workspace(db) as ws:
+        for p in files:
+            counts = ingest_file(ws, p, fmt=fmt, max_speed_kn=max_speed_kn, progress=progress)
+            add_to_summary(summary, counts)
+            per_file.append(counts)
+    summary["per_file"] = per_file
+    return summary
+
+
+def total_bytes(paths: Iterable) -> int:
+    """Bytes of all files :func:`ingest_paths` would read (for a progress bar)."""
+    return sum(p.stat().st_size for p in expand_paths(paths))
+
+
+# ---------------------------------------------------------------------------------------------
+# Prefect flow (thin: discovery -> per file: stage -> clean + commit -> summary)
+# ---------------------------------------------------------------------------------------------
+def _retry_io_only(task_, task_run, state) -> bool:
+    """Retry transient I/O failures (e.g. the workspace lock), never bad input."""
+    try:
+        state.result()
+    except StormlaneError:
+        return False
+    except Exception:  # noqa: BLE001
+        return True
+    return False
+
+
+@task(name="discover-ais-files")
+def discover_task(paths: list[str]) -> list[str]:
+    return [str(p) for p in expand_paths(paths)]
+
+
+@task(name="ingest-ais-file", retries=2, retry_delay_seconds=[2, 5], retry_condition_fn=_retry_io_only)
+def ingest_file_task(db: str, path: str, fmt: str | None, max_speed_kn: float) -> dict:
+    from pipelines.storage import open_workspace
+
+    with open_workspace(db) as ws:
+        return ingest_file(ws, path, fmt=fmt, max_speed_kn=max_speed_kn)
+
+
+@task(name="summarise-ingest")
+def summarise_task(per_file: list[dict]) -> dict:
+    summary = empty_summary()
+    for counts in per_file:
+        add_to_summary(summary, counts)
+    summary["per_file"] = per_file
+    return summary
+
+
+@flow(name="ingest-ais", log_prints=False)
+def ingest_flow(paths: list[str], db: str, fmt: str | None = None,
+                max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> dict:
+    """Prefect flow: ingest AIS files into the workspace ``db``; returns the same summary as
+    :func:`ingest_paths`."""
+    files = discover_task(paths)
+    per_file = [ingest_file_task(db, p, fmt, max_speed_kn) for p in files]
+    return summarise_task(per_file)
+
+
+if __name__ == "__main__":
+    import sys
+
+    print(ingest_flow(sys.argv[1:], "stormlane.duckdb"))
