@@ -278,7 +278,8 @@ def row_reasons(stage: pd.DataFrame) -> np.ndarray:
     return reason
 
 
-def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> np.ndarray:
+def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
+                    fixed=None) -> np.ndarray:
     """Fixes to quarantine as implied-speed jumps (rule 8). Input sorted by (mmsi, time).
 
     Consecutive fixes of one MMSI are *linked* when the great-circle distance between them is at
@@ -287,7 +288,9 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
     on ties): a segment is accepted when it is linked to the nearest already accepted fix before
     it and after it; otherwise all its fixes are quarantined. So an isolated outlier, a bad first
     fix or a second transmitter using the same MMSI is removed while the bulk of the track is
-    kept, and afterwards no two consecutive kept fixes imply more than ``max_speed_kn``.
+    kept, and afterwards no two consecutive kept fixes imply more than ``max_speed_kn`` (unless
+    both were ``fixed``). Fixes marked ``fixed`` (already stored) are context: their segments are
+    accepted first and unconditionally, and they are never flagged.
 
     Parameters
     ----------
@@ -299,6 +302,8 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
         Position. [deg]
     max_speed_kn : float
         Highest plausible speed over ground. [kn]
+    fixed : array_like of bool, optional
+        Fixes already accepted earlier (e.g. stored by a previous file).
 
     Returns
     -------
@@ -319,6 +324,7 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
     lon = np.asarray(lon_deg, dtype=float)
     n = len(mmsi)
     bad = np.zeros(n, dtype=bool)
+    fixed = np.zeros(n, dtype=bool) if fixed is None else np.asarray(fixed, dtype=bool)
     if n < 2:
         return bad
     same = mmsi[1:] == mmsi[:-1]
@@ -337,11 +343,15 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
         s, e = int(starts[k]), int(ends[k])
         cuts = [s] + [int(i) + 1 for i in np.flatnonzero(brk[s:e - 1]) + s] + [e]
         segs = list(zip(cuts[:-1], cuts[1:]))
-        order = sorted(range(len(segs)), key=lambda q: (-(segs[q][1] - segs[q][0]), q))
+        pinned = [bool(fixed[a:b].any()) for a, b in segs]
+        order = sorted(range(len(segs)), key=lambda q: (not pinned[q], -(segs[q][1] - segs[q][0]), q))
         accepted: list[int] = []
         for q in order:
             a, b = segs[q]
             pos = bisect.bisect_left(accepted, q)
+            if pinned[q]:
+                accepted.insert(pos, q)
+                continue
             ok = True
             if pos > 0 and not linked(segs[accepted[pos - 1]][1] - 1, a):
                 ok = False
@@ -351,7 +361,24 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
                 accepted.insert(pos, q)
             else:
                 bad[a:b] = True
-    return bad
+    return bad & ~fixed
+
+
+def jump_context(new: pd.DataFrame, existing: pd.DataFrame) -> pd.DataFrame:
+    """Stored fixes that are context for the speed-jump rule of a new batch.
+
+    For every MMSI of ``new`` (columns ``mmsi``, ``time_utc``): the stored fixes inside the
+    batch's time span of that MMSI, plus the nearest stored fix before and after it.
+    """
+    cols = ["mmsi", "time_utc", "lat_deg", "lon_deg"]
+    if existing is None or existing.empty or new.empty:
+        return pd.DataFrame({c: pd.Series(dtype=new[c].dtype) for c in cols})
+    span = new.groupby("mmsi")["time_utc"].agg(["min", "max"]).reset_index()
+    ex = existing[cols].merge(span, on="mmsi")
+    inside = ex[(ex.time_utc >= ex["min"]) & (ex.time_utc <= ex["max"])]
+    before = ex[ex.time_utc < ex["min"]].sort_values("time_utc").groupby("mmsi").tail(1)
+    after = ex[ex.time_utc > ex["max"]].sort_values("time_utc").groupby("mmsi").head(1)
+    return pd.concat([inside, before, after])[cols].reset_index(drop=True)
 
 
 @dataclass
@@ -420,11 +447,21 @@ def classify(stage: pd.DataFrame, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
         reason[idx[dup]] = dup_reason[dup]
 
         keep = cand.loc[~dup]
-        keep = keep.sort_values(["mmsi", "time_utc"], kind="stable")
-        t_s = keep["time_utc"].to_numpy(dtype="datetime64[ns]").astype("int64") / 1e9
-        jump = speed_jump_mask(keep["mmsi"].to_numpy(), t_s, keep["lat_deg"].to_numpy(), keep["lon_deg"].to_numpy(),
-                               max_speed_kn)
-        reason[keep.index.to_numpy()[jump]] = SPEED_JUMP
+        ctx = pd.DataFrame()
+        if existing is not None and len(existing):
+            ex = existing[POSITION_COLUMNS].copy()
+            ex["mmsi"] = ex["mmsi"].astype("int64")
+            ex["time_utc"] = pd.to_datetime(ex["time_utc"], utc=True).astype("datetime64[ns, UTC]")
+            ctx = jump_context(keep, ex)
+        both = pd.concat([keep.assign(_new=True), ctx.assign(_new=False, line=-1)]) if len(ctx) else keep.assign(_new=True)
+        both = both.sort_values(["mmsi", "time_utc"], kind="stable")
+        t_s = both["time_utc"].to_numpy(dtype="datetime64[ns]").astype("int64") / 1e9
+        jump = speed_jump_mask(both["mmsi"].to_numpy(dtype="int64"), t_s, both["lat_deg"].to_numpy(dtype=float),
+                               both["lon_deg"].to_numpy(dtype=float), max_speed_kn,
+                               fixed=~both["_new"].to_numpy(dtype=bool))
+        jumped_lines = set(both["line"].to_numpy()[jump].tolist())
+        sel = keep["line"].isin(jumped_lines).to_numpy()
+        reason[keep.index.to_numpy()[sel]] = SPEED_JUMP
     st["reason"] = reason
     return st
 

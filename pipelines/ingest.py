@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Callable, Iterable
-
-from prefect import flow, task
+from typing import Callable, Iterable, Optional
 
 from lanes.clean import DEFAULT_MAX_SPEED_KN
 from lanes.io.files import AisFile, expand_paths, inspect
@@ -149,7 +147,8 @@ def total_bytes(paths: Iterable) -> int:
 
 
 # ---------------------------------------------------------------------------------------------
-# Prefect flow (thin: discovery -> per file: stage -> clean + commit -> summary)
+# Prefect flow (thin: discovery -> per file: stage, clean + commit -> summary). Built on first
+# access so that the CLI and ``ingest_paths`` do not pay Prefect's import time.
 # ---------------------------------------------------------------------------------------------
 def _retry_io_only(task_, task_run, state) -> bool:
     """Retry transient I/O failures (e.g. the workspace lock), never bad input."""
@@ -162,21 +161,18 @@ def _retry_io_only(task_, task_run, state) -> bool:
     return False
 
 
-@task(name="discover-ais-files")
-def discover_task(paths: list[str]) -> list[str]:
+def _discover(paths: list[str]) -> list[str]:
     return [str(p) for p in expand_paths(paths)]
 
 
-@task(name="ingest-ais-file", retries=2, retry_delay_seconds=[2, 5], retry_condition_fn=_retry_io_only)
-def ingest_file_task(db: str, path: str, fmt: str | None, max_speed_kn: float) -> dict:
+def _ingest_one(db: str, path: str, fmt: str | None, max_speed_kn: float) -> dict:
     from pipelines.storage import open_workspace
 
     with open_workspace(db) as ws:
         return ingest_file(ws, path, fmt=fmt, max_speed_kn=max_speed_kn)
 
 
-@task(name="summarise-ingest")
-def summarise_task(per_file: list[dict]) -> dict:
+def _summarise(per_file: list[dict]) -> dict:
     summary = empty_summary()
     for counts in per_file:
         add_to_summary(summary, counts)
@@ -184,17 +180,40 @@ def summarise_task(per_file: list[dict]) -> dict:
     return summary
 
 
-@flow(name="ingest-ais", log_prints=False)
-def ingest_flow(paths: list[str], db: str, fmt: str | None = None,
-                max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> dict:
-    """Prefect flow: ingest AIS files into the workspace ``db``; returns the same summary as
-    :func:`ingest_paths`."""
-    files = discover_task(paths)
-    per_file = [ingest_file_task(db, p, fmt, max_speed_kn) for p in files]
-    return summarise_task(per_file)
+_FLOW_OBJECTS: dict = {}
+
+
+def _build_flow() -> dict:
+    if _FLOW_OBJECTS:
+        return _FLOW_OBJECTS
+    from prefect import flow, task
+
+    discover_task = task(_discover, name="discover-ais-files")
+    ingest_file_task = task(_ingest_one, name="ingest-ais-file", retries=2, retry_delay_seconds=[2, 5],
+                            retry_condition_fn=_retry_io_only)
+    summarise_task = task(_summarise, name="summarise-ingest")
+
+    @flow(name="ingest-ais")
+    def ingest_flow(paths: list[str], db: str, fmt: Optional[str] = None,
+                    max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> dict:
+        """Prefect flow: ingest AIS files into the workspace ``db``; returns the same summary
+        as :func:`ingest_paths`."""
+        files = discover_task(paths)
+        per_file = [ingest_file_task(db, p, fmt, max_speed_kn) for p in files]
+        return summarise_task(per_file)
+
+    _FLOW_OBJECTS.update(ingest_flow=ingest_flow, discover_task=discover_task, ingest_file_task=ingest_file_task,
+                         summarise_task=summarise_task)
+    return _FLOW_OBJECTS
+
+
+def __getattr__(name: str):
+    if name in ("ingest_flow", "discover_task", "ingest_file_task", "summarise_task"):
+        return _build_flow()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 if __name__ == "__main__":
     import sys
 
-    print(ingest_flow(sys.argv[1:], "stormlane.duckdb"))
+    print(_build_flow()["ingest_flow"](sys.argv[1:], "stormlane.duckdb"))

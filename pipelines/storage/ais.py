@@ -438,7 +438,7 @@ def _jump_candidates_sql() -> str:
     WITH l AS (
         SELECT mmsi, time_utc, lat_deg, lon_deg,
             lag(time_utc) OVER w AS t0, lag(lat_deg) OVER w AS lat0, lag(lon_deg) OVER w AS lon0
-        FROM ais_keep WINDOW w AS (PARTITION BY mmsi ORDER BY time_utc)
+        FROM ais_track WINDOW w AS (PARTITION BY mmsi ORDER BY time_utc)
     )
     SELECT DISTINCT mmsi FROM l
     WHERE t0 IS NOT NULL AND
@@ -447,6 +447,22 @@ def _jump_candidates_sql() -> str:
             + cos(radians(lat0)) * cos(radians(lat_deg)) * pow(sin(radians(lon_deg - lon0) / 2.0), 2))))
         > 0.999 * $vmax * (epoch_us(time_utc) - epoch_us(t0)) / 3.6e9
     """
+
+
+_CONTEXT_SQL = """
+CREATE OR REPLACE TEMP TABLE ais_track AS
+WITH span AS (SELECT mmsi, min(time_utc) AS t0, max(time_utc) AS t1 FROM ais_keep GROUP BY mmsi),
+ex AS (SELECT p.mmsi, p.time_utc, p.lat_deg, p.lon_deg, s.t0, s.t1 FROM ais_positions p JOIN span s USING (mmsi))
+SELECT line, mmsi, time_utc, lat_deg, lon_deg FROM ais_keep
+UNION ALL
+SELECT -1, mmsi, time_utc, lat_deg, lon_deg FROM ex WHERE time_utc BETWEEN t0 AND t1
+UNION ALL
+SELECT -1, mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc) FROM ex
+WHERE time_utc < t0 GROUP BY mmsi
+UNION ALL
+SELECT -1, mmsi, min(time_utc), arg_min(lat_deg, time_utc), arg_min(lon_deg, time_utc) FROM ex
+WHERE time_utc > t1 GROUP BY mmsi
+"""
 
 
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, crash_hook=None) -> dict:
@@ -471,21 +487,24 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         )
         con.execute(_dedupe_sql())
         con.execute("CREATE OR REPLACE TEMP TABLE ais_keep AS SELECT * FROM ais_ok ANTI JOIN ais_dup USING (line)")
+        # Stored fixes around this file's tracks are context (never flagged) for the jump rule.
+        con.execute(_CONTEXT_SQL)
         cand = con.execute(_jump_candidates_sql(), {"vmax": float(max_speed_kn)}).fetchnumpy()["mmsi"]
         jumped = np.empty(0, dtype=np.int64)
         if len(cand):
             con.register("ais_cand_df", pd.DataFrame({"mmsi": np.asarray(cand, dtype=np.int64)}))
             try:
                 tr = con.execute(
-                    "SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg FROM ais_keep "
+                    "SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg FROM ais_track "
                     "SEMI JOIN ais_cand_df USING (mmsi) ORDER BY mmsi, time_utc"
                 ).fetchnumpy()
             finally:
                 con.unregister("ais_cand_df")
             t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
+            lines = np.asarray(tr["line"], dtype=np.int64)
             mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"]),
-                                     np.asarray(tr["lon_deg"]), max_speed_kn)
-            jumped = np.asarray(tr["line"], dtype=np.int64)[mask]
+                                     np.asarray(tr["lon_deg"]), max_speed_kn, fixed=lines < 0)
+            jumped = lines[mask]
         con.register("ais_jump_df", pd.DataFrame({"line": jumped}))
         try:
             con.execute("CREATE OR REPLACE TEMP TABLE ais_jump AS SELECT CAST(line AS BIGINT) AS line FROM ais_jump_df")
@@ -563,7 +582,7 @@ def _upsert_vessels(con, file_id: int) -> None:
 
 
 def _drop_temp(con) -> None:
-    for t in ("ais_lines", "ais_stage", "ais_cls", "ais_ok", "ais_dup", "ais_keep", "ais_jump"):
+    for t in ("ais_lines", "ais_stage", "ais_cls", "ais_ok", "ais_dup", "ais_keep", "ais_track", "ais_jump"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
 
 
