@@ -172,14 +172,26 @@ def exports_section(routes: RouteSet) -> Markup:
     return el("p", "Exports: ", links)
 
 
-def waypoints_section(routes: RouteSet) -> Markup:
+#: Longest waypoint table written in full; longer routes (AIS tracks) show every k-th row.
+MAX_WAYPOINT_ROWS = 200
+
+
+def waypoints_section(routes: RouteSet, max_rows: int = MAX_WAYPOINT_ROWS) -> Markup:
+    """Collapsed waypoint tables (position, ETA, leg speed, weather met), one per route."""
     parts = []
     for role in routes.ordered_roles:
         route = routes.routes[role]
         frame = route.to_frame()
+        note = ""
+        if len(frame) > max_rows:
+            k = int(math.ceil(len(frame) / max_rows))
+            keep = sorted(set(range(0, len(frame), k)) | {len(frame) - 1})
+            frame = frame.iloc[keep]
+            note = f"; every {k}th shown, all of them in the exports"
         cols = list(frame.columns)
-        rows = [[fmt_time(v) if c == "time_utc" else fmt(v, 5 if c.endswith("_deg") and c in ("lat_deg", "lon_deg") else _decimals(c)) for c, v in zip(cols, rec)] for rec in frame.itertuples(index=False)]
-        parts.append(el("details", el("summary", f"Waypoints of the {_route_label(role)} route ({route.n_waypoints})"), table(cols, rows, numeric=set(range(len(cols))) - {cols.index("time_utc")})))
+        rows = [[fmt_time(v) if c == "time_utc" else fmt(v, 5 if c in ("lat_deg", "lon_deg") else _decimals(c)) for c, v in zip(cols, rec)] for rec in frame.itertuples(index=False)]
+        summary = el("summary", f"Waypoints of the {_route_label(role)} route ({route.n_waypoints}{note})")
+        parts.append(el("details", summary, table(cols, rows, numeric=set(range(len(cols))) - {cols.index("time_utc")})))
     return join(parts)
 
 

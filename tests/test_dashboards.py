@@ -22,6 +22,7 @@ from dashboards.html import Markup, el, escape, fmt, table
 from dashboards.model import LaneDeparture, RouteSet, WeatherSnapshot, report_from_json, report_to_json
 from dashboards.plots import land_mask
 from dashboards.report import audit_html, nightly_html, render_audit_report, render_nightly_report
+from routing.route import Route
 
 XSS = "<script>alert(1)</script>"
 XSS_ESCAPED = "&lt;script&gt;alert(1)&lt;/script&gt;"
@@ -347,3 +348,16 @@ def test_audit_report_renders_routing_audit_output(tmp_path):
     text = " ".join(" ".join(page.text).split())
     assert "Proposed alternative: optimal (safer)" in text
     assert len([a for t, a in page.tags if t == "img"]) == 3
+
+
+def test_long_tracks_show_every_kth_waypoint():
+    from dashboards.report import waypoints_section
+
+    n = 1001
+    track = Route("historical", np.linspace(39.0, 41.0, n), np.full(n, 2.0), pd.date_range("2025-01-15", periods=n, freq="min", tz="UTC"), np.full(n - 1, 10.0))
+    page = parse(waypoints_section(RouteSet(routes={"historical": track}), max_rows=200))
+    (tab,) = page.tables
+    # ceil(1001 / 200) = 6: rows 0, 6, ..., 996 (167 rows) plus the last one (1000).
+    assert len(tab) - 1 == 168
+    assert tab[1][0] == "39.00000" and tab[-1][0] == "41.00000"
+    assert "(1001; every 6th shown, all of them in the exports)" in " ".join(page.text)
