@@ -1,0 +1,216 @@
+"""Ports and waypoints: DBSCAN on stop locations, matched to the project's port list.
+
+Stop episodes (:mod:`lanes.stops`) are clustered with DBSCAN [1] on the haversine distance
+(``eps_rad = eps_nmi / EARTH_RADIUS_NMI``, STYLE.md 5). Each cluster is a place where vessels
+stop: a terminal, a berth, an anchorage. It gets a centroid (spherical mean of its stops), a
+radius (largest distance of a stop from the centroid), the number of calls (stop episodes) and of
+distinct vessels.
+
+Clusters are then named from a list of known ports (``data/ports.csv``: UN/LOCODE, name,
+position). Matching is one-to-one and greedy by distance: candidate pairs (cluster, known port)
+closer than the port's match radius are taken nearest first, each known port and each cluster at
+most once. The match radius is ``match_radius_nmi`` but not more than half the distance to the
+nearest other known port (floored at ``min_match_radius_nmi``), so that nearby terminals in the
+list (Whitehall and the Battery piers are 370 m apart) do not claim each other's clusters. Unmatched clusters become
+numbered waypoints (``WP007``): anchorages, tug bases, places the list does not know. One-to-one
+matters: a tug base 0.85 nmi from the St. George ferry terminal is a separate place, not more
+calls at St. George.
+
+References
+----------
+.. [1] M. Ester, H.-P. Kriegel, J. Sander and X. Xu, "A density-based algorithm for discovering
+       clusters in large spatial databases with noise," in Proc. KDD-96, pp. 226-231, 1996.
+.. [2] G. Pallotta, M. Vespe and K. Bryan, "Vessel pattern knowledge discovery from AIS data,"
+       Entropy, vol. 15, no. 6, pp. 2218-2245, 2013, doi:10.3390/e15062218.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from lanes._geo import spherical_means
+from thresholds.geodesy import haversine_nmi
+from thresholds.units import EARTH_RADIUS_NMI
+
+PORT_COLUMNS = [
+    "port_id", "kind", "locode", "name", "country", "lat_deg", "lon_deg", "radius_nmi",
+    "n_calls", "n_vessels", "known_lat_deg", "known_lon_deg", "match_dist_nmi",
+]
+
+
+@dataclass(frozen=True)
+class PortParams:
+    """DBSCAN and matching parameters for ports (units in the names).
+
+    The defaults suit terminals a few hundred metres apart (New York harbour: 250 m separates
+    Whitehall from the Battery piers); large ports then come out as several berth clusters, of
+    which the nearest takes the port's name.
+    """
+
+    eps_nmi: float = 0.135  # 250 m
+    min_samples: int = 2
+    min_vessels: int = 1
+    match_radius_nmi: float = 2.0
+    min_match_radius_nmi: float = 0.25
+
+    def __post_init__(self):
+        if not self.eps_nmi > 0:
+            raise ValueError(f"PortParams.eps_nmi must be positive, got {self.eps_nmi!r}")
+        if self.min_samples < 1 or self.min_vessels < 1:
+            raise ValueError("PortParams.min_samples and min_vessels must be at least 1")
+        if not self.match_radius_nmi >= 0:
+            raise ValueError("PortParams.match_radius_nmi must be non-negative")
+
+
+def cluster_stops(stops: pd.DataFrame, params: PortParams | None = None) -> np.ndarray:
+    """DBSCAN labels (``-1`` = noise) of stop episodes on the haversine distance [1].
+
+    Clusters visited by fewer than ``min_vessels`` distinct tracks are turned into noise.
+    """
+    from sklearn.cluster import DBSCAN
+
+    params = params or PortParams()
+    n = len(stops)
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    X = np.deg2rad(stops[["lat_deg", "lon_deg"]].to_numpy(dtype=float))
+    eps_rad = params.eps_nmi / EARTH_RADIUS_NMI
+    labels = DBSCAN(eps=eps_rad, min_samples=params.min_samples, metric="haversine", algorithm="ball_tree").fit_predict(X)
+    if params.min_vessels > 1 and (labels >= 0).any():
+        inside = labels >= 0
+        nv = pd.Series(stops["track"].to_numpy()[inside]).groupby(labels[inside]).nunique()
+        small = nv.index[nv < params.min_vessels].to_numpy()
+        labels = np.where(np.isin(labels, small), -1, labels)
+    return labels.astype(np.int64)
+
+
+def summarise_clusters(stops: pd.DataFrame, labels: np.ndarray) -> pd.DataFrame:
+    """Centroid, radius, calls and vessels of each stop cluster (``cluster`` = DBSCAN label)."""
+    inside = labels >= 0
+    if not inside.any():
+        return pd.DataFrame(columns=["cluster", "lat_deg", "lon_deg", "radius_nmi", "n_calls", "n_vessels"])
+    lab = labels[inside]
+    uniq, codes = np.unique(lab, return_inverse=True)
+    lat = stops["lat_deg"].to_numpy(dtype=float)[inside]
+    lon = stops["lon_deg"].to_numpy(dtype=float)[inside]
+    clat, clon = spherical_means(codes, lat, lon, uniq.size)
+    d = haversine_nmi(lat, lon, clat[codes], clon[codes])
+    radius = pd.Series(d).groupby(codes).max().to_numpy()
+    tracks = stops["track"].to_numpy()[inside]
+    return pd.DataFrame({
+        "cluster": uniq,
+        "lat_deg": clat,
+        "lon_deg": clon,
+        "radius_nmi": radius,
+        "n_calls": np.bincount(codes, minlength=uniq.size),
+        "n_vessels": pd.Series(tracks).groupby(codes).nunique().to_numpy(),
+    })
+
+
+def match_radii_nmi(known: pd.DataFrame, match_radius_nmi: float, min_match_radius_nmi: float = 0.25) -> np.ndarray:
+    """Match radius of each known port.
+
+    ``match_radius_nmi``, capped at half the distance to the nearest other known port but never
+    below ``min_match_radius_nmi`` (listed positions are often a terminal building, a few hundred
+    metres from the slips where ships actually stop).
+    """
+    n = len(known)
+    radius = np.full(n, float(match_radius_nmi))
+    if n > 1:
+        lat = known["lat_deg"].to_numpy(dtype=float)
+        lon = known["lon_deg"].to_numpy(dtype=float)
+        d = haversine_nmi(lat[:, None], lon[:, None], lat[None, :], lon[None, :])
+        np.fill_diagonal(d, np.inf)
+        radius = np.minimum(radius, np.maximum(0.5 * d.min(axis=1), min_match_radius_nmi))
+    return radius
+
+
+def match_ports(clusters: pd.DataFrame, known: pd.DataFrame | None, match_radius_nmi: float = 2.0,
+                min_match_radius_nmi: float = 0.25) -> np.ndarray:
+    """Index into ``known`` matched to each cluster, or -1; one-to-one, nearest pairs first."""
+    n = len(clusters)
+    out = np.full(n, -1, dtype=np.int64)
+    if n == 0 or known is None or len(known) == 0:
+        return out
+    radius = match_radii_nmi(known, match_radius_nmi, min_match_radius_nmi)
+    d = haversine_nmi(
+        clusters["lat_deg"].to_numpy(dtype=float)[:, None], clusters["lon_deg"].to_numpy(dtype=float)[:, None],
+        known["lat_deg"].to_numpy(dtype=float)[None, :], known["lon_deg"].to_numpy(dtype=float)[None, :],
+    )
+    ci, ki = np.nonzero(d <= radius[None, :])
+    order = np.argsort(d[ci, ki], kind="stable")
+    used_known = np.zeros(len(known), dtype=bool)
+    for c, k in zip(ci[order], ki[order]):
+        if out[c] < 0 and not used_known[k]:
+            out[c] = k
+            used_known[k] = True
+    return out
+
+
+def detect_ports(stops: pd.DataFrame, known: pd.DataFrame | None = None,
+                 params: PortParams | None = None) -> tuple[pd.DataFrame, np.ndarray]:
+    """Ports and waypoints from stop episodes.
+
+    Parameters
+    ----------
+    stops : DataFrame
+        Output of :func:`lanes.stops.detect_stops`.
+    known : DataFrame, optional
+        Known ports with ``locode``, ``name``, ``lat_deg``, ``lon_deg`` (and optionally
+        ``country``), e.g. ``data/ports.csv``.
+    params : PortParams
+
+    Returns
+    -------
+    ports : DataFrame
+        One row per cluster (columns :data:`PORT_COLUMNS`); ``port_id`` 1..n numbered by
+        decreasing number of calls (then latitude, longitude), ``kind`` ``"port"`` when matched
+        to the list, else ``"waypoint"`` with the name ``WP<port_id>``.
+    stop_port_id : ndarray
+        ``port_id`` of each stop episode, 0 for stops in no cluster (DBSCAN noise).
+    """
+    params = params or PortParams()
+    labels = cluster_stops(stops, params)
+    clusters = summarise_clusters(stops, labels)
+    if len(clusters) == 0:
+        return pd.DataFrame({c: pd.Series(dtype=object) for c in PORT_COLUMNS}), np.zeros(len(stops), dtype=np.int64)
+    clusters = clusters.sort_values(["n_calls", "lat_deg", "lon_deg"], ascending=[False, True, True], kind="stable")
+    clusters = clusters.reset_index(drop=True)
+    clusters["port_id"] = np.arange(1, len(clusters) + 1, dtype=np.int64)
+    match = match_ports(clusters, known, params.match_radius_nmi, params.min_match_radius_nmi)
+    matched = match >= 0
+    ports = pd.DataFrame({
+        "port_id": clusters["port_id"].to_numpy(),
+        "kind": np.where(matched, "port", "waypoint"),
+        "locode": None,
+        "name": [f"WP{p:03d}" for p in clusters["port_id"]],
+        "country": None,
+        "lat_deg": clusters["lat_deg"].to_numpy(),
+        "lon_deg": clusters["lon_deg"].to_numpy(),
+        "radius_nmi": clusters["radius_nmi"].to_numpy(),
+        "n_calls": clusters["n_calls"].to_numpy(dtype=np.int64),
+        "n_vessels": clusters["n_vessels"].to_numpy(dtype=np.int64),
+        "known_lat_deg": np.nan,
+        "known_lon_deg": np.nan,
+        "match_dist_nmi": np.nan,
+    })
+    ports["locode"] = ports["locode"].astype(object)
+    ports["country"] = ports["country"].astype(object)
+    if matched.any():
+        k = match[matched]
+        ports.loc[matched, "locode"] = known["locode"].to_numpy()[k]
+        ports.loc[matched, "name"] = known["name"].to_numpy()[k]
+        if "country" in known.columns:
+            ports.loc[matched, "country"] = known["country"].to_numpy()[k]
+        klat = known["lat_deg"].to_numpy(dtype=float)[k]
+        klon = known["lon_deg"].to_numpy(dtype=float)[k]
+        ports.loc[matched, "known_lat_deg"] = klat
+        ports.loc[matched, "known_lon_deg"] = klon
+        ports.loc[matched, "match_dist_nmi"] = haversine_nmi(
+            ports.loc[matched, "lat_deg"].to_numpy(), ports.loc[matched, "lon_deg"].to_numpy(), klat, klon)
+    label_to_port = dict(zip(clusters["cluster"].to_numpy(), clusters["port_id"].to_numpy()))
+    stop_port_id = np.array([label_to_port.get(lab, 0) for lab in labels], dtype=np.int64)
+    return ports[PORT_COLUMNS], stop_port_id

@@ -1,0 +1,73 @@
+"""`stormlane lanes`: ports, voyages and DBSCAN traffic lanes from the workspace's AIS positions."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from pipelines.commands._common import DbOption, JsonOption, emit_json
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("lanes")
+    def lanes_command(
+        db: Path = DbOption,
+        json_out: bool = JsonOption,
+        geojson: Path = typer.Option(None, "--geojson", help="Also write ports, lanes and centroids as GeoJSON to FILE."),
+        ports_csv: Path = typer.Option(None, "--ports", help="Port list CSV (default: data/ports.csv)."),
+        step_s: float = typer.Option(300.0, "--step-s", help="Resampling time step [s]."),
+        eps_nmi: float = typer.Option(1.0, "--eps-nmi", help="Lane DBSCAN spatial eps [nmi]."),
+        eps_speed_kn: float = typer.Option(3.0, "--eps-speed-kn", help="Lane DBSCAN speed eps [kn]."),
+        eps_course_deg: float = typer.Option(20.0, "--eps-course-deg", help="Lane DBSCAN course eps [deg]."),
+        min_samples: int = typer.Option(10, "--min-samples", help="Lane DBSCAN min_samples (resampled points)."),
+        min_voyages: int = typer.Option(3, "--min-voyages", help="Fewest voyages in a lane."),
+        port_eps_nmi: float = typer.Option(0.135, "--port-eps-nmi", help="Stop DBSCAN eps for ports [nmi]."),
+    ) -> None:
+        """Detect ports, cut voyages and extract traffic lanes (replaces the previous result).
+
+        With --json prints exactly {"ports": N, "voyages": N, "lanes": N, "noise_points": N}:
+        ports and waypoints found, port-to-port voyages, lanes, and resampled points left as
+        DBSCAN noise (slow or unclustered).
+        """
+        from pydantic import ValidationError
+
+        from pipelines.lanes import LanesSettings, run_lanes, summary_counts
+        from thresholds.errors import StormlaneError
+
+        try:
+            settings = LanesSettings(step_s=step_s, eps_nmi=eps_nmi, eps_speed_kn=eps_speed_kn, eps_course_deg=eps_course_deg,
+                                     min_samples=min_samples, min_voyages=min_voyages, port_eps_nmi=port_eps_nmi)
+        except ValidationError as err:
+            first = err.errors()[0]
+            raise StormlaneError(f"bad option {first['loc'][0]}: {first['msg']}") from None
+        out = run_lanes(db, ports_csv, settings)
+        if geojson is not None:
+            write_geojson(db, geojson)
+        if json_out:
+            emit_json(summary_counts(out))
+            return
+        d = out["details"]
+        typer.echo(f"lanes run {out['run_id']} on {db}")
+        typer.echo(f"  positions {d['positions']:,} ({d['dropped_jumps']:,} dropped as position jumps), stops {d['stops']:,}")
+        typer.echo(f"  ports {out['ports']} ({d['named_ports']} named from the port list, the rest numbered waypoints)")
+        kinds = ", ".join(f"{k} {v}" for k, v in sorted(d["voyage_kinds"].items()))
+        typer.echo(f"  voyages port-to-port {out['voyages']} (all segments: {kinds})")
+        typer.echo(f"  lanes {out['lanes']} from {d['resampled_points']:,} resampled points; noise {out['noise_points']:,}"
+                   f" (of which {d['slow_points']:,} slower than the lane speed floor)")
+        if geojson is not None:
+            typer.echo(f"  GeoJSON written to {geojson}")
+
+
+def write_geojson(db: Path, out: Path) -> None:
+    """Ports, lanes and centroids of the workspace as a GeoJSON FeatureCollection."""
+    from dashboards.lanes_geojson import lanes_geojson
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_lane_centroids, read_lanes, read_ports
+
+    with open_workspace(db) as ws:
+        fc = lanes_geojson(read_ports(ws), read_lanes(ws), read_lane_centroids(ws))
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(fc, separators=(",", ":")), encoding="utf-8")

@@ -1,0 +1,134 @@
+"""Prefect flow: traffic lanes from the ingested AIS positions (after ``ingest``).
+
+reader task (``ais_positions`` + ``data/ports.csv``) -> :func:`lanes.chain.build_lanes` ->
+writer task (tables ``ports``, ``voyages``, ``lanes``, ``lane_centroids``, ``lane_voyages``).
+
+``run_lanes`` runs the same three steps without Prefect (what ``stormlane lanes`` calls, so a
+one-off command does not start a Prefect API); ``lanes_flow`` is the flow the demo and the
+nightly deployment run.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+from prefect import flow, task
+from prefect.cache_policies import NO_CACHE
+from pydantic import BaseModel, ConfigDict, Field
+
+from lanes.chain import ChainParams, ChainResult, build_lanes, voyages_as_table
+from lanes.extract import LaneParams
+from lanes.interpolate import ResampleParams
+from lanes.ports import PortParams
+from lanes.stops import StopParams
+from pipelines.config import data_dir
+from thresholds.errors import StormlaneError
+
+
+class LanesInputError(StormlaneError):
+    """The workspace has nothing to extract lanes from."""
+
+
+class LanesSettings(BaseModel):
+    """The tunable parameters of the lanes chain (validated before a run starts).
+
+    Defaults suit open-sea traffic at a few hundred positions per vessel-day (the demo scenario);
+    dense multi-month areas (the Ushant set) want a smaller ``eps_nmi`` and a larger
+    ``min_samples`` (see the README, "Traffic lanes").
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    step_s: float = Field(300.0, gt=0, description="resampling time step [s]")
+    max_interp_gap_s: float = Field(3600.0, gt=0, description="no resampled point inside a longer gap [s]")
+    eps_nmi: float = Field(1.0, gt=0, description="DBSCAN spatial eps [nmi]")
+    eps_speed_kn: float = Field(3.0, gt=0, description="DBSCAN speed eps [kn]")
+    eps_course_deg: float = Field(20.0, gt=0, lt=180, description="DBSCAN course eps [deg]")
+    min_samples: int = Field(10, ge=1, description="DBSCAN min_samples (resampled points)")
+    min_voyages: int = Field(3, ge=1, description="fewest voyages a lane must have")
+    max_points: int = Field(150_000, ge=100, description="per-partition DBSCAN sample size")
+    centroid_spacing_nmi: float = Field(5.0, gt=0, description="spacing of lane centroids [nmi]")
+    stop_speed_kn: float = Field(0.5, gt=0, description="stopped below this speed [kn]")
+    min_stop_s: float = Field(180.0, ge=0, description="shortest stop [s]")
+    port_eps_nmi: float = Field(0.135, gt=0, description="DBSCAN eps for stops -> ports [nmi]")
+    port_match_nmi: float = Field(2.0, ge=0, description="largest distance to a listed port [nmi]")
+    max_jump_speed_kn: float = Field(50.0, gt=0, description="fixes implying more are dropped [kn]")
+
+    def chain_params(self) -> ChainParams:
+        resample = ResampleParams(step_s=self.step_s, max_gap_s=max(self.max_interp_gap_s, self.step_s))
+        return ChainParams(
+            stops=StopParams(max_speed_kn=self.stop_speed_kn, min_duration_s=self.min_stop_s),
+            ports=PortParams(eps_nmi=self.port_eps_nmi, match_radius_nmi=self.port_match_nmi),
+            resample=resample,
+            lanes=LaneParams(eps_nmi=self.eps_nmi, eps_speed_kn=self.eps_speed_kn, eps_course_deg=self.eps_course_deg,
+                             min_samples=self.min_samples, min_voyages=self.min_voyages, max_points=self.max_points,
+                             centroid_spacing_nmi=self.centroid_spacing_nmi),
+            max_jump_speed_kn=self.max_jump_speed_kn,
+        )
+
+
+def default_ports_csv() -> Path:
+    return data_dir() / "ports.csv"
+
+
+def load_inputs(db: str | Path, ports_csv: str | Path | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """AIS positions of the workspace and the port list."""
+    from lanes.io.portlist import read_port_list
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import read_positions
+
+    known, _ = read_port_list(ports_csv or default_ports_csv())
+    if not Path(db).exists():
+        raise LanesInputError(f"workspace {db} does not exist; run `stormlane ingest-ais PATH --db {db}` first")
+    with open_workspace(db) as ws:
+        positions = read_positions(ws)
+    if len(positions) == 0:
+        raise LanesInputError(f"workspace {db} has no AIS positions; run `stormlane ingest-ais PATH --db {db}` first")
+    return positions, known
+
+
+def store_result(db: str | Path, result: ChainResult, settings: LanesSettings) -> dict:
+    """Write the result tables (one transaction); return the CLI summary."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import write_lanes
+
+    with open_workspace(db) as ws:
+        run_id = write_lanes(ws, result.ports, voyages_as_table(result.voyages), result.lanes.lanes,
+                             result.lanes.centroids, result.lane_voyages, result.summary, settings.model_dump())
+    return {**summary_counts(result.summary), "run_id": run_id}
+
+
+def summary_counts(summary: dict) -> dict:
+    """The four counts of the CLI contract, in its order."""
+    return {k: int(summary[k]) for k in ("ports", "voyages", "lanes", "noise_points")}
+
+
+def run_lanes(db: str | Path, ports_csv: str | Path | None = None, settings: LanesSettings | None = None) -> dict:
+    """Reader -> chain -> writer without Prefect; returns the summary (counts, run id, details)."""
+    settings = settings or LanesSettings()
+    positions, known = load_inputs(db, ports_csv)
+    result = build_lanes(positions, known, settings.chain_params())
+    out = store_result(db, result, settings)
+    return {**out, "details": result.summary}
+
+
+_read = task(load_inputs, name="read positions and port list", retries=3, retry_delay_seconds=[2, 5, 15],
+             cache_policy=NO_CACHE)
+_build = task(build_lanes, name="build lanes", cache_policy=NO_CACHE)
+_store = task(store_result, name="store lanes", retries=3, retry_delay_seconds=[2, 5, 15], cache_policy=NO_CACHE)
+
+
+@flow(name="lanes", log_prints=False)
+def lanes_flow(db: str, ports_csv: str | None = None, settings: LanesSettings = LanesSettings()) -> dict:
+    """Ports, voyages and traffic lanes from the workspace's AIS positions."""
+    positions, known = _read(db, ports_csv)
+    result = _build(positions, known, settings.chain_params())
+    out = _store(db, result, settings)
+    return {**out, "details": result.summary}
+
+
+if __name__ == "__main__":
+    import sys
+
+    print(lanes_flow(sys.argv[1] if len(sys.argv) > 1 else "stormlane.duckdb"))
