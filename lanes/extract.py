@@ -33,15 +33,23 @@ difference ``dc`` in [0, 180] deg. Consequences:
 A custom callable metric would express the plain conjunction but runs in Python per pair of
 points (orders of magnitude slower) and forbids the tree indices.
 
+Density in voyages. DBSCAN's core condition counts points, and how many points one voyage puts
+into an eps-ball depends on its speed and on the resampling step. Each point is therefore weighted
+by the fraction of the ball's diameter that its time step covers, ``w = min(1, v * step /
+(2 eps_nmi))`` (sklearn's ``sample_weight``), so one voyage passing through a ball weighs about 1
+whatever its speed or the step, and ``min_density`` is the number of voyages that must pass close
+by (in position, speed and course) for a point to be a core point. The same threshold then means
+the same thing at a 60 s step in a harbour and at a 300 s step at sea.
+
 Memory bound. DBSCAN memory grows with the neighbours per point. A partition with more than
 ``max_points`` points is clustered on a deterministic uniform sample of ``max_points`` points,
-each weighted ``n / max_points`` (sklearn's ``sample_weight``), so the core-point condition
-``sum of weights in the eps-ball >= min_samples`` estimates the same density; the other points
-take the label of their nearest core sample within eps (else noise). The sample is seeded from
-the partition key, so results do not depend on how the data was partitioned.
+their weights multiplied by ``n / max_points``, so the core-point condition (sum of weights in
+the eps-ball >= ``min_density``) estimates the same density; the other points take the label of
+their nearest core sample within eps (else noise). The sample is seeded from the partition key, so
+results do not depend on how the data was partitioned.
 
-Lanes. Clusters with fewer than ``min_voyages`` voyages become noise. Each remaining cluster is
-one lane: mean speed, circular mean course, point / voyage / vessel counts, and an ordered
+Lanes. Clusters with fewer than ``min_voyages`` voyages, or too short to give two centroids,
+become noise. Each remaining cluster is one lane: mean speed, circular mean course, point / voyage / vessel counts, and an ordered
 centroid sequence. To order the points along a lane that may bend, they are projected on a
 reference track (the member voyage run with the longest path inside the cluster): the arc length
 of the nearest reference vertex is the along-lane coordinate, cut into bins of
@@ -106,8 +114,8 @@ class LaneParams:
     eps_nmi: float = 1.0
     eps_speed_kn: float = 3.0
     eps_course_deg: float = 20.0
-    min_samples: int = 10
-    min_voyages: int = 2
+    min_density: float = 4.0
+    min_voyages: int = 3
     min_speed_kn: float = 1.0
     max_points: int = 150_000
     centroid_spacing_nmi: float = 5.0
@@ -119,7 +127,7 @@ class LaneParams:
     seed: int = 0
 
     def __post_init__(self):
-        for name in ("eps_nmi", "eps_speed_kn", "eps_course_deg", "min_samples", "centroid_spacing_nmi"):
+        for name in ("eps_nmi", "eps_speed_kn", "eps_course_deg", "min_density", "centroid_spacing_nmi"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"LaneParams.{name} must be positive, got {getattr(self, name)!r}")
         if not 0 < self.eps_course_deg < 180:
@@ -167,22 +175,34 @@ def _seed(key: tuple[int, int], seed: int) -> int:
     return zlib.crc32(f"{key[0]}-{key[1]}-{seed}".encode())
 
 
-def dbscan_labels(features: np.ndarray, params: LaneParams, key: tuple[int, int]) -> tuple[np.ndarray, bool]:
-    """DBSCAN labels with ``eps = 1`` in the scaled space, sampled above ``max_points``."""
+#: Weights are scaled by this factor so that sklearn's integer ``min_samples`` can express a
+#: fractional ``min_density`` (resolution 0.01 voyage).
+_WEIGHT_SCALE = 100.0
+
+
+def point_weights(speed_kn: np.ndarray, step_s: float, eps_nmi: float) -> np.ndarray:
+    """Weight of each point in voyage units: ``min(1, v * step / (2 eps))`` (module docstring)."""
+    return np.minimum(1.0, np.asarray(speed_kn, dtype=float) * (step_s / 3600.0) / (2.0 * eps_nmi))
+
+
+def dbscan_labels(features: np.ndarray, weights: np.ndarray, params: LaneParams,
+                  key: tuple[int, int]) -> tuple[np.ndarray, bool]:
+    """DBSCAN labels with ``eps = 1`` in the scaled space, weighted, sampled above ``max_points``."""
     from sklearn.cluster import DBSCAN
     from sklearn.neighbors import KDTree
 
     n = features.shape[0]
     if n == 0:
         return np.empty(0, dtype=np.int64), False
+    min_samples = max(1, int(round(params.min_density * _WEIGHT_SCALE)))
+    db = DBSCAN(eps=1.0, min_samples=min_samples, algorithm="kd_tree")
     if n <= params.max_points:
-        labels = DBSCAN(eps=1.0, min_samples=params.min_samples, algorithm="kd_tree").fit_predict(features)
+        labels = db.fit(features, sample_weight=weights * _WEIGHT_SCALE).labels_
         return labels.astype(np.int64), False
     rng = np.random.default_rng(_seed(key, params.seed))
     sample = np.sort(rng.choice(n, size=params.max_points, replace=False))
-    weight = np.full(sample.size, n / params.max_points)
-    db = DBSCAN(eps=1.0, min_samples=params.min_samples, algorithm="kd_tree")
-    sample_labels = db.fit(features[sample], sample_weight=weight).labels_
+    scale = n / params.max_points
+    sample_labels = db.fit(features[sample], sample_weight=weights[sample] * scale * _WEIGHT_SCALE).labels_
     labels = np.full(n, -1, dtype=np.int64)
     labels[sample] = sample_labels
     core = sample[db.core_sample_indices_]
@@ -195,6 +215,18 @@ def dbscan_labels(features: np.ndarray, params: LaneParams, key: tuple[int, int]
             near = dist[:, 0] <= 1.0
             labels[part[near]] = labels[core[idx[near, 0]]]
     return labels, True
+
+
+def resample_step_s(points: pd.DataFrame, default: float = 300.0) -> float:
+    """The resampling step of the points: median time difference within a voyage run. [s]"""
+    if len(points) < 2:
+        return default
+    t = time_seconds(points["time_utc"])
+    same = (points["voyage"].to_numpy()[1:] == points["voyage"].to_numpy()[:-1]) & \
+        (points["run"].to_numpy()[1:] == points["run"].to_numpy()[:-1])
+    dt = np.diff(t)[same]
+    dt = dt[dt > 0]
+    return float(np.median(dt)) if dt.size else default
 
 
 def extract_lanes_for_pair(points: pd.DataFrame, params: LaneParams | None = None,
@@ -237,7 +269,8 @@ def extract_lanes_for_pair(points: pd.DataFrame, params: LaneParams | None = Non
         mv = np.flatnonzero(moving)
         feats = motion_features(p["lat_deg"].to_numpy(dtype=float)[mv], p["lon_deg"].to_numpy(dtype=float)[mv],
                                 speed[mv], course[mv], params)
-        lab, sampled = dbscan_labels(feats, params, key)
+        weights = point_weights(speed[mv], resample_step_s(p), params.eps_nmi)
+        lab, sampled = dbscan_labels(feats, weights, params, key)
         labels[mv] = lab
 
     # Clusters supported by too few voyages are noise.
@@ -267,13 +300,17 @@ def extract_lanes_for_pair(points: pd.DataFrame, params: LaneParams | None = Non
             "piece": pd.factorize(pd.Series(voyages).astype(str) + "#" + p["run"].astype(str))[0],
             "track": pd.factorize(p["track"])[0],
         }
-        for k, i in enumerate(rank, start=1):
-            lane_id = _lane_id(key, k)
+        k = 0
+        for i in rank:
             m = by_cluster[first_pos[i]:first_pos[i] + counts[i]]
-            lane, cents = _build_lane({c: v[m] for c, v in cols.items()}, lane_id, key, params)
+            lane, cents = _build_lane({c: v[m] for c, v in cols.items()}, _lane_id(key, k + 1), key, params)
+            if lane is None:  # no extent: a lane needs at least two centroids
+                labels[m] = -1
+                continue
+            k += 1
             lane_rows.append(lane)
             centroid_frames.append(cents)
-            p_lane[m] = lane_id
+            p_lane[m] = lane[0]
     point_lane[order] = p_lane
     lanes = pd.DataFrame(lane_rows, columns=LANE_COLUMNS) if lane_rows else _empty(LANE_COLUMNS)
     cents = pd.concat(centroid_frames, ignore_index=True) if centroid_frames else _empty(CENTROID_COLUMNS)
@@ -334,7 +371,7 @@ def nearest_vertex(lat: np.ndarray, lon: np.ndarray, ref_lat: np.ndarray, ref_lo
 
 def _build_lane(c: dict, lane_id: str, key: tuple[int, int], params: LaneParams):
     """One lane row and its centroid sequence from the lane's points (arrays in ``c``)."""
-    from shapely import LineString, Point, distance, points as shp_points
+    from shapely import LineString, distance, points as shp_points
 
     lat, lon, speed, course = c["lat"], c["lon"], c["speed"], c["course"]
     n = lat.size
@@ -366,8 +403,8 @@ def _build_lane(c: dict, lane_id: str, key: tuple[int, int], params: LaneParams)
     cvoy = np.bincount(pairs // (int(c["voyage"].max()) + 1), minlength=nb)
     calong = np.bincount(codes, weights=s, minlength=nb) / counts
     keep = counts >= params.min_centroid_points
-    if not keep.any():
-        keep = counts == counts.max()
+    if keep.sum() < 2:
+        return None, None
     cents = pd.DataFrame({
         "lane_id": lane_id,
         "seq": np.arange(int(keep.sum()), dtype=np.int64),
@@ -382,14 +419,14 @@ def _build_lane(c: dict, lane_id: str, key: tuple[int, int], params: LaneParams)
 
     # Polygon: centroid polyline buffered by the cross-track width, in the local plane.
     kx, ky = cx[keep], cy[keep]
-    geom = LineString(np.column_stack([kx, ky])) if kx.size > 1 else Point(kx[0], ky[0])
+    geom = LineString(np.column_stack([kx, ky]))
     width = float(np.quantile(distance(shp_points(np.column_stack([px, py])), geom), params.width_quantile))
     width = max(width, params.min_width_nmi)
     poly = geom.buffer(width, quad_segs=4).simplify(width * 0.05)
     ex, ey = np.asarray(poly.exterior.coords).T
     plat, plon = latlon_from_local_xy(ex, ey, lat0, lon0)
     wkt = "POLYGON ((" + ", ".join(f"{a:.5f} {b:.5f}" for a, b in zip(plon, plat)) + "))"
-    length = float(np.sum(haversine_nmi(clat[keep][:-1], clon[keep][:-1], clat[keep][1:], clon[keep][1:]))) if kx.size > 1 else 0.0
+    length = float(np.sum(haversine_nmi(clat[keep][:-1], clon[keep][:-1], clat[keep][1:], clon[keep][1:])))
     kind = "transit" if key == TRANSIT else ("loop" if key[0] == key[1] else "port_to_port")
     lane = [
         lane_id, int(key[0]), int(key[1]), kind, int(n), int(np.unique(c["voyage"]).size),

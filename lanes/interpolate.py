@@ -164,7 +164,7 @@ def resample_voyages(pts: pd.DataFrame, voyages: pd.DataFrame, params: ResampleP
     -------
     DataFrame
         Columns :data:`POINT_COLUMNS`: ``voyage`` (the voyage id), ``track``, port ids, grid
-        ``time_utc`` (multiples of ``step_s`` after departure), position, ``speed_kn`` and
+        ``time_utc`` (multiples of ``step_s`` since 1970 UTC inside the voyage), position, ``speed_kn`` and
         ``course_deg`` from the resampled track (NaN for a run of one point), ``run`` (number of
         the gap-free run within the voyage) and ``along_nmi`` (distance sailed since departure
         along the resampled points, gaps bridged on the great circle).
@@ -187,11 +187,15 @@ def resample_voyages(pts: pd.DataFrame, voyages: pd.DataFrame, params: ResampleP
     t0 = t_all[first]
     t1 = t_all[last]
 
-    # Grid times per voyage.
-    n_grid = np.floor((t1 - t0) / params.step_s).astype(np.int64) + 1
+    # Grid times per voyage: the multiples of step_s (since 1970-01-01 UTC) inside the voyage.
+    # A common absolute grid keeps voyages that leave the same berth at the same speed from
+    # being sampled at the same along-track places (their phases follow their departure times).
+    g0 = np.ceil(t0 / params.step_s - 1e-9)
+    g1 = np.floor(t1 / params.step_s + 1e-9)
+    n_grid = np.maximum(0, (g1 - g0).astype(np.int64) + 1)
     v_of_grid = np.repeat(np.arange(nv), n_grid)
     k = np.arange(n_grid.sum()) - np.repeat(np.cumsum(n_grid) - n_grid, n_grid)
-    gt = t0[v_of_grid] + k * params.step_s
+    gt = (g0[v_of_grid] + k) * params.step_s
 
     # Bracketing fixes via a combined (voyage, time) key.
     tmin = ft.min()

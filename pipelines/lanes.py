@@ -35,7 +35,7 @@ class LanesSettings(BaseModel):
 
     Defaults suit open-sea traffic at a few hundred positions per vessel-day (the demo scenario);
     dense multi-month areas (the Ushant set) want a smaller ``eps_nmi`` and a larger
-    ``min_samples`` (see the README, "Traffic lanes").
+    ``min_density`` (see the README, "Traffic lanes").
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -45,7 +45,7 @@ class LanesSettings(BaseModel):
     eps_nmi: float = Field(1.0, gt=0, description="DBSCAN spatial eps [nmi]")
     eps_speed_kn: float = Field(3.0, gt=0, description="DBSCAN speed eps [kn]")
     eps_course_deg: float = Field(20.0, gt=0, lt=180, description="DBSCAN course eps [deg]")
-    min_samples: int = Field(10, ge=1, description="DBSCAN min_samples (resampled points)")
+    min_density: float = Field(4.0, gt=0, description="DBSCAN core density, in voyages passing within eps")
     min_voyages: int = Field(3, ge=1, description="fewest voyages a lane must have")
     max_points: int = Field(150_000, ge=100, description="per-partition DBSCAN sample size")
     centroid_spacing_nmi: float = Field(5.0, gt=0, description="spacing of lane centroids [nmi]")
@@ -62,7 +62,7 @@ class LanesSettings(BaseModel):
             ports=PortParams(eps_nmi=self.port_eps_nmi, match_radius_nmi=self.port_match_nmi),
             resample=resample,
             lanes=LaneParams(eps_nmi=self.eps_nmi, eps_speed_kn=self.eps_speed_kn, eps_course_deg=self.eps_course_deg,
-                             min_samples=self.min_samples, min_voyages=self.min_voyages, max_points=self.max_points,
+                             min_density=self.min_density, min_voyages=self.min_voyages, max_points=self.max_points,
                              centroid_spacing_nmi=self.centroid_spacing_nmi),
             max_jump_speed_kn=self.max_jump_speed_kn,
         )

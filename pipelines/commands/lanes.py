@@ -17,13 +17,13 @@ def register(app: typer.Typer) -> None:
         json_out: bool = JsonOption,
         geojson: Path = typer.Option(None, "--geojson", help="Also write ports, lanes and centroids as GeoJSON to FILE."),
         ports_csv: Path = typer.Option(None, "--ports", help="Port list CSV (default: data/ports.csv)."),
-        step_s: float = typer.Option(300.0, "--step-s", help="Resampling time step [s]."),
-        eps_nmi: float = typer.Option(1.0, "--eps-nmi", help="Lane DBSCAN spatial eps [nmi]."),
-        eps_speed_kn: float = typer.Option(3.0, "--eps-speed-kn", help="Lane DBSCAN speed eps [kn]."),
-        eps_course_deg: float = typer.Option(20.0, "--eps-course-deg", help="Lane DBSCAN course eps [deg]."),
-        min_samples: int = typer.Option(10, "--min-samples", help="Lane DBSCAN min_samples (resampled points)."),
+        step_s: float = typer.Option(300.0, "--step-s", help="Resampling time step (s)."),
+        eps_nmi: float = typer.Option(1.0, "--eps-nmi", help="Lane DBSCAN spatial eps (nmi)."),
+        eps_speed_kn: float = typer.Option(3.0, "--eps-speed-kn", help="Lane DBSCAN speed eps (kn)."),
+        eps_course_deg: float = typer.Option(20.0, "--eps-course-deg", help="Lane DBSCAN course eps (deg)."),
+        min_density: float = typer.Option(4.0, "--min-density", help="Lane DBSCAN core density: voyages passing within eps."),
         min_voyages: int = typer.Option(3, "--min-voyages", help="Fewest voyages in a lane."),
-        port_eps_nmi: float = typer.Option(0.135, "--port-eps-nmi", help="Stop DBSCAN eps for ports [nmi]."),
+        port_eps_nmi: float = typer.Option(0.135, "--port-eps-nmi", help="Stop DBSCAN eps for ports (nmi)."),
     ) -> None:
         """Detect ports, cut voyages and extract traffic lanes (replaces the previous result).
 
@@ -38,7 +38,7 @@ def register(app: typer.Typer) -> None:
 
         try:
             settings = LanesSettings(step_s=step_s, eps_nmi=eps_nmi, eps_speed_kn=eps_speed_kn, eps_course_deg=eps_course_deg,
-                                     min_samples=min_samples, min_voyages=min_voyages, port_eps_nmi=port_eps_nmi)
+                                     min_density=min_density, min_voyages=min_voyages, port_eps_nmi=port_eps_nmi)
         except ValidationError as err:
             first = err.errors()[0]
             raise StormlaneError(f"bad option {first['loc'][0]}: {first['msg']}") from None

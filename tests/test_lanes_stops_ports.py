@@ -1,0 +1,127 @@
+"""Stop detection and port DBSCAN on hand-built tracks with known answers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from lanes.ports import PortParams, cluster_stops, detect_ports, match_ports
+from lanes.stops import StopParams, detect_stops
+from lanes_tracks import T0, Itinerary, flat_dist_nmi, offset
+
+A = (41.30, 2.20)  # at sea off Barcelona, only geometry matters here
+B = (41.30, 2.60)
+
+
+def test_berthed_ferry_reporting_under_way_is_a_stop():
+    # 30 fixes at one place, SOG 0, nav status 0 = "under way using engine" (as NY ferries do).
+    it = Itinerary(1, cadence_s=60).stay(*A, 30, sog=0.0, nav_status=0.0)
+    it.sail(*B, 12.0)
+    st = detect_stops(it.frame())
+    assert len(st) == 1
+    row = st.iloc[0]
+    assert row["n_fixes"] == 30
+    assert row["duration_s"] == pytest.approx(29 * 60)
+    assert row["start_utc"] == T0
+    assert row["lat_deg"] == pytest.approx(A[0], abs=1e-9) and row["lon_deg"] == pytest.approx(A[1], abs=1e-9)
+
+
+def test_stale_sog_at_berth_is_still_a_stop():
+    # The transponder repeats 8.5 kn while the position does not move: the positions decide.
+    it = Itinerary(2, cadence_s=60).stay(*A, 30, sog=8.5, jitter_nmi=0.003)
+    st = detect_stops(it.frame())
+    assert len(st) == 1 and st.iloc[0]["n_fixes"] >= 25
+
+
+def test_frozen_zero_sog_while_sailing_is_not_a_stop():
+    it = Itinerary(3, cadence_s=60)
+    it.pos = A
+    it.sail(*B, 12.0, report_sog=0.0)
+    assert len(detect_stops(it.frame())) == 0
+
+
+def test_speed_spike_at_berth_is_merged_and_silent_berth_is_one_stop():
+    it = Itinerary(4, cadence_s=60).stay(*A, 20)
+    # one noisy fix (SOG 3 kn, 30 m off), then berthed again
+    la, lo = offset(*A, 0.016, 0.0)
+    it._fix(la, lo, 3.0, 90.0)
+    it.t += pd.Timedelta(seconds=60)
+    it.stay(*A, 20)
+    it.silence(180)  # transponder off for 3 h, still at the berth
+    it.stay(*A, 20)
+    st = detect_stops(it.frame())
+    assert len(st) == 1
+    assert st.iloc[0]["duration_s"] == pytest.approx((20 + 1 + 20 + 180 + 20) * 60 - 60, abs=61)
+
+
+def test_short_stop_is_dropped_and_parameters_are_checked():
+    it = Itinerary(5, cadence_s=60).stay(*A, 2)
+    assert len(detect_stops(it.frame(), StopParams(min_duration_s=180))) == 0
+    with pytest.raises(ValueError):
+        StopParams(max_speed_kn=0)
+    with pytest.raises(ValueError):
+        detect_stops(pd.DataFrame({"mmsi": [1]}))
+
+
+def _stops_at(places, vessels_per_place, calls_each, jitter_nmi=0.02, seed=1):
+    rng = np.random.default_rng(seed)
+    rows = []
+    k = 0
+    for p, (lat, lon) in enumerate(places):
+        for v in range(vessels_per_place[p]):
+            for c in range(calls_each):
+                e, n = rng.normal(0, jitter_nmi, 2)
+                la, lo = offset(lat, lon, e, n)
+                rows.append({"stop_id": k, "track": 100 * (p + 1) + v, "lat_deg": la, "lon_deg": lo})
+                k += 1
+    return pd.DataFrame(rows)
+
+
+def test_two_ports_found_with_calls_vessels_and_centroids():
+    stops = _stops_at([A, B], [3, 2], 4)
+    ports, stop_port = detect_ports(stops, None, PortParams(eps_nmi=0.135, min_samples=2))
+    assert len(ports) == 2
+    # numbered by decreasing calls: A has 12 calls (3 vessels x 4), B 8.
+    a, b = ports.iloc[0], ports.iloc[1]
+    assert (a["port_id"], a["n_calls"], a["n_vessels"]) == (1, 12, 3)
+    assert (b["port_id"], b["n_calls"], b["n_vessels"]) == (2, 8, 2)
+    # centroid within 3 sigma / sqrt(n) of the true place (sigma 0.02 nmi)
+    assert flat_dist_nmi(a["lat_deg"], a["lon_deg"], *A) < 3 * 0.02 * math.sqrt(2) / math.sqrt(12) + 1e-3
+    assert flat_dist_nmi(b["lat_deg"], b["lon_deg"], *B) < 3 * 0.02 * math.sqrt(2) / math.sqrt(8) + 1e-3
+    assert list(ports["kind"]) == ["waypoint", "waypoint"] and list(ports["name"]) == ["WP001", "WP002"]
+    assert (stop_port[:12] == 1).all() and (stop_port[12:] == 2).all()
+
+
+def test_port_list_matching_names_ports_and_leaves_waypoints():
+    stops = _stops_at([A, B], [3, 2], 4)
+    known = pd.DataFrame({"locode": ["XXAAA"], "name": ["Port A"], "country": ["XX"],
+                          "lat_deg": [A[0] + 0.003], "lon_deg": [A[1]]})  # listed 0.18 nmi off
+    ports, _ = detect_ports(stops, known)
+    a = ports.set_index("port_id").loc[1]
+    assert a["kind"] == "port" and a["name"] == "Port A" and a["locode"] == "XXAAA"
+    assert a["match_dist_nmi"] == pytest.approx(0.18, abs=0.03)
+    assert ports.set_index("port_id").loc[2, "kind"] == "waypoint"
+
+
+def test_matching_is_one_to_one_and_respects_nearby_terminals():
+    # Two clusters 0.3 nmi apart; a single listed place near the first: only it gets the name.
+    c1 = A
+    c2 = offset(*A, 0.3, 0.0)
+    clusters = pd.DataFrame({"lat_deg": [c1[0], c2[0]], "lon_deg": [c1[1], c2[1]]})
+    known = pd.DataFrame({"lat_deg": [A[0]], "lon_deg": [A[1] + 0.001]})
+    assert list(match_ports(clusters, known, 2.0)) == [0, -1]
+    # Two listed terminals 0.3 nmi apart, each cluster takes its own.
+    known2 = pd.DataFrame({"lat_deg": [c2[0], c1[0]], "lon_deg": [c2[1], c1[1]]})
+    assert list(match_ports(clusters, known2, 2.0)) == [1, 0]
+    # Nothing listed within the radius: no match.
+    far = pd.DataFrame({"lat_deg": [A[0] + 0.1], "lon_deg": [A[1]]})
+    assert list(match_ports(clusters, far, 2.0)) == [-1, -1]
+
+
+def test_min_vessels_turns_single_vessel_clusters_into_noise():
+    stops = _stops_at([A, B], [3, 1], 4)
+    labels = cluster_stops(stops, PortParams(min_vessels=2))
+    assert (labels[:12] >= 0).all() and (labels[12:] == -1).all()
