@@ -102,7 +102,8 @@ def build_lanes(positions: pd.DataFrame, known_ports: pd.DataFrame | None = None
     if known_ports is not None and len(known_ports):
         places.append(known_ports[["lat_deg", "lon_deg"]])
     places_df = pd.concat(places, ignore_index=True).astype(float) if places else None
-    voyages = segment_voyages(pts, stops, stop_port_id, places_df, params.voyages, id_col=params.id_col)
+    voyages = segment_voyages(pts, stops, stop_port_id, places_df, params.voyages, id_col=params.id_col,
+                              ports=ports if len(ports) else None)
     timings["voyages_s"] = time.perf_counter() - t
 
     t = time.perf_counter()

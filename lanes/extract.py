@@ -111,10 +111,10 @@ TRANSIT = (0, 0)
 class LaneParams:
     """Parameters of lane extraction (units in the names); see the module docstring."""
 
-    eps_nmi: float = 1.0
+    eps_nmi: float = 2.0
     eps_speed_kn: float = 3.0
     eps_course_deg: float = 20.0
-    min_density: float = 4.0
+    min_density: float = 3.0
     min_voyages: int = 3
     min_speed_kn: float = 1.0
     max_points: int = 150_000

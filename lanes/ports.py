@@ -6,15 +6,18 @@ stop: a terminal, a berth, an anchorage. It gets a centroid (spherical mean of i
 radius (largest distance of a stop from the centroid), the number of calls (stop episodes) and of
 distinct vessels.
 
-Clusters are then named from a list of known ports (``data/ports.csv``: UN/LOCODE, name,
-position). Matching is one-to-one and greedy by distance: candidate pairs (cluster, known port)
-closer than the port's match radius are taken nearest first, each known port and each cluster at
-most once. The match radius is ``match_radius_nmi`` but not more than half the distance to the
-nearest other known port (floored at ``min_match_radius_nmi``), so that nearby terminals in the
-list (Whitehall and the Battery piers are 370 m apart) do not claim each other's clusters. Unmatched clusters become
-numbered waypoints (``WP007``): anchorages, tug bases, places the list does not know. One-to-one
-matters: a tug base 0.85 nmi from the St. George ferry terminal is a separate place, not more
-calls at St. George.
+Clusters are then named from a list of known places (``data/ports.csv``: UN/LOCODE, name,
+position; ``data/ports_terminals.csv`` adds terminal-level entries with their own
+``radius_nmi``). Each cluster belongs to the nearest listed place whose match radius covers it,
+and all clusters of one place are merged into one port: a port's berths and terminals (the demo
+scenario berths ferries and tankers at different quays of Palma, 0.3-0.5 nmi apart) are one
+origin or destination for the voyages. The match radius is the row's ``radius_nmi`` when the
+list gives one, else ``match_radius_nmi`` capped at half the distance to the nearest other listed
+place (floored at ``min_match_radius_nmi``). A terminal-level list therefore keeps nearby places
+apart: the New York list gives St. George 0.25 nmi, so a tug base 0.85 nmi away stays a
+separate waypoint instead of adding tug calls to the ferry terminal. Clusters no listed place
+covers become numbered waypoints (``WP007``): anchorages, tug bases, places the list does not
+know.
 
 References
 ----------
@@ -37,7 +40,7 @@ from thresholds.units import EARTH_RADIUS_NMI
 
 PORT_COLUMNS = [
     "port_id", "kind", "locode", "name", "country", "lat_deg", "lon_deg", "radius_nmi",
-    "n_calls", "n_vessels", "known_lat_deg", "known_lon_deg", "match_dist_nmi",
+    "n_calls", "n_vessels", "n_clusters", "known_lat_deg", "known_lon_deg", "match_dist_nmi",
 ]
 
 
@@ -111,11 +114,11 @@ def summarise_clusters(stops: pd.DataFrame, labels: np.ndarray) -> pd.DataFrame:
 
 
 def match_radii_nmi(known: pd.DataFrame, match_radius_nmi: float, min_match_radius_nmi: float = 0.25) -> np.ndarray:
-    """Match radius of each known port.
+    """Match radius of each listed place.
 
-    ``match_radius_nmi``, capped at half the distance to the nearest other known port but never
-    below ``min_match_radius_nmi`` (listed positions are often a terminal building, a few hundred
-    metres from the slips where ships actually stop).
+    A row's own ``radius_nmi`` when the list gives one (terminal-level lists do: 0.25 nmi for a
+    ferry terminal); otherwise ``match_radius_nmi``, capped at half the distance to the nearest
+    other listed place but never below ``min_match_radius_nmi``.
     """
     n = len(known)
     radius = np.full(n, float(match_radius_nmi))
@@ -125,12 +128,19 @@ def match_radii_nmi(known: pd.DataFrame, match_radius_nmi: float, min_match_radi
         d = haversine_nmi(lat[:, None], lon[:, None], lat[None, :], lon[None, :])
         np.fill_diagonal(d, np.inf)
         radius = np.minimum(radius, np.maximum(0.5 * d.min(axis=1), min_match_radius_nmi))
+    if "radius_nmi" in known.columns:
+        own = pd.to_numeric(known["radius_nmi"], errors="coerce").to_numpy(dtype=float)
+        radius = np.where(np.isfinite(own), own, radius)
     return radius
 
 
 def match_ports(clusters: pd.DataFrame, known: pd.DataFrame | None, match_radius_nmi: float = 2.0,
                 min_match_radius_nmi: float = 0.25) -> np.ndarray:
-    """Index into ``known`` matched to each cluster, or -1; one-to-one, nearest pairs first."""
+    """Index into ``known`` of the place each cluster belongs to, or -1.
+
+    A cluster belongs to the nearest listed place whose match radius covers it; several clusters
+    (the berths of one port) may belong to the same place.
+    """
     n = len(clusters)
     out = np.full(n, -1, dtype=np.int64)
     if n == 0 or known is None or len(known) == 0:
@@ -140,13 +150,10 @@ def match_ports(clusters: pd.DataFrame, known: pd.DataFrame | None, match_radius
         clusters["lat_deg"].to_numpy(dtype=float)[:, None], clusters["lon_deg"].to_numpy(dtype=float)[:, None],
         known["lat_deg"].to_numpy(dtype=float)[None, :], known["lon_deg"].to_numpy(dtype=float)[None, :],
     )
-    ci, ki = np.nonzero(d <= radius[None, :])
-    order = np.argsort(d[ci, ki], kind="stable")
-    used_known = np.zeros(len(known), dtype=bool)
-    for c, k in zip(ci[order], ki[order]):
-        if out[c] < 0 and not used_known[k]:
-            out[c] = k
-            used_known[k] = True
+    d = np.where(d <= radius[None, :], d, np.inf)
+    best = np.argmin(d, axis=1)
+    ok = np.isfinite(d[np.arange(n), best])
+    out[ok] = best[ok]
     return out
 
 
@@ -159,16 +166,18 @@ def detect_ports(stops: pd.DataFrame, known: pd.DataFrame | None = None,
     stops : DataFrame
         Output of :func:`lanes.stops.detect_stops`.
     known : DataFrame, optional
-        Known ports with ``locode``, ``name``, ``lat_deg``, ``lon_deg`` (and optionally
-        ``country``), e.g. ``data/ports.csv``.
+        Listed places with ``locode``, ``name``, ``lat_deg``, ``lon_deg`` (optionally
+        ``country`` and ``radius_nmi``), e.g. ``data/ports.csv``.
     params : PortParams
 
     Returns
     -------
     ports : DataFrame
-        One row per cluster (columns :data:`PORT_COLUMNS`); ``port_id`` 1..n numbered by
-        decreasing number of calls (then latitude, longitude), ``kind`` ``"port"`` when matched
-        to the list, else ``"waypoint"`` with the name ``WP<port_id>``.
+        Columns :data:`PORT_COLUMNS`, one row per place: a listed place with all the stop clusters
+        that belong to it merged (``kind`` ``"port"``; a port's berths and terminals are one
+        port), or one unmatched cluster (``kind`` ``"waypoint"``, named ``WP<port_id>``).
+        ``port_id`` 1..n by decreasing number of calls (then latitude, longitude); the centroid is
+        the spherical mean of the place's stops, the radius the largest distance of a stop from it.
     stop_port_id : ndarray
         ``port_id`` of each stop episode, 0 for stops in no cluster (DBSCAN noise).
     """
@@ -177,40 +186,59 @@ def detect_ports(stops: pd.DataFrame, known: pd.DataFrame | None = None,
     clusters = summarise_clusters(stops, labels)
     if len(clusters) == 0:
         return pd.DataFrame({c: pd.Series(dtype=object) for c in PORT_COLUMNS}), np.zeros(len(stops), dtype=np.int64)
-    clusters = clusters.sort_values(["n_calls", "lat_deg", "lon_deg"], ascending=[False, True, True], kind="stable")
-    clusters = clusters.reset_index(drop=True)
-    clusters["port_id"] = np.arange(1, len(clusters) + 1, dtype=np.int64)
     match = match_ports(clusters, known, params.match_radius_nmi, params.min_match_radius_nmi)
-    matched = match >= 0
+    # Group key per cluster: the listed place, or the cluster itself.
+    group_of_cluster = {c: (f"K{m:09d}" if m >= 0 else f"C{c:09d}") for c, m in zip(clusters["cluster"], match)}
+    entry_of_group = {group_of_cluster[c]: m for c, m in zip(clusters["cluster"], match)}
+    inside = labels >= 0
+    group = np.array([group_of_cluster[lab] if lab >= 0 else "" for lab in labels], dtype=object)
+    g_codes, g_uniq = pd.factorize(group[inside], sort=True)
+    lat = stops["lat_deg"].to_numpy(dtype=float)[inside]
+    lon = stops["lon_deg"].to_numpy(dtype=float)[inside]
+    glat, glon = spherical_means(g_codes, lat, lon, len(g_uniq))
+    d = haversine_nmi(lat, lon, glat[g_codes], glon[g_codes])
+    summary = pd.DataFrame({
+        "group": g_uniq,
+        "lat_deg": glat,
+        "lon_deg": glon,
+        "radius_nmi": pd.Series(d).groupby(g_codes).max().to_numpy(),
+        "n_calls": np.bincount(g_codes, minlength=len(g_uniq)),
+        "n_vessels": pd.Series(stops["track"].to_numpy()[inside]).groupby(g_codes).nunique().to_numpy(),
+        "n_clusters": pd.Series(labels[inside]).groupby(g_codes).nunique().to_numpy(),
+    })
+    summary = summary.sort_values(["n_calls", "lat_deg", "lon_deg"], ascending=[False, True, True], kind="stable")
+    summary = summary.reset_index(drop=True)
+    summary["port_id"] = np.arange(1, len(summary) + 1, dtype=np.int64)
+    k = np.array([entry_of_group[g] for g in summary["group"]], dtype=np.int64)
+    matched = k >= 0
     ports = pd.DataFrame({
-        "port_id": clusters["port_id"].to_numpy(),
+        "port_id": summary["port_id"].to_numpy(),
         "kind": np.where(matched, "port", "waypoint"),
-        "locode": None,
-        "name": [f"WP{p:03d}" for p in clusters["port_id"]],
-        "country": None,
-        "lat_deg": clusters["lat_deg"].to_numpy(),
-        "lon_deg": clusters["lon_deg"].to_numpy(),
-        "radius_nmi": clusters["radius_nmi"].to_numpy(),
-        "n_calls": clusters["n_calls"].to_numpy(dtype=np.int64),
-        "n_vessels": clusters["n_vessels"].to_numpy(dtype=np.int64),
+        "locode": pd.Series([None] * len(summary), dtype=object),
+        "name": [f"WP{p:03d}" for p in summary["port_id"]],
+        "country": pd.Series([None] * len(summary), dtype=object),
+        "lat_deg": summary["lat_deg"].to_numpy(),
+        "lon_deg": summary["lon_deg"].to_numpy(),
+        "radius_nmi": summary["radius_nmi"].to_numpy(),
+        "n_calls": summary["n_calls"].to_numpy(dtype=np.int64),
+        "n_vessels": summary["n_vessels"].to_numpy(dtype=np.int64),
+        "n_clusters": summary["n_clusters"].to_numpy(dtype=np.int64),
         "known_lat_deg": np.nan,
         "known_lon_deg": np.nan,
         "match_dist_nmi": np.nan,
     })
-    ports["locode"] = ports["locode"].astype(object)
-    ports["country"] = ports["country"].astype(object)
     if matched.any():
-        k = match[matched]
-        ports.loc[matched, "locode"] = known["locode"].to_numpy()[k]
-        ports.loc[matched, "name"] = known["name"].to_numpy()[k]
+        km = k[matched]
+        ports.loc[matched, "locode"] = known["locode"].to_numpy()[km]
+        ports.loc[matched, "name"] = known["name"].to_numpy()[km]
         if "country" in known.columns:
-            ports.loc[matched, "country"] = known["country"].to_numpy()[k]
-        klat = known["lat_deg"].to_numpy(dtype=float)[k]
-        klon = known["lon_deg"].to_numpy(dtype=float)[k]
+            ports.loc[matched, "country"] = known["country"].to_numpy()[km]
+        klat = known["lat_deg"].to_numpy(dtype=float)[km]
+        klon = known["lon_deg"].to_numpy(dtype=float)[km]
         ports.loc[matched, "known_lat_deg"] = klat
         ports.loc[matched, "known_lon_deg"] = klon
         ports.loc[matched, "match_dist_nmi"] = haversine_nmi(
             ports.loc[matched, "lat_deg"].to_numpy(), ports.loc[matched, "lon_deg"].to_numpy(), klat, klon)
-    label_to_port = dict(zip(clusters["cluster"].to_numpy(), clusters["port_id"].to_numpy()))
-    stop_port_id = np.array([label_to_port.get(lab, 0) for lab in labels], dtype=np.int64)
+    port_of_group = dict(zip(summary["group"], summary["port_id"]))
+    stop_port_id = np.array([port_of_group[g] if g else 0 for g in group], dtype=np.int64)
     return ports[PORT_COLUMNS], stop_port_id

@@ -4,8 +4,8 @@ Each track is cut at its port calls: a voyage runs from the last fix of a call (
 the first fix of the next call (arrival). Calls are the stop episodes that fall in a port or
 waypoint cluster (:mod:`lanes.ports`); stops in no cluster (a ship waiting alone at sea) do not
 end a voyage. Two consecutive calls at the same port are one call (a berth shift) unless the
-vessel went more than ``loop_min_nmi`` away in between, which makes a loop voyage (an excursion,
-a pilot or bunker run).
+vessel left the port area in between (more than ``loop_min_nmi`` beyond the port's radius), which
+makes a loop voyage (an excursion, a pilot or bunker run).
 
 The pieces of a track before its first call and after its last call are kept as partial voyages
 (origin or destination unknown); a track with no call at all is one "transit" segment. Lane
@@ -103,7 +103,7 @@ def could_call(lat1, lon1, lat2, lon2, dt_s, speed_kn, place_lat, place_lon, min
 
 def segment_voyages(pts: pd.DataFrame, stops: pd.DataFrame, stop_port_id: np.ndarray,
                     places: pd.DataFrame | None = None, params: VoyageParams | None = None,
-                    id_col: str = "mmsi") -> pd.DataFrame:
+                    id_col: str = "mmsi", ports: pd.DataFrame | None = None) -> pd.DataFrame:
     """Cut every track into voyages between port calls.
 
     Parameters
@@ -121,6 +121,10 @@ def segment_voyages(pts: pd.DataFrame, stops: pd.DataFrame, stop_port_id: np.nda
     params : VoyageParams
     id_col : str
         Track id column.
+    ports : DataFrame, optional
+        ``port_id``, ``lat_deg``, ``lon_deg``, ``radius_nmi`` of the ports; a vessel left a port
+        between two calls there when it went beyond ``radius_nmi + loop_min_nmi`` from its
+        centroid (without it, from the first call's position).
 
     Returns
     -------
@@ -151,6 +155,12 @@ def segment_voyages(pts: pd.DataFrame, stops: pd.DataFrame, stop_port_id: np.nda
     c_code = codes[c_first] if c_first.size else np.empty(0, dtype=np.int64)
     c_lat = calls["lat_deg"].to_numpy(dtype=float)
     c_lon = calls["lon_deg"].to_numpy(dtype=float)
+    c_reach = np.full(c_first.size, params.loop_min_nmi)
+    if ports is not None and len(ports) and c_first.size:
+        p = ports.set_index("port_id")
+        c_lat = p.loc[c_port, "lat_deg"].to_numpy(dtype=float)
+        c_lon = p.loc[c_port, "lon_deg"].to_numpy(dtype=float)
+        c_reach = p.loc[c_port, "radius_nmi"].to_numpy(dtype=float) + params.loop_min_nmi
     if c_first.size > 1:
         keep = np.ones(c_first.size, dtype=bool)
         i = 0
@@ -158,7 +168,7 @@ def segment_voyages(pts: pd.DataFrame, stops: pd.DataFrame, stop_port_id: np.nda
             if c_code[j] == c_code[i] and c_port[j] == c_port[i]:
                 between = slice(c_last[i], c_first[j] + 1)
                 far = haversine_nmi(lat[between], lon[between], c_lat[i], c_lon[i])
-                if far.size == 0 or far.max() <= params.loop_min_nmi:
+                if far.size == 0 or far.max() <= c_reach[i]:
                     c_last[i] = c_last[j]
                     keep[j] = False
                     continue

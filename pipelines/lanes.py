@@ -42,10 +42,10 @@ class LanesSettings(BaseModel):
 
     step_s: float = Field(300.0, gt=0, description="resampling time step [s]")
     max_interp_gap_s: float = Field(3600.0, gt=0, description="no resampled point inside a longer gap [s]")
-    eps_nmi: float = Field(1.0, gt=0, description="DBSCAN spatial eps [nmi]")
+    eps_nmi: float = Field(2.0, gt=0, description="DBSCAN spatial eps [nmi]")
     eps_speed_kn: float = Field(3.0, gt=0, description="DBSCAN speed eps [kn]")
     eps_course_deg: float = Field(20.0, gt=0, lt=180, description="DBSCAN course eps [deg]")
-    min_density: float = Field(4.0, gt=0, description="DBSCAN core density, in voyages passing within eps")
+    min_density: float = Field(3.0, gt=0, description="DBSCAN core density, in voyages passing within eps")
     min_voyages: int = Field(3, ge=1, description="fewest voyages a lane must have")
     max_points: int = Field(150_000, ge=100, description="per-partition DBSCAN sample size")
     centroid_spacing_nmi: float = Field(5.0, gt=0, description="spacing of lane centroids [nmi]")
@@ -68,17 +68,24 @@ class LanesSettings(BaseModel):
         )
 
 
-def default_ports_csv() -> Path:
-    return data_dir() / "ports.csv"
+def default_port_lists() -> list[Path]:
+    """``data/ports.csv`` (demo region) and ``data/ports_terminals.csv`` (named terminals elsewhere)."""
+    return [p for p in (data_dir() / "ports.csv", data_dir() / "ports_terminals.csv") if p.exists()]
 
 
-def load_inputs(db: str | Path, ports_csv: str | Path | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """AIS positions of the workspace and the port list."""
-    from lanes.io.portlist import read_port_list
+def load_inputs(db: str | Path, ports_csv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """AIS positions of the workspace and the port lists (one path, several, or the defaults)."""
+    from lanes.io.portlist import read_port_lists
     from pipelines.storage import open_workspace
     from pipelines.storage.ais import read_positions
 
-    known, _ = read_port_list(ports_csv or default_ports_csv())
+    if ports_csv is None:
+        paths = default_port_lists()
+    elif isinstance(ports_csv, (str, Path)):
+        paths = [Path(ports_csv)]
+    else:
+        paths = [Path(p) for p in ports_csv]
+    known, _ = read_port_lists(paths)
     if not Path(db).exists():
         raise LanesInputError(f"workspace {db} does not exist; run `stormlane ingest-ais PATH --db {db}` first")
     with open_workspace(db) as ws:
@@ -104,7 +111,7 @@ def summary_counts(summary: dict) -> dict:
     return {k: int(summary[k]) for k in ("ports", "voyages", "lanes", "noise_points")}
 
 
-def run_lanes(db: str | Path, ports_csv: str | Path | None = None, settings: LanesSettings | None = None) -> dict:
+def run_lanes(db: str | Path, ports_csv=None, settings: LanesSettings | None = None) -> dict:
     """Reader -> chain -> writer without Prefect; returns the summary (counts, run id, details)."""
     settings = settings or LanesSettings()
     positions, known = load_inputs(db, ports_csv)
@@ -120,7 +127,7 @@ _store = task(store_result, name="store lanes", retries=3, retry_delay_seconds=[
 
 
 @flow(name="lanes", log_prints=False)
-def lanes_flow(db: str, ports_csv: str | None = None, settings: LanesSettings = LanesSettings()) -> dict:
+def lanes_flow(db: str, ports_csv: list[str] | None = None, settings: LanesSettings = LanesSettings()) -> dict:
     """Ports, voyages and traffic lanes from the workspace's AIS positions."""
     positions, known = _read(db, ports_csv)
     result = _build(positions, known, settings.chain_params())

@@ -106,19 +106,37 @@ def test_port_list_matching_names_ports_and_leaves_waypoints():
     assert ports.set_index("port_id").loc[2, "kind"] == "waypoint"
 
 
-def test_matching_is_one_to_one_and_respects_nearby_terminals():
-    # Two clusters 0.3 nmi apart; a single listed place near the first: only it gets the name.
+def test_berths_of_one_port_merge_and_terminal_radius_keeps_places_apart():
     c1 = A
     c2 = offset(*A, 0.3, 0.0)
     clusters = pd.DataFrame({"lat_deg": [c1[0], c2[0]], "lon_deg": [c1[1], c2[1]]})
-    known = pd.DataFrame({"lat_deg": [A[0]], "lon_deg": [A[1] + 0.001]})
-    assert list(match_ports(clusters, known, 2.0)) == [0, -1]
-    # Two listed terminals 0.3 nmi apart, each cluster takes its own.
-    known2 = pd.DataFrame({"lat_deg": [c2[0], c1[0]], "lon_deg": [c2[1], c1[1]]})
-    assert list(match_ports(clusters, known2, 2.0)) == [1, 0]
+    # A port listed as a whole (no radius column): both berth clusters belong to it.
+    port = pd.DataFrame({"lat_deg": [A[0]], "lon_deg": [A[1] + 0.001]})
+    assert list(match_ports(clusters, port, 2.0)) == [0, 0]
+    # A terminal with its own 0.1 nmi radius: only the cluster at it.
+    terminal = port.assign(radius_nmi=0.1)
+    assert list(match_ports(clusters, terminal, 2.0)) == [0, -1]
+    # Two listed places 0.3 nmi apart: each cluster goes to the nearest.
+    two = pd.DataFrame({"lat_deg": [c2[0], c1[0]], "lon_deg": [c2[1], c1[1]]})
+    assert list(match_ports(clusters, two, 2.0)) == [1, 0]
     # Nothing listed within the radius: no match.
     far = pd.DataFrame({"lat_deg": [A[0] + 0.1], "lon_deg": [A[1]]})
     assert list(match_ports(clusters, far, 2.0)) == [-1, -1]
+
+
+def test_detect_ports_merges_berths_into_the_listed_port():
+    berth2 = offset(*A, 0.4, 0.0)
+    stops = _stops_at([A, berth2, B], [2, 2, 2], 3, jitter_nmi=0.01)
+    known = pd.DataFrame({"locode": ["XXAAA"], "name": ["Port A"], "lat_deg": [A[0]], "lon_deg": [A[1] + 0.003]})
+    ports, stop_port = detect_ports(stops, known)
+    assert len(ports) == 2
+    a = ports.iloc[0]
+    assert (a["name"], a["n_calls"], a["n_vessels"], a["n_clusters"]) == ("Port A", 12, 4, 2)
+    # merged centroid halfway between the two berths, radius about half their distance
+    mid = offset(*A, 0.2, 0.0)
+    assert flat_dist_nmi(a["lat_deg"], a["lon_deg"], *mid) < 0.02
+    assert a["radius_nmi"] == pytest.approx(0.2, abs=0.04)
+    assert (stop_port[:12] == a["port_id"]).all() and (stop_port[12:] == ports.iloc[1]["port_id"]).all()
 
 
 def test_min_vessels_turns_single_vessel_clusters_into_noise():

@@ -1,10 +1,15 @@
-"""Reader for the project's port list (``data/ports.csv``).
+"""Reader for the project's port lists (``data/ports.csv``, ``data/ports_terminals.csv``).
+
+``data/ports.csv`` holds the ports of the demo region (the scenario generator's contract);
+``data/ports_terminals.csv`` holds further places the port matcher should know by name, such as
+the New York harbour ferry terminals used by the real-data tests. Both have the same schema.
 
 Columns: ``locode,name,country,lat_deg,lon_deg,approach_lat_deg,approach_lon_deg`` (UN/LOCODE,
 name, ISO country code, the port's position, and an approach point at sea). Several rows may
 share a LOCODE when the list names individual terminals of one port (New York: St. George,
 Whitehall, Pier 11 ... are all ``USNYC``); each row is then a separate place for port matching.
-Extra columns are kept.
+An optional ``radius_nmi`` column gives a place's own match radius (``lanes.ports``). Extra
+columns are kept.
 """
 
 from __future__ import annotations
@@ -66,6 +71,16 @@ def read_port_list(path: str | Path) -> tuple[pd.DataFrame, dict]:
                 if not (np.isfinite(value) and lo <= value <= hi):
                     raise PortListError(f"{path}:{lineno}: field {field!r} = {value} is outside [{lo}, {hi}]")
                 row[field] = value
+            if "radius_nmi" in row and row["radius_nmi"] not in (None, ""):
+                try:
+                    radius = float(row["radius_nmi"])
+                except (TypeError, ValueError):
+                    raise PortListError(f"{path}:{lineno}: field 'radius_nmi' = {row['radius_nmi']!r} is not a number") from None
+                if not (np.isfinite(radius) and radius > 0):
+                    raise PortListError(f"{path}:{lineno}: field 'radius_nmi' = {radius} must be positive")
+                row["radius_nmi"] = radius
+            elif "radius_nmi" in row:
+                row["radius_nmi"] = np.nan
             key = (row["locode"], row["name"])
             if key in seen:
                 raise PortListError(f"{path}:{lineno}: duplicate port {key} (first on line {seen[key]})")
@@ -73,6 +88,28 @@ def read_port_list(path: str | Path) -> tuple[pd.DataFrame, dict]:
             row["line"] = lineno
             rows.append(row)
     df = pd.DataFrame(rows, columns=[*header, "line"]) if rows else pd.DataFrame(columns=[*PORT_LIST_COLUMNS, "line"])
-    for col in ("lat_deg", "lon_deg", "approach_lat_deg", "approach_lon_deg"):
-        df[col] = df[col].astype(float)
+    for col in ("lat_deg", "lon_deg", "approach_lat_deg", "approach_lon_deg", "radius_nmi"):
+        if col in df.columns:
+            df[col] = df[col].astype(float)
     return df, {"path": str(path), "rows": int(len(df))}
+
+
+def read_port_lists(paths) -> tuple[pd.DataFrame, dict]:
+    """Several port lists as one (e.g. ``data/ports.csv`` + ``data/ports_terminals.csv``).
+
+    Rows keep their file in ``source``; the same (locode, name) in two files is an error.
+    """
+    frames, meta = [], {"paths": [], "rows": 0}
+    seen: dict[tuple[str, str], str] = {}
+    for path in paths:
+        df, m = read_port_list(path)
+        for key in zip(df["locode"], df["name"]):
+            if key in seen:
+                raise PortListError(f"{path}: port {key} is already listed in {seen[key]}")
+            seen[key] = str(path)
+        frames.append(df.assign(source=str(path)))
+        meta["paths"].append(str(path))
+        meta["rows"] += m["rows"]
+    if not frames:
+        return pd.DataFrame(columns=[*PORT_LIST_COLUMNS, "line", "source"]), meta
+    return pd.concat(frames, ignore_index=True), meta

@@ -16,12 +16,12 @@ def register(app: typer.Typer) -> None:
         db: Path = DbOption,
         json_out: bool = JsonOption,
         geojson: Path = typer.Option(None, "--geojson", help="Also write ports, lanes and centroids as GeoJSON to FILE."),
-        ports_csv: Path = typer.Option(None, "--ports", help="Port list CSV (default: data/ports.csv)."),
+        ports_csv: list[Path] = typer.Option(None, "--ports", help="Port list CSV, repeatable (default: data/ports.csv and data/ports_terminals.csv)."),
         step_s: float = typer.Option(300.0, "--step-s", help="Resampling time step (s)."),
-        eps_nmi: float = typer.Option(1.0, "--eps-nmi", help="Lane DBSCAN spatial eps (nmi)."),
+        eps_nmi: float = typer.Option(2.0, "--eps-nmi", help="Lane DBSCAN spatial eps (nmi)."),
         eps_speed_kn: float = typer.Option(3.0, "--eps-speed-kn", help="Lane DBSCAN speed eps (kn)."),
         eps_course_deg: float = typer.Option(20.0, "--eps-course-deg", help="Lane DBSCAN course eps (deg)."),
-        min_density: float = typer.Option(4.0, "--min-density", help="Lane DBSCAN core density: voyages passing within eps."),
+        min_density: float = typer.Option(3.0, "--min-density", help="Lane DBSCAN core density: voyages passing within eps."),
         min_voyages: int = typer.Option(3, "--min-voyages", help="Fewest voyages in a lane."),
         port_eps_nmi: float = typer.Option(0.135, "--port-eps-nmi", help="Stop DBSCAN eps for ports (nmi)."),
     ) -> None:
@@ -42,7 +42,7 @@ def register(app: typer.Typer) -> None:
         except ValidationError as err:
             first = err.errors()[0]
             raise StormlaneError(f"bad option {first['loc'][0]}: {first['msg']}") from None
-        out = run_lanes(db, ports_csv, settings)
+        out = run_lanes(db, ports_csv or None, settings)
         if geojson is not None:
             write_geojson(db, geojson)
         if json_out:

@@ -48,6 +48,7 @@ MIGRATIONS = [
             radius_nmi      DOUBLE NOT NULL,
             n_calls         INTEGER NOT NULL,
             n_vessels       INTEGER NOT NULL,
+            n_clusters      INTEGER NOT NULL,
             known_lat_deg   DOUBLE,
             known_lon_deg   DOUBLE,
             match_dist_nmi  DOUBLE
@@ -102,7 +103,7 @@ MIGRATIONS = [
 ]
 
 _PORT_COLS = ["port_id", "kind", "locode", "name", "country", "lat_deg", "lon_deg", "radius_nmi", "n_calls",
-              "n_vessels", "known_lat_deg", "known_lon_deg", "match_dist_nmi"]
+              "n_vessels", "n_clusters", "known_lat_deg", "known_lon_deg", "match_dist_nmi"]
 _VOYAGE_COLS = ["voyage_id", "mmsi", "origin_port_id", "dest_port_id", "depart_utc", "arrive_utc", "dist_nmi",
                 "n_fixes", "max_gap_s", "kind"]
 _LANE_COLS = ["lane_id", "origin_port_id", "dest_port_id", "kind", "n_points", "n_voyages", "n_vessels",
