@@ -5,16 +5,15 @@ writer task (tables ``ports``, ``voyages``, ``lanes``, ``lane_centroids``, ``lan
 
 ``run_lanes`` runs the same three steps without Prefect (what ``stormlane lanes`` calls, so a
 one-off command does not start a Prefect API); ``lanes_flow`` is the flow the demo and the
-nightly deployment run.
+nightly deployment run. Prefect is imported only when the flow is first used.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import pandas as pd
-from prefect import flow, task
-from prefect.cache_policies import NO_CACHE
 from pydantic import BaseModel, ConfigDict, Field
 
 from lanes.chain import ChainParams, ChainResult, build_lanes, voyages_as_table
@@ -120,22 +119,41 @@ def run_lanes(db: str | Path, ports_csv=None, settings: LanesSettings | None = N
     return {**out, "details": result.summary}
 
 
-_read = task(load_inputs, name="read positions and port list", retries=3, retry_delay_seconds=[2, 5, 15],
-             cache_policy=NO_CACHE)
-_build = task(build_lanes, name="build lanes", cache_policy=NO_CACHE)
-_store = task(store_result, name="store lanes", retries=3, retry_delay_seconds=[2, 5, 15], cache_policy=NO_CACHE)
+_FLOW_OBJECTS: dict = {}
 
 
-@flow(name="lanes", log_prints=False)
-def lanes_flow(db: str, ports_csv: list[str] | None = None, settings: LanesSettings = LanesSettings()) -> dict:
-    """Ports, voyages and traffic lanes from the workspace's AIS positions."""
-    positions, known = _read(db, ports_csv)
-    result = _build(positions, known, settings.chain_params())
-    out = _store(db, result, settings)
-    return {**out, "details": result.summary}
+def _build_flow() -> dict:
+    """Create the Prefect tasks and flow on first use (keeps ``import pipelines.lanes`` light)."""
+    if _FLOW_OBJECTS:
+        return _FLOW_OBJECTS
+    from prefect import flow, task
+    from prefect.cache_policies import NO_CACHE
+
+    read_task = task(load_inputs, name="read positions and port lists", retries=3, retry_delay_seconds=[2, 5, 15],
+                     cache_policy=NO_CACHE)
+    build_task = task(build_lanes, name="build lanes", cache_policy=NO_CACHE)
+    store_task = task(store_result, name="store lanes", retries=3, retry_delay_seconds=[2, 5, 15],
+                      cache_policy=NO_CACHE)
+
+    @flow(name="lanes")
+    def lanes_flow(db: str, ports_csv: Optional[list[str]] = None, settings: LanesSettings = LanesSettings()) -> dict:
+        """Ports, voyages and traffic lanes from the workspace's AIS positions."""
+        positions, known = read_task(db, ports_csv)
+        result = build_task(positions, known, settings.chain_params())
+        out = store_task(db, result, settings)
+        return {**out, "details": result.summary}
+
+    _FLOW_OBJECTS.update(lanes_flow=lanes_flow, read_task=read_task, build_task=build_task, store_task=store_task)
+    return _FLOW_OBJECTS
+
+
+def __getattr__(name: str):
+    if name in ("lanes_flow", "read_task", "build_task", "store_task"):
+        return _build_flow()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 if __name__ == "__main__":
     import sys
 
-    print(lanes_flow(sys.argv[1] if len(sys.argv) > 1 else "stormlane.duckdb"))
+    print(_build_flow()["lanes_flow"](sys.argv[1] if len(sys.argv) > 1 else "stormlane.duckdb"))
