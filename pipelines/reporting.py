@@ -152,3 +152,94 @@ def provenance(*, weather_meta: dict | None = None, weather_ds=None, vessel=None
         software=software_versions(),
         methods=list(methods),
     )
+
+
+def _snapshot_for(evaluations: dict, weather_ds, reference: str = "historical") -> tuple[WeatherSnapshot | None, dict]:
+    """Weather slice at the time the reference route meets its highest Hs, cut to all routes."""
+    ref = evaluations.get(reference) or next(iter(evaluations.values()), None)
+    if ref is None:
+        return None, worst_point_empty()
+    worst = worst_point(ref.route)
+    if weather_ds is None or worst["time_utc"] is None or "hs_m" not in weather_ds:
+        return None, worst
+    return weather_snapshot(weather_ds, worst["time_utc"], bbox=routes_bbox([e.route for e in evaluations.values()])), worst
+
+
+def worst_point_empty() -> dict:
+    return {"time_utc": None, "lat_deg": None, "lon_deg": None, "hs_m": None}
+
+
+def _text(value) -> str | None:
+    """AIS static text as stored (None for missing); escaping happens in the renderer."""
+    if value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA:
+        return None
+    return str(value)
+
+
+def _int(value) -> int | None:
+    try:
+        if value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value)):
+            return None
+        return int(value)
+    except (TypeError, ValueError):
+        return None
+
+
+def voyage_audit_model(out: dict, *, mmsi: int, static=None, voyage: dict | None = None, vessel=None, limits=None,
+                       weather_ds=None, weather_meta: dict | None = None, speed_loss_model: str = "bowditch",
+                       profile_name: str = "", ais_sources=(), methods=(), exports: dict | None = None):
+    """The audit report model from :func:`routing.audit.audit_routes` output.
+
+    Parameters
+    ----------
+    out : dict
+        ``audit_routes`` result: ``evaluations``, ``table``, ``proposed``, ``findings``.
+    mmsi : int
+    static : mapping, optional
+        The ship's row of ``read_vessels`` (``name``, ``callsign``, ``destination``, ``imo``, ``ship_type``).
+    voyage : dict, optional
+        ``voyage_id``, ``origin``, ``destination`` (port names).
+    vessel, limits, weather_ds, weather_meta, speed_loss_model, profile_name :
+        What the audit ran with (profile, operator limits, hindcast Dataset for the map).
+    """
+    from dashboards.model import VoyageAudit
+
+    evaluations = out["evaluations"]
+    snapshot, _ = _snapshot_for(evaluations, weather_ds)
+    routes = route_set_from_evaluations(evaluations, out.get("table"), out.get("proposed"), weather=snapshot, exports=exports)
+    hist = evaluations["historical"].route
+    static = dict(static) if static is not None else {}
+    voyage = dict(voyage or {})
+    return VoyageAudit(
+        mmsi=int(mmsi), depart_utc=hist.time_utc[0], arrive_utc=hist.time_utc[-1], routes=routes,
+        ship_name=_text(static.get("name")), callsign=_text(static.get("callsign")), ais_destination=_text(static.get("destination")),
+        imo=_int(static.get("imo")), ship_type=_int(static.get("ship_type")),
+        voyage_id=_text(voyage.get("voyage_id")), origin=_text(voyage.get("origin")), destination=_text(voyage.get("destination")),
+        vessel_profile=getattr(vessel, "name", "") if vessel is not None else "",
+        findings=list(out.get("findings", [])),
+        provenance=provenance(weather_meta=weather_meta, weather_ds=weather_ds, vessel=vessel, speed_loss_model=speed_loss_model,
+                              limits=limits, profile_name=profile_name, ais_sources=ais_sources, methods=methods),
+        speed_loss=speed_loss_curve(vessel, speed_loss_model) if vessel is not None else None,
+    )
+
+
+def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, rules=(), evaluations: dict | None = None,
+                         table: pd.DataFrame | None = None, proposed: str | None = None, weather_ds=None,
+                         exports: dict | None = None, error: str | None = None, risk_avoided: float | None = None):
+    """One nightly lane-departure for the report: adverse with its evaluated routes, or failed with ``error``.
+
+    The worst point is where the historical (lane) route meets its highest Hs; the map's weather
+    slice is taken at that time when ``weather_ds`` is given.
+    """
+    from dashboards.model import LaneDeparture
+
+    if error is not None:
+        return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="failed",
+                             rules=list(rules), error=str(error))
+    if not evaluations:
+        raise ValueError(f"lane {lane_id}: an adverse lane-departure needs its evaluated routes")
+    snapshot, worst = _snapshot_for(evaluations, weather_ds)
+    routes = route_set_from_evaluations(evaluations, table, proposed, weather=snapshot, exports=exports)
+    return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="adverse",
+                         rules=list(rules), worst_time_utc=worst["time_utc"], worst_lat_deg=worst["lat_deg"],
+                         worst_lon_deg=worst["lon_deg"], worst_hs_m=worst["hs_m"], routes=routes, risk_avoided=risk_avoided)

@@ -10,7 +10,7 @@ from ais_fixtures import DMA_HEADER, dma_row
 from dashboards.model import VoyageAudit
 from dashboards.report import render_audit_report
 from pipelines.ingest import ingest_file
-from pipelines.reporting import route_set_from_evaluations
+from pipelines.reporting import voyage_audit_model
 from pipelines.storage import open_workspace
 from pipelines.storage.ais import read_positions, read_vessels
 from routing.audit import audit_routes, track_to_route
@@ -50,11 +50,8 @@ def test_ship_name_from_ais_file_is_escaped_in_the_audit_report(tmp_path):
 
     track = track_to_route(positions)
     out = audit_routes(track, weather, vessel, limits=OperatorLimits(name="t", hs_max_m=4.5))
-    audit = VoyageAudit(
-        mmsi=224000001, depart_utc=track.time_utc[0], arrive_utc=track.time_utc[-1],
-        routes=route_set_from_evaluations(out["evaluations"], out["table"], out["proposed"]),
-        ship_name=static["name"], callsign=static["callsign"], ais_destination=static["destination"], findings=out["findings"],
-    )
+    audit = voyage_audit_model(out, mmsi=224000001, static=static, vessel=vessel, voyage={"origin": "Barcelona", "destination": "Palma"})
+    assert isinstance(audit, VoyageAudit) and audit.ship_name == NAME
     text = render_audit_report(audit, tmp_path / "audit.html").read_text(encoding="utf-8")
     assert NAME not in text and "&lt;script&gt;alert(1)&lt;/script&gt;" in text
     assert "<img src=x>" not in text and "&lt;img src=x&gt;" in text

@@ -63,3 +63,31 @@ def test_limits_provenance_and_worst_point():
     w = worst_point(r)
     assert (w["lat_deg"], w["lon_deg"], w["hs_m"]) == (40.5, 2.2, 5.5) and w["time_utc"] == pd.Timestamp("2025-01-31T01:00Z")
     assert routes_bbox({"a": r}) == (2.0, 2.4, 40.0, 41.0)
+
+
+def test_lane_departure_model_adverse_and_failed():
+    from dashboards.model import LaneDeparture
+    from pipelines.reporting import lane_departure_model
+    from routing.audit import audit_routes
+
+    t0 = pd.Timestamp("2025-01-31T00:00Z")
+
+    def weather(times, lat, lon):
+        lat = np.asarray(lat, dtype=float)
+        return {"hs_m": np.where(lat < 40.25, 5.0, 1.0), "wave_from_deg": np.full(lat.size, 270.0), "tm_s": np.full(lat.size, 5.0)}
+
+    def straight(lat, name):
+        return Route(name, [lat] * 3, [1.5, 2.25, 3.0], t0 + pd.to_timedelta([0.0, 2.9, 5.8], unit="h"), [12.0, 12.0])
+
+    out = audit_routes(straight(40.0, "historical"), weather, VESSEL, limits=OperatorLimits(name="t", hs_max_m=4.5),
+                       alternatives={"deviation": straight(40.5, "deviation")})
+    dep = lane_departure_model(lane_id=3, origin="Barcelona", destination="Palma", depart_utc=t0, rules=["hs_m 5.0 > 4.5"],
+                               evaluations=out["evaluations"], table=out["table"], proposed=out["proposed"], weather_ds=dataset())
+    assert isinstance(dep, LaneDeparture) and dep.status == "adverse" and dep.lane_id == "3"
+    assert dep.worst_hs_m == 5.0 and dep.worst_lat_deg == 40.0 and dep.worst_time_utc == t0  # first point of the highest Hs
+    assert dep.routes.proposed == "deviation" and set(dep.routes.routes) == {"historical", "deviation"}
+    snap = dep.routes.weather
+    assert snap.time_utc == pd.Timestamp("2025-01-31T00:00Z")  # nearest step to the worst time
+    assert snap.lon_deg.min() >= 1.5 - 1.0 and snap.lat_deg.max() <= 40.5 + 1.0
+    failed = lane_departure_model(lane_id="L9", origin="Genoa", destination="Tunis", depart_utc=t0, error="NoRouteError: unreachable")
+    assert failed.status == "failed" and failed.error == "NoRouteError: unreachable" and failed.routes is None
