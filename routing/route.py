@@ -88,10 +88,16 @@ class Route:
 
     @property
     def max_hs_m(self) -> float:
+        """Highest Hs met: at the waypoints, and along the legs when the router recorded it
+        (``properties["max_hs_m_along"]``; long smoothed legs can cross a peak between waypoints). [m]"""
+        values = []
         hs = self.weather.get("hs_m")
-        if hs is None or not np.isfinite(hs).any():
-            return float("nan")
-        return float(np.nanmax(hs))
+        if hs is not None and np.isfinite(hs).any():
+            values.append(float(np.nanmax(hs)))
+        along = self.properties.get("max_hs_m_along")
+        if along is not None and np.isfinite(along):
+            values.append(float(along))
+        return max(values) if values else float("nan")
 
     def to_dict(self, waypoints: bool = True) -> dict:
         """Summary in the CLI's JSON shape: totals plus ``[[lat, lon, "ISO time"], ...]``."""

@@ -1,0 +1,282 @@
+"""Time-dependent A* on a routing mesh, path re-timing, calm-water times and smoothing.
+
+The search runs in the compiled core :func:`routing._kernels.astar` over flat arrays:
+node ids ``j*nx + i``, a uint64 edge mask per node, per-row edge lengths and courses, and the
+weather of every sea node on a regular time axis. The cost of an edge u -> v is
+
+* ``cost="time"``: ``L * (1/sog(u) + 1/sog(v)) / 2`` hours, with L the great-circle length and
+  sog the speed over ground given the weather interpolated (linearly in time, bilinearly in
+  space, directions through components) at the time the ship reaches u, for the edge's
+  initial course; the speed comes from :func:`routing.speed_loss.speed_loss` (same formulas,
+  compiled twin) and the optional current vector;
+* ``cost="distance"``: L.
+
+The heuristic is the great-circle distance to the goal over the highest speed any edge can
+reach (v0, or more with Khokhlov in following seas, plus the strongest current), so it never
+overestimates and the first time the goal is taken from the heap its cost is optimal
+(label-setting under the FIFO property of the time-dependent edge costs). ``heuristic=False``
+is Dijkstra. An unreachable goal empties the heap and raises :class:`NoRouteError` after at
+most one visit of each node.
+
+References
+----------
+.. [1] P. E. Hart, N. J. Nilsson and B. Raphael, "A formal basis for the heuristic
+       determination of minimum cost paths," IEEE Trans. Syst. Sci. Cybern., vol. 4, no. 2,
+       pp. 100-107, 1968, doi:10.1109/TSSC.1968.300136.
+.. [2] I. Chabini and S. Lan, "Adaptations of the A* algorithm for the computation of fastest
+       paths in deterministic discrete-time dynamic networks," IEEE Trans. Intell. Transp.
+       Syst., vol. 3, no. 1, pp. 60-74, 2002, doi:10.1109/6979.994796.
+.. [3] M. Grifoll et al., Ocean Eng. 255, 111427, 2022, doi:10.1016/j.oceaneng.2022.111427, section 2.3.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from routing import _kernels
+from routing import speed_loss as sl
+from routing.errors import NoRouteError
+from routing.field import NS_PER_HOUR, MeshWeather
+from routing.mesh import Mesh
+from thresholds.units import EARTH_RADIUS_NMI
+
+_EMPTY2 = np.zeros((1, 1), dtype=np.float32)
+#: Lowest speed over ground when a foul current overpowers the ship (keeps times finite). [kn]
+MIN_SOG_KN = 0.1
+
+
+@dataclass(frozen=True)
+class ShipModel:
+    """Calm-water speed and the speed-loss model applied on every edge."""
+
+    speed_kn: float
+    model: str = "bowditch"
+    lpp_m: float | None = None
+    dwt_t: float | None = None
+    floor_kn: float = sl.DEFAULT_FLOOR_KN
+    bowditch_sectors: str = "symmetric"
+
+    def __post_init__(self):
+        if self.model not in sl.MODELS:
+            raise ValueError(f"unknown speed-loss model {self.model!r}; choose one of {', '.join(sl.MODELS)}")
+        if not self.speed_kn > 0:
+            raise ValueError(f"speed must be positive, got {self.speed_kn!r} kn")
+        if self.model == "aertssen" and not (self.lpp_m and self.lpp_m > 0):
+            raise ValueError("the Aertssen model needs the vessel's lpp_m")
+        if self.model == "khokhlov" and not (self.dwt_t and self.dwt_t > 0):
+            raise ValueError("the Khokhlov model needs the vessel's dwt_t")
+        if self.bowditch_sectors not in ("symmetric", "printed"):
+            raise ValueError(f"unknown Bowditch sector table {self.bowditch_sectors!r}")
+
+    @classmethod
+    def from_vessel(cls, vessel, model: str = "bowditch", speed_kn: float | None = None, **kwargs) -> "ShipModel":
+        return cls(
+            speed_kn=float(speed_kn if speed_kn is not None else vessel.speed_kn),
+            model=model,
+            lpp_m=vessel.lpp_m,
+            dwt_t=vessel.dwt_t,
+            floor_kn=vessel.min_speed_kn,
+            **kwargs,
+        )
+
+    def calm(self) -> "ShipModel":
+        return ShipModel(self.speed_kn, "none", self.lpp_m, self.dwt_t, self.floor_kn, self.bowditch_sectors)
+
+    def params(self, step_time: bool = False) -> np.ndarray:
+        """Parameter vector for the compiled core (the published coefficients are compiled in).
+
+        ``step_time`` (SIMROUTE emulation) reads the weather slice at or before a time instead
+        of interpolating between slices.
+        """
+        p = np.zeros(_kernels.N_PARAMS)
+        p[_kernels.P_MODEL] = _kernels.MODEL_CODES[self.model]
+        p[_kernels.P_V0] = self.speed_kn
+        p[_kernels.P_FLOOR] = self.floor_kn
+        p[_kernels.P_LPP] = self.lpp_m or 1.0
+        p[_kernels.P_DWT] = self.dwt_t or 0.0
+        p[_kernels.P_PRINTED] = 1.0 if self.bowditch_sectors == "printed" else 0.0
+        p[_kernels.P_MIN_SOG] = MIN_SOG_KN
+        p[_kernels.P_TIME_STEP] = 1.0 if step_time else 0.0
+        return p
+
+    def max_speed_kn(self, hs_max_m: float) -> float:
+        return sl.max_attainable_speed_kn(self.speed_kn, self.model, hs_max_m=hs_max_m, dwt_t=self.dwt_t)
+
+
+@dataclass(frozen=True)
+class WeatherArrays:
+    """The weather arrays in the layout the compiled core reads (dummies where absent)."""
+
+    sea_index: np.ndarray
+    hs: np.ndarray
+    wc: np.ndarray
+    ws: np.ndarray
+    cu: np.ndarray
+    cv: np.ndarray
+    has_hs: bool
+    has_dir: bool
+    has_cur: bool
+    dt_h: float
+    n_times: int
+    time0_ns: int | None  # None: calm sea, no time axis
+    hs_max_m: float
+    current_max_kn: float
+    step_time: bool = False
+
+    @classmethod
+    def build(cls, mesh: Mesh, weather: MeshWeather | None, step_time: bool = False) -> "WeatherArrays":
+        if weather is None:
+            sea_index = np.full(mesh.n_nodes, -1, dtype=np.int32)
+            sea_index[mesh.sea.ravel()] = np.arange(mesh.n_sea, dtype=np.int32)
+            return cls(sea_index, _EMPTY2, _EMPTY2, _EMPTY2, _EMPTY2, _EMPTY2, False, False, False, 1.0, 1, None, 0.0, 0.0)
+        a = weather.arrays
+        sea_index = weather.sea_index
+        if np.any(sea_index[mesh.sea.ravel()] < 0):
+            raise ValueError("mesh has sea nodes without weather rows; build the mesh from this weather's sea mask")
+        has_hs = "hs_m" in a
+        has_dir = "wave_cos" in a
+        has_cur = "current_u_kn" in a
+        return cls(
+            sea_index,
+            a["hs_m"] if has_hs else _EMPTY2,
+            a["wave_cos"] if has_dir else _EMPTY2,
+            a["wave_sin"] if has_dir else _EMPTY2,
+            a["current_u_kn"] if has_cur else _EMPTY2,
+            a["current_v_kn"] if has_cur else _EMPTY2,
+            has_hs,
+            has_dir,
+            has_cur,
+            float(weather.dt_h),
+            int(weather.n_times),
+            int(weather.time0_ns),
+            weather.hs_max_m,
+            weather.current_max_kn,
+            step_time,
+        )
+
+    def rel_h(self, t_ns: int) -> float:
+        """Hours of ``t_ns`` after the weather's slice 0."""
+        return 0.0 if self.time0_ns is None else (int(t_ns) - self.time0_ns) / NS_PER_HOUR
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """A grid path and its search statistics."""
+
+    nodes: np.ndarray
+    cost: float  # hours (time) or nmi (distance) from the start node
+    expanded: int
+    scanned: int
+    seconds: float
+
+
+def search(
+    mesh: Mesh,
+    wx: WeatherArrays,
+    ship: ShipModel,
+    start: int,
+    goal: int,
+    *,
+    t_start_h: float = 0.0,
+    cost: str = "time",
+    heuristic: bool = True,
+) -> SearchResult:
+    """Least-time (or least-distance) path from node ``start`` to node ``goal``.
+
+    Parameters
+    ----------
+    t_start_h : float
+        Time at the start node, hours after the weather's slice 0 (see :meth:`WeatherArrays.rel_h`).
+    cost : {"time", "distance"}
+    heuristic : bool
+        False runs Dijkstra (same core, zero heuristic).
+
+    Raises
+    ------
+    NoRouteError
+        When the goal cannot be reached over sea cells of this mesh.
+    """
+    if cost not in ("time", "distance"):
+        raise ValueError(f"cost must be 'time' or 'distance', got {cost!r}")
+    g = mesh.grid
+    if not (mesh.sea.ravel()[start] and mesh.sea.ravel()[goal]):
+        raise NoRouteError("start or goal node is on land")
+    elen, ecos, esin = mesh.edge_geometry
+    p = ship.params(wx.step_time)
+    distance_mode = cost == "distance"
+    if not heuristic:
+        h_speed = 0.0
+    elif distance_mode:
+        h_speed = 1.0
+    else:
+        h_speed = ship.max_speed_kn(wx.hs_max_m) + wx.current_max_kn
+    t0 = _time.perf_counter()
+    gvals, parent, expanded, scanned, reached = _kernels.astar(
+        g.nx, mesh.allowed, mesh.steps[:, 0].copy(), mesh.steps[:, 1].copy(), elen, ecos, esin,
+        np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg), wx.sea_index, wx.hs, wx.wc, wx.ws, wx.cu, wx.cv,
+        wx.has_hs, wx.has_dir, wx.has_cur, wx.dt_h, wx.n_times, p,
+        int(start), int(goal), float(t_start_h), distance_mode, float(h_speed), EARTH_RADIUS_NMI,
+    )  # fmt: skip
+    seconds = _time.perf_counter() - t0
+    if not reached:
+        lat_s, lon_s = g.node_latlon(start)
+        lat_g, lon_g = g.node_latlon(goal)
+        raise NoRouteError(
+            f"no sea route from ({lat_s:.4f}, {lon_s:.4f}) to ({lat_g:.4f}, {lon_g:.4f}) on this mesh "
+            f"({g.dlat_deg * 60:.3g} nmi, {mesh.edges} edges, bbox {tuple(round(x, 4) for x in g.bbox)}): "
+            f"searched {expanded:,} reachable nodes; widen the bbox or refine the mesh"
+        )
+    nodes = [int(goal)]
+    while nodes[-1] != start:
+        nodes.append(int(parent[nodes[-1]]))
+    nodes.reverse()
+    total = float(gvals[goal]) - (0.0 if distance_mode else float(t_start_h))
+    return SearchResult(np.asarray(nodes, dtype=np.int64), total, int(expanded), int(scanned), seconds)
+
+
+def evaluate_path(
+    mesh: Mesh, wx: WeatherArrays, ship: ShipModel, lat_deg, lon_deg, *, t_start_h: float = 0.0, max_piece_nmi: float | None = None
+) -> tuple[np.ndarray, float]:
+    """Re-time a polyline through the weather: times at each vertex [h after slice 0], max Hs met [m].
+
+    Legs longer than ``max_piece_nmi`` (default: the longest stencil edge, so a grid path is
+    timed exactly as the search timed it) are split into equal great-circle pieces.
+    """
+    g = mesh.grid
+    p = ship.params(wx.step_time)
+    piece = float(max_piece_nmi if max_piece_nmi is not None else mesh.max_edge_nmi * (1.0 + 1e-9))
+    times, hs_max = _kernels.eval_path(
+        np.ascontiguousarray(lat_deg, dtype=float), np.ascontiguousarray(lon_deg, dtype=float), float(t_start_h), piece,
+        g.lat0_deg, g.lon0_deg, g.dlat_deg, g.dlon_deg, g.ny, g.nx, wx.sea_index, wx.hs, wx.wc, wx.ws, wx.cu, wx.cv,
+        wx.has_hs, wx.has_dir, wx.has_cur, wx.dt_h, wx.n_times, p, EARTH_RADIUS_NMI,
+    )  # fmt: skip
+    return times, float(hs_max)
+
+
+def smooth(
+    mesh: Mesh, wx: WeatherArrays, ship: ShipModel, lat_deg, lon_deg, raw_times_h, *, max_piece_nmi: float | None = None
+) -> np.ndarray:
+    """Indices of the waypoints kept by any-angle smoothing (see :func:`routing._kernels.smooth_path`).
+
+    A waypoint is removed when the direct great-circle leg that skips it crosses only sea cells
+    and does not arrive later than the raw path: the smoothed route is never slower.
+    """
+    g = mesh.grid
+    p = ship.params(wx.step_time)
+    px = mesh._px()
+    piece = float(max_piece_nmi if max_piece_nmi is not None else mesh.max_edge_nmi * (1.0 + 1e-9))
+    return _kernels.smooth_path(
+        np.ascontiguousarray(lat_deg, dtype=float), np.ascontiguousarray(lon_deg, dtype=float),
+        np.ascontiguousarray(raw_times_h, dtype=float), piece, g.lat0_deg, g.lon0_deg, g.dlat_deg, g.dlon_deg,
+        g.ny, g.nx, mesh.cell_ok, mesh.cell_clean, px[0], px[1], px[2], px[3], px[4],
+        0.5 * mesh.min_cell_nmi, wx.sea_index, wx.hs, wx.wc, wx.ws, wx.cu, wx.cv,
+        wx.has_hs, wx.has_dir, wx.has_cur, wx.dt_h, wx.n_times, p, EARTH_RADIUS_NMI,
+    )  # fmt: skip
+
+
+def reachable(mesh: Mesh, start: int) -> np.ndarray:
+    """Nodes reachable from ``start`` over allowed edges (bool per node)."""
+    return _kernels.component_from(int(start), mesh.allowed, mesh.steps[:, 0].copy(), mesh.steps[:, 1].copy(), mesh.grid.nx)

@@ -1,0 +1,29 @@
+"""Errors of the routing engine a user can act on (printed by the CLI as one line, exit 2)."""
+
+from __future__ import annotations
+
+from thresholds.errors import StormlaneError
+
+
+class RoutingError(StormlaneError):
+    """Base class of the routing errors."""
+
+
+class NoRouteError(RoutingError):
+    """No sea path joins start and goal on this mesh (land, mesh bounds or resolution)."""
+
+
+class LandPointError(RoutingError):
+    """A start or goal lies on land farther than the snapping limit from any sea node."""
+
+
+class OutsideMeshError(RoutingError):
+    """A start or goal lies outside the mesh bounding box."""
+
+
+class WeatherCoverageError(RoutingError):
+    """The weather does not cover the departure time or the route's area."""
+
+
+class MeshSizeError(RoutingError):
+    """The requested mesh is empty or too large for memory; choose a coarser spacing or a smaller bbox."""

@@ -1,0 +1,280 @@
+"""Weather fields as plain numpy arrays, for the router (no xarray here).
+
+:class:`WeatherField` is the canonical weather Dataset's content on its own regular lat/lon
+grid (``pipelines.routing_weather.field_from_dataset`` builds it from the xarray Dataset).
+:meth:`WeatherField.on_mesh` maps it onto a routing mesh: bilinear in space over the valid
+(sea) weather points, a regular time axis, wave directions through their unit-vector
+components (never as raw angles), currents converted to knots. The result,
+:class:`MeshWeather`, stores one row per sea node with time contiguous, which is what the
+compiled A* core reads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from routing.errors import WeatherCoverageError
+from thresholds.units import MS_PER_KN
+
+#: Variables the router understands (canonical names of the weather Dataset).
+KNOWN_VARIABLES = (
+    "hs_m",
+    "wave_from_deg",
+    "tp_s",
+    "tm_s",
+    "wind_u_ms",
+    "wind_v_ms",
+    "current_u_ms",
+    "current_v_ms",
+)
+
+NS_PER_HOUR = 3_600_000_000_000
+
+
+@dataclass(frozen=True)
+class WeatherField:
+    """Gridded weather in canonical names.
+
+    Attributes
+    ----------
+    time_ns : ndarray of int64, shape (T,)
+        Valid times, nanoseconds since 1970-01-01 UTC, strictly increasing.
+    lat_deg, lon_deg : ndarray, shape (ny,), (nx,)
+        Ascending grid coordinates; lon in [-180, 180). [deg]
+    variables : dict of str -> ndarray, shape (T, ny, nx)
+        Any of :data:`KNOWN_VARIABLES`; land is NaN.
+    attrs : dict
+        Provenance (product, source files).
+    """
+
+    time_ns: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    variables: dict
+    attrs: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        t = np.asarray(self.time_ns, dtype=np.int64)
+        lat = np.asarray(self.lat_deg, dtype=float)
+        lon = np.asarray(self.lon_deg, dtype=float)
+        if t.ndim != 1 or t.size == 0:
+            raise ValueError("WeatherField needs at least one time")
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            raise ValueError("WeatherField times must be strictly increasing")
+        for name, axis in (("lat_deg", lat), ("lon_deg", lon)):
+            if axis.ndim != 1 or axis.size < 2 or np.any(np.diff(axis) <= 0):
+                raise ValueError(f"WeatherField {name} must be 1-D, ascending, with at least 2 points")
+        if lon.min() < -180.0 or lon.max() >= 180.0:
+            raise ValueError("WeatherField lon_deg must lie in [-180, 180)")
+        unknown = sorted(set(self.variables) - set(KNOWN_VARIABLES))
+        if unknown:
+            raise ValueError(f"WeatherField: unknown variable(s) {unknown}; known: {KNOWN_VARIABLES}")
+        shape = (t.size, lat.size, lon.size)
+        arrays = {}
+        for name, values in self.variables.items():
+            values = np.asarray(values, dtype=np.float32)
+            if values.shape != shape:
+                raise ValueError(f"WeatherField variable {name!r} has shape {values.shape}, expected {shape}")
+            arrays[name] = values
+        object.__setattr__(self, "time_ns", t)
+        object.__setattr__(self, "lat_deg", lat)
+        object.__setattr__(self, "lon_deg", lon)
+        object.__setattr__(self, "variables", arrays)
+
+    @property
+    def shape(self) -> tuple:
+        return (self.time_ns.size, self.lat_deg.size, self.lon_deg.size)
+
+    def land_mask(self) -> np.ndarray:
+        """Grid points without data at every time (NaN in the first wave/current/wind variable). (ny, nx)"""
+        for name in ("hs_m", "current_u_ms", "wind_u_ms", *KNOWN_VARIABLES):
+            if name in self.variables:
+                return np.all(np.isnan(self.variables[name]), axis=0)
+        return np.zeros(self.shape[1:], dtype=bool)
+
+    def on_mesh(self, mesh_lat_deg, mesh_lon_deg, depart_ns: int, node_sea=None, fill_missing: bool = False) -> "MeshWeather":
+        """Interpolate onto a regular mesh (nodes ``mesh_lat_deg`` x ``mesh_lon_deg``).
+
+        Space: bilinear over the valid weather points only (weights renormalised), so coastal
+        nodes get the nearby sea values; a node is *weather land* when the valid points carry
+        less than half of its bilinear weight, or when it lies outside the grid (beyond half a
+        grid step). Time: slices from the last one at or before the departure onwards,
+        resampled to a regular step (the smallest step of the file) by linear interpolation.
+
+        Parameters
+        ----------
+        mesh_lat_deg, mesh_lon_deg : ndarray
+            Node latitudes (ny,) and longitudes (nx,), ascending. [deg]
+        depart_ns : int
+            Departure, ns since epoch UTC; must lie within the field's times.
+        node_sea : ndarray of bool, shape (ny, nx), optional
+            Nodes to fill (others are skipped); default every node.
+        fill_missing : bool
+            Also fill nodes without weather data, with calm values (for ``--ignore-land``).
+
+        Returns
+        -------
+        MeshWeather
+        """
+        t = self.time_ns
+        if depart_ns < t[0] or depart_ns > t[-1]:
+            raise WeatherCoverageError(
+                f"departure {_iso(depart_ns)} is outside the weather's times {_iso(t[0])} .. {_iso(t[-1])}"
+            )
+        first = int(np.searchsorted(t, depart_ns, side="right") - 1)
+        t = t[first:]
+        times, t_idx0, t_w = _regular_times(t)
+        mlat = np.asarray(mesh_lat_deg, dtype=float)
+        mlon = np.asarray(mesh_lon_deg, dtype=float)
+        ny, nx = mlat.size, mlon.size
+        if node_sea is None:
+            node_sea = np.ones((ny, nx), dtype=bool)
+        valid = ~self.land_mask()
+        jj, wy = _axis_weights(self.lat_deg, mlat)
+        ii, wx = _axis_weights(self.lon_deg, mlon)
+        # four neighbours (j0,i0), (j0,i1), (j1,i0), (j1,i1) of every node: shape (ny, nx, 4)
+        j_pairs = np.stack([jj[:, 0], jj[:, 0], jj[:, 1], jj[:, 1]], axis=-1)[:, None, :]
+        i_pairs = np.stack([ii[:, 0], ii[:, 1], ii[:, 0], ii[:, 1]], axis=-1)[None, :, :]
+        w = (
+            np.stack([wy[:, 0], wy[:, 0], wy[:, 1], wy[:, 1]], axis=-1)[:, None, :]
+            * np.stack([wx[:, 0], wx[:, 1], wx[:, 0], wx[:, 1]], axis=-1)[None, :, :]
+        )
+        j_pairs, i_pairs = np.broadcast_arrays(j_pairs, i_pairs)
+        inside = (j_pairs >= 0) & (i_pairs >= 0)
+        ok = inside & valid[np.clip(j_pairs, 0, None), np.clip(i_pairs, 0, None)]
+        w = np.where(ok, w, 0.0)
+        wsum = w.sum(axis=-1)
+        has_data = wsum >= 0.5
+        fill = node_sea & (has_data | fill_missing)
+        sea_index = np.full(ny * nx, -1, dtype=np.int32)
+        flat_fill = fill.ravel()
+        n_sea = int(flat_fill.sum())
+        sea_index[flat_fill] = np.arange(n_sea, dtype=np.int32)
+        flat_idx = (np.clip(j_pairs, 0, None) * self.lon_deg.size + np.clip(i_pairs, 0, None)).reshape(-1, 4)[flat_fill]
+        flat_w = (w / np.where(wsum > 0, wsum, 1.0)[..., None]).reshape(-1, 4)[flat_fill]
+        gather = _Gather(flat_idx.astype(np.int64), flat_w.astype(np.float64), t_idx0, t_w, first)
+
+        arrays = {}
+        if "hs_m" in self.variables:
+            arrays["hs_m"] = gather(self.variables["hs_m"])
+        if "wave_from_deg" in self.variables:
+            rad = np.deg2rad(self.variables["wave_from_deg"])
+            arrays["wave_cos"] = gather(np.cos(rad))
+            arrays["wave_sin"] = gather(np.sin(rad))
+        for name in ("tp_s", "tm_s"):
+            if name in self.variables:
+                arrays[name] = gather(self.variables[name])
+        if "current_u_ms" in self.variables and "current_v_ms" in self.variables:
+            arrays["current_u_kn"] = gather(self.variables["current_u_ms"] / np.float32(MS_PER_KN))
+            arrays["current_v_kn"] = gather(self.variables["current_v_ms"] / np.float32(MS_PER_KN))
+        if "wind_u_ms" in self.variables and "wind_v_ms" in self.variables:
+            arrays["wind_u_ms"] = gather(self.variables["wind_u_ms"])
+            arrays["wind_v_ms"] = gather(self.variables["wind_v_ms"])
+        for values in arrays.values():  # gaps of a sea point at some times: no data means calm
+            np.nan_to_num(values, copy=False, nan=0.0)
+        return MeshWeather(
+            time0_ns=int(times[0]),
+            dt_h=float((times[1] - times[0]) / NS_PER_HOUR) if times.size > 1 else 1.0,
+            n_times=int(times.size),
+            sea_index=sea_index,
+            arrays=arrays,
+            weather_sea=has_data,
+            attrs=dict(self.attrs),
+        )
+
+
+def _iso(ns) -> str:
+    return str(np.datetime64(int(ns), "ns"))[:19] + "Z"
+
+
+def _regular_times(t: np.ndarray):
+    """A regular time axis from t[0] to >= t[-1] with the smallest step, and linear weights into t."""
+    if t.size == 1:
+        return t.copy(), np.zeros(1, dtype=np.int64), np.zeros(1)
+    step = int(np.min(np.diff(t)))
+    n = int(np.ceil((t[-1] - t[0]) / step)) + 1
+    times = t[0] + step * np.arange(n, dtype=np.int64)
+    idx = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
+    w = np.clip((times - t[idx]) / (t[idx + 1] - t[idx]), 0.0, 1.0)
+    return times, idx.astype(np.int64), w
+
+
+def _axis_weights(grid: np.ndarray, points: np.ndarray):
+    """Bracketing indices (n, 2) and linear weights (n, 2) of ``points`` in ascending ``grid``.
+
+    Points beyond the grid by more than half a step get index -1 (no data); within half a step
+    they take the edge value.
+    """
+    n = grid.size
+    pos = np.interp(points, grid, np.arange(n, dtype=float))
+    step_lo = grid[1] - grid[0]
+    step_hi = grid[-1] - grid[-2]
+    outside = (points < grid[0] - 0.5 * step_lo - 1e-9) | (points > grid[-1] + 0.5 * step_hi + 1e-9)
+    i0 = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
+    frac = np.clip(pos - i0, 0.0, 1.0)
+    idx = np.stack([i0, i0 + 1], axis=-1)
+    weights = np.stack([1.0 - frac, frac], axis=-1)
+    idx[outside] = -1
+    weights[outside] = 0.0
+    return idx, weights
+
+
+class _Gather:
+    """Bilinear gather of (T, ny, nx) arrays onto sea nodes, then linear resampling in time."""
+
+    def __init__(self, idx, w, t_idx0, t_w, first):
+        self.idx, self.w, self.t_idx0, self.t_w, self.first = idx, w, t_idx0, t_w, first
+
+    def __call__(self, values: np.ndarray) -> np.ndarray:
+        from routing._kernels import gather_bilinear_time
+
+        flat = np.ascontiguousarray(values[self.first :].reshape(values.shape[0] - self.first, -1), dtype=np.float32)
+        return gather_bilinear_time(flat, self.idx, self.w, self.t_idx0, self.t_w)
+
+
+@dataclass(frozen=True)
+class MeshWeather:
+    """Weather on the sea nodes of a mesh, on a regular time axis.
+
+    Attributes
+    ----------
+    time0_ns : int
+        Time of slice 0 (the last weather time at or before the departure). [ns since epoch UTC]
+    dt_h : float
+        Step between slices. [h]
+    n_times : int
+    sea_index : ndarray of int32, shape (N,)
+        Row of each mesh node in the arrays, -1 where the node has no weather (land/outside).
+    arrays : dict of str -> ndarray of float32, shape (n_sea, n_times)
+        ``hs_m``, ``wave_cos``/``wave_sin`` (components of the direction waves come from),
+        ``tp_s``, ``tm_s``, ``current_u_kn``/``current_v_kn`` (flowing to), ``wind_u_ms``/``wind_v_ms``
+        as available.
+    weather_sea : ndarray of bool, shape (ny, nx)
+        Nodes where the weather has data (not weather land, not outside the grid).
+    """
+
+    time0_ns: int
+    dt_h: float
+    n_times: int
+    sea_index: np.ndarray
+    arrays: dict
+    weather_sea: np.ndarray
+    attrs: dict = field(default_factory=dict)
+
+    @property
+    def end_ns(self) -> int:
+        return int(self.time0_ns + round((self.n_times - 1) * self.dt_h * NS_PER_HOUR))
+
+    @property
+    def hs_max_m(self) -> float:
+        hs = self.arrays.get("hs_m")
+        return float(np.max(hs)) if hs is not None and hs.size else 0.0
+
+    @property
+    def current_max_kn(self) -> float:
+        u, v = self.arrays.get("current_u_kn"), self.arrays.get("current_v_kn")
+        if u is None or v is None or not u.size:
+            return 0.0
+        return float(np.max(np.hypot(u, v)))
