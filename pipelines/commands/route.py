@@ -1,0 +1,125 @@
+"""`stormlane route`: time-optimal and minimum-distance routes through the weather (A* on a mesh)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from pipelines.commands._common import JsonOption, emit_json
+
+ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
+
+
+def _floats(text: str, n: int, what: str, option: str) -> tuple[float, ...]:
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != n:
+        raise typer.BadParameter(f"expected {what}, got {text!r}", param_hint=option)
+    return values
+
+
+def _latlon(text: str, option: str) -> tuple[float, float]:
+    lat, lon = _floats(text, 2, "LAT,LON in decimal degrees", option)
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise typer.BadParameter(f"{text!r} is not a position: lat in [-90, 90], lon in [-180, 180]", param_hint=option)
+    return lat, lon
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("route")
+    def route(
+        from_: str = typer.Option(..., "--from", metavar="LAT,LON", help="Start position, decimal degrees."),
+        to: str = typer.Option(..., "--to", metavar="LAT,LON", help="Goal position, decimal degrees."),
+        depart: str = typer.Option(..., "--depart", metavar="ISO8601", help="Departure time (UTC if no offset is given)."),
+        weather: list[Path] = typer.Option(
+            None, "--weather", metavar="FILE...", help="Weather files or folders (CMEMS/ERA5 NetCDF, GRIB); without them the sea is calm."
+        ),
+        more_weather: list[Path] = typer.Argument(None, metavar="FILE", help="More weather files after --weather FILE."),
+        vessel: str = typer.Option("simroute-r6", "--vessel", metavar="NAME|FILE", help="Vessel profile name (data/vessels) or TOML file."),
+        speed_kn: float = typer.Option(None, "--speed-kn", min=0.1, help="Calm-water speed in knots; default the vessel's service speed."),
+        speed_loss: str = typer.Option("bowditch", "--speed-loss", metavar="bowditch|aertssen|khokhlov|none", help="Speed-loss model in waves."),
+        mesh_nmi: float = typer.Option(None, "--mesh-nmi", min=0.01, help="Mesh step in nmi, taken as X/60 deg on both axes (SIMROUTE's convention)."),
+        mesh_deg: float = typer.Option(None, "--mesh-deg", min=0.0001, help="Mesh step in degrees on both axes."),
+        bbox: str = typer.Option(None, "--bbox", metavar="LONMIN,LATMIN,LONMAX,LATMAX", help="Mesh extent; default the great circle's box plus a margin."),
+        edges: int = typer.Option(48, "--edges", metavar="8|16|24|48", help="Edges per node."),
+        ignore_land: bool = typer.Option(False, "--ignore-land", help="Route on an all-sea sphere (accuracy tests)."),
+        snap_nmi: float = typer.Option(10.0, "--snap-nmi", min=0.0, help="How far (nmi) a start or goal on land may move to the nearest sea node."),
+        json_out: bool = JsonOption,
+        out: Path = typer.Option(None, "--out", metavar="FILE.geojson|gpx|rtz", help="Also write the four routes to this file."),
+    ) -> None:
+        """Compute the time-optimal route (raw grid and smoothed) and the minimum-distance route.
+
+        The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time).
+        """  # noqa: E501 (typer keeps line breaks in --help)
+        import logging
+
+        import pandas as pd
+
+        from pipelines.config import load_vessel
+        from routing.astar import ShipModel
+        from routing.planner import RouteRequest, plan_routes
+        from routing.speed_loss import MODELS
+
+        if mesh_nmi is not None and mesh_deg is not None:
+            raise typer.BadParameter("give either --mesh-nmi or --mesh-deg, not both", param_hint="--mesh-nmi/--mesh-deg")
+        if edges not in (8, 16, 24, 48):
+            raise typer.BadParameter(f"{edges} is not one of 8, 16, 24, 48", param_hint="--edges")
+        if speed_loss not in MODELS:
+            raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}", param_hint="--speed-loss")
+        files = list(weather or [])
+        if more_weather:
+            if not files:
+                raise typer.BadParameter(f"unexpected argument(s) {', '.join(map(str, more_weather))}", param_hint="FILE")
+            files += list(more_weather)
+        start = _latlon(from_, "--from")
+        goal = _latlon(to, "--to")
+        box = _floats(bbox, 4, "LONMIN,LATMIN,LONMAX,LATMAX", "--bbox") if bbox else None
+        try:
+            t = pd.Timestamp(depart)
+        except (ValueError, TypeError):
+            raise typer.BadParameter(f"{depart!r} is not an ISO 8601 time", param_hint="--depart") from None
+        t = t.tz_localize("UTC") if t.tz is None else t.tz_convert("UTC")
+
+        logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+        ship_vessel = load_vessel(vessel)
+        ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn)
+        field = None
+        if files:
+            from pipelines.routing_weather import load_weather
+
+            missing = [str(f) for f in files if not Path(f).exists()]
+            if missing:
+                from routing.errors import WeatherCoverageError
+
+                raise WeatherCoverageError(f"weather file(s) not found: {', '.join(missing)}")
+            field, _meta = load_weather([str(f) for f in files])
+        spacing = mesh_deg if mesh_deg is not None else (mesh_nmi / 60.0 if mesh_nmi is not None else None)
+        req = RouteRequest(
+            start, goal, t, ship, spacing_deg=spacing, bbox=box, edges=edges, ignore_land=ignore_land,
+            snap_limit_nmi=snap_nmi, vessel_name=ship_vessel.name,
+        )  # fmt: skip
+        plan = plan_routes(req, field)
+        for what, key in (("start", "start_snap_nmi"), ("goal", "goal_snap_nmi")):
+            moved = plan.routes["optimal"].properties.get(key, 0.0)
+            if moved > 0.5 * plan.mesh.grid.dlat_deg * 60.0:
+                typer.echo(f"note: {what} moved {moved:.2f} nmi to the nearest sea node", err=True)
+        if out is not None:
+            from dashboards.exports import write_routes
+
+            written = write_routes([plan.routes[name] for name in ROUTE_NAMES], out)
+            typer.echo(f"wrote {', '.join(map(str, written))}", err=True)
+        if json_out:
+            emit_json(plan.to_dict())
+            return
+        typer.echo(f"great circle {plan.great_circle_nmi:.2f} nmi; mesh {plan.mesh.grid.ny} x {plan.mesh.grid.nx} "
+                   f"({plan.mesh.grid.dlat_deg * 60:.3g} nmi, {plan.mesh.edges} edges), vessel {ship_vessel.name}, "
+                   f"{ship.speed_kn:g} kn, {ship.model}")  # fmt: skip
+        typer.echo(f"{'route':<19}{'time_h':>9}{'dist_nmi':>10}{'max_hs_m':>10}{'waypoints':>11}")
+        for name in ROUTE_NAMES:
+            r = plan.routes[name]
+            hs = "" if r.max_hs_m != r.max_hs_m else f"{r.max_hs_m:.2f}"
+            typer.echo(f"{name:<19}{r.time_h:>9.2f}{r.dist_nmi:>10.2f}{hs:>10}{r.n_waypoints:>11d}")
