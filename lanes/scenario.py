@@ -186,6 +186,7 @@ class VesselSpec:
     to_starboard: int
     ais_format: str = "dma_csv"
     status_at_berth: int = NAV_MOORED
+    profile: str = ""  # vessel profile name in data/vessels/ (class parameters for evaluations)
 
 
 @dataclass(frozen=True)

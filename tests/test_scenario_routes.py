@@ -112,6 +112,10 @@ def test_fleet_identities_are_valid(doc):
         assert v["to_port"] + v["to_starboard"] == pytest.approx(v["beam_m"], abs=1)
         assert 60 <= v["ship_type"] <= 89
     assert len({v["mmsi"] for v in doc["vessels"]}) == len(doc["vessels"])
+    classes = {s["id"]: s["vessel_class"] for s in doc["services"]}
+    for v in doc["vessels"]:  # each ship names a vessel profile of its own class
+        profile = tomllib.loads((DATA / "vessels" / f"{v['profile']}.toml").read_text())
+        assert profile["vessel_class"] == classes[v["service"]], v["name"]
     assert len({v["imo"] for v in doc["vessels"]}) == len(doc["vessels"])
 
 
