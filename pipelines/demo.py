@@ -57,9 +57,42 @@ def step_scenario(ctx: DemoContext) -> dict:
     }
 
 
+def step_ingest(ctx: DemoContext) -> dict:
+    """Run the Prefect ingest flow on the scenario's AIS files into ``ctx.db``.
+
+    Prints the ingest summary and checks it against the scenario's ground truth
+    (``expected_ingest`` and the dirty rows of ``scenario.json``). Files already in the
+    workspace (same SHA-256, e.g. a rerun of the demo) are skipped by the ingest.
+    """
+    import json
+
+    from pipelines.ingest import ingest_flow
+
+    summary = ingest_flow([str(ctx.workdir / "ais")], str(ctx.db))
+    per_file = summary.pop("per_file", [])
+    ctx.echo(f"ingest into {ctx.db}: {summary['files']} file(s), read {summary['read']:,} = loaded "
+             f"{summary['loaded']:,} + quarantined {summary['quarantined']:,} + duplicates {summary['duplicates']:,}")
+    if summary.get("already_loaded"):
+        ctx.echo(f"  {summary['already_loaded']} file(s) already loaded, skipped")
+    if summary["reasons"]:
+        ctx.echo("  reasons: " + ", ".join(f"{code} {n:,}" for code, n in summary["reasons"].items()))
+    truth = json.loads(ctx.scenario_json.read_text(encoding="utf-8"))
+    expected = truth.get("expected_ingest", {})
+    fresh = [f for f in per_file if not f.get("already_loaded")]
+    if fresh and len(fresh) == len(per_file) and expected:
+        if summary["loaded"] == expected["loaded"] and summary["read"] == expected["position_records"]:
+            ctx.echo(f"  matches the scenario's truth: {expected['loaded']:,} clean rows loaded, "
+                     f"{expected['rejected']:,} injected dirty rows rejected")
+        else:
+            ctx.echo(f"  WARNING: the scenario expected {expected['loaded']:,} loaded of "
+                     f"{expected['position_records']:,} position rows")
+    return {"db": str(ctx.db), **summary, "expected": expected}
+
+
 #: The demo's steps, in order; each component appends its own.
 STEPS: list[tuple[str, Callable[[DemoContext], dict]]] = [
     ("scenario", step_scenario),
+    ("ingest", step_ingest),
 ]
 
 

@@ -19,6 +19,11 @@ def register(app: typer.Typer) -> None:
         json_out: bool = JsonOption,
     ) -> None:
         """Generate the demo scenario and run the pipeline on it (scenario, ingest, ...), printing each summary."""
+        import os
+
+        # quiet and offline (STACK.md): no telemetry look-ups from Prefect
+        os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+        os.environ.setdefault("DO_NOT_TRACK", "1")
         from pipelines.demo import run_demo
 
         echo = (lambda line: typer.echo(line, err=True)) if json_out else typer.echo
