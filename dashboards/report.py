@@ -413,10 +413,14 @@ def audit_html(model: VoyageAudit) -> str:
 # ----------------------------------------------------------------------------- entry points
 
 
-def _write(text: str, path) -> Path:
+def _target(path) -> Path:
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):
         raise ReportError(f"{path}: a report is an .html file")
+    return path
+
+
+def _write(text: str, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text, encoding="utf-8")
     return path
@@ -424,12 +428,14 @@ def _write(text: str, path) -> Path:
 
 def render_nightly_report(model: NightlyReport, path) -> Path:
     """Write the nightly reroute report to ``path`` (one self-contained HTML file); returns the path."""
-    return _write(nightly_html(model), path)
+    target = _target(path)
+    return _write(nightly_html(model), target)
 
 
 def render_audit_report(model: VoyageAudit, path) -> Path:
     """Write the voyage audit report to ``path`` (one self-contained HTML file); returns the path."""
-    return _write(audit_html(model), path)
+    target = _target(path)
+    return _write(audit_html(model), target)
 
 
 def render_report(model, path) -> Path:

@@ -251,7 +251,7 @@ def test_audit_report_content(audit_page):
 
 
 def test_render_writes_html_file_and_refuses_other_suffix(tmp_path):
-    path = render_nightly_report(fx.nightly(), tmp_path / "sub" / "night.html")
+    path = render_nightly_report(fx.nightly(n_adverse=1), tmp_path / "sub" / "night.html")
     assert path.exists() and path.read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
     with pytest.raises(ReportError, match=r"\.html"):
         render_nightly_report(fx.nightly(), tmp_path / "night.pdf")
@@ -263,7 +263,7 @@ def test_render_writes_html_file_and_refuses_other_suffix(tmp_path):
 
 
 def test_model_json_round_trip_renders_identically():
-    for model, render in ((fx.nightly(), nightly_html), (fx.audit(), audit_html)):
+    for model, render in ((fx.nightly(n_adverse=1), nightly_html), (fx.audit(), audit_html)):
         back = report_from_json(report_to_json(model))
         assert type(back) is type(model)
         assert render(back) == render(model)
