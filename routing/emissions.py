@@ -15,10 +15,11 @@ the published formulas; the SIMROUTE emission script has four defects that this 
    power at *design* speed) instead of to the power at the speed actually sailed,
    ``P(v) = EL · P_installed · (v / v_design)³`` [1]_. At 16.1 kn against a 25 kn design speed
    that overstates the baseline 3.7-fold.
-4. **Power to keep v0 over the slowed time.** SIMROUTE's fuel sum uses the power that would keep
-   the calm-water speed *and* the longer time of the slowed ship: the weather is charged twice.
-   Here the power on a leg is the power that makes the leg's own speed in the leg's waves (see
-   :func:`leg_power_kw`), over the leg's own duration. CO2 and SO2 are proportional to the fuel
+4. **The weather charged twice.** SIMROUTE adds the increase that would restore the calm-water
+   speed, ``ΔP = k·(v0³ − v³)``, to that fixed baseline *and* sums over the longer time of the
+   slowed ship, so a storm costs both extra power and extra hours. Here the power on a leg is the
+   power that makes the leg's own speed in the leg's waves (see :func:`leg_power_kw`), over the
+   leg's own duration: the engine setting of the calm-water speed, over the slowed time. CO2 and SO2 are proportional to the fuel
    burnt (``CO2 = FC · CC · M(CO2)/M(C)``), as they must be by mass balance; in SIMROUTE they are
    not (its R6 CO2 saving, 16.14 %, differs from its fuel saving, 13.98 %).
 
@@ -432,37 +433,46 @@ def steam2_totals(legs: pd.DataFrame) -> dict:
     }
 
 
-def simroute_legacy_emissions(leg_time_h, calm_speed_kn, speed_loss_kn, engine: Engine) -> dict:
-    """SIMROUTE's emission script as described in ``ANCHORS.md`` — defects included, for comparison only.
+def simroute_legacy_emissions(leg_time_h, leg_speed_kn, calm_speed_kn, engine: Engine, *, sfoc_quadratic: float = 0.445,
+                              engine_load_twice: bool = True, design_baseline: bool = True) -> dict:
+    """SIMROUTE's emission computation, defects included (switchable), for comparison only.
 
-    Reproduces, from the description (not the code), what SIMROUTE computes so that its published
-    savings can be set beside ours on the same routes: ``P_new = EL · P_installed + ΔP`` with
-    ``ΔP = k · v0³ · (1/(1 − Δv/v0)³ − 1)``, ``k = EL · P_installed / v_design³``;
-    ``EL_new = P_new / P_installed``; ``SFOC_rel = 0.445 · EL_new² − 0.71 · EL_new + 1.28``;
-    fuel ``Σ P_new · SFOC · Δt`` over the *slowed* leg times; each pollutant
-    ``Σ P_new · EL_new · EF · Δt``. Never use it for reporting; :func:`steam2_legs` is the model.
+    Written from the description of SIMROUTE's script (``ANCHORS.md``) and the paper's Eq. 2-3
+    and A3.1-A3.6, not from its code. Per leg i sailed at speed ``v_i`` (made good) for
+    ``Δt_i`` hours, with ``k = EL · P_installed / v_design³`` and calm-water speed ``v0``:
+
+    * wave increase ``ΔP_i = P_transient,i · (1/(1 − Δv_i/v0)³ − 1)`` with
+      ``P_transient,i = k · v_i³`` and ``Δv_i = v0 − v_i``, i.e. ``ΔP_i = k · (v0³ − v_i³)``;
+    * ``P_new,i = EL · P_installed + ΔP_i`` (``design_baseline``; else ``k · v_i³ + ΔP_i =
+      P(v0)``, the power of the engine setting, which is what :func:`steam2_legs` uses);
+    * ``SFOC_i = (q · EL_i² − 0.71 · EL_i + 1.28) · SFOC`` with ``EL_i = P_new,i / P_installed``
+      and ``q = sfoc_quadratic`` (0.445 in SIMROUTE, 0.455 in STEAM2);
+    * fuel ``Σ P_new,i · SFOC_i · Δt_i`` over the slowed leg times;
+    * each pollutant ``Σ P_new,i · EL_i · EF_i · Δt_i`` (``engine_load_twice``; else without
+      ``EL_i``, so CO2 stays proportional to fuel).
+
+    On R6 this reproduces SIMROUTE's published split (CO2 saving 16.14 %, fuel 13.98 %) to
+    within about half a point (see the README); :func:`steam2_legs` is the model stormlane reports.
 
     Returns
     -------
     dict
-        ``fuel_t``, ``co2_t``, ``so2_t``, ``nox_t`` of the legacy computation.
+        ``fuel_t``, ``co2_t``, ``so2_t``, ``nox_t``.
     """
     dt = np.asarray(leg_time_h, dtype=float)
+    v = np.asarray(leg_speed_kn, dtype=float)
     v0 = float(calm_speed_kn)
-    dv = np.nan_to_num(np.asarray(speed_loss_kn, dtype=float), nan=0.0)
     k = engine.engine_load_frac * engine.installed_power_kw / engine.design_speed_kn**3
-    r = np.clip(dv / v0, None, 1.0 - 1e-9)
-    delta_p = k * v0**3 * (1.0 / (1.0 - r) ** 3 - 1.0)
-    p_new = engine.engine_load_frac * engine.installed_power_kw + delta_p
-    el_new = p_new / engine.installed_power_kw
-    sfoc = (0.445 * el_new**2 - 0.71 * el_new + 1.28) * engine.sfoc_g_kwh
-    fuel_g = p_new * sfoc * dt
-    co2_g = p_new * el_new * ef_co2_g_kwh(sfoc, engine.carbon_frac) * dt
-    so2_g = p_new * el_new * ef_so2_g_kwh(sfoc, engine.sulphur_frac) * dt
-    nox_g = p_new * el_new * ef_nox_g_kwh(engine.engine_rpm) * dt
+    delta_p = k * (v0**3 - v**3)  # = k v^3 (1/(1 - (v0 - v)/v0)^3 - 1), paper Eq. 2
+    base = engine.engine_load_frac * engine.installed_power_kw if design_baseline else k * v**3
+    p_new = base + delta_p  # paper Eq. 3
+    el_new = p_new / engine.installed_power_kw  # paper Eq. A3.3
+    sfoc = (sfoc_quadratic * el_new**2 - 0.71 * el_new + 1.28) * engine.sfoc_g_kwh  # paper Eq. A3.4-A3.5
+    fuel_g = p_new * sfoc * dt  # paper Eq. A3.6
+    load = el_new if engine_load_twice else 1.0  # paper Eq. A3.2
     return {
         "fuel_t": float(fuel_g.sum() / 1e6),
-        "co2_t": float(co2_g.sum() / 1e6),
-        "so2_t": float(so2_g.sum() / 1e6),
-        "nox_t": float(nox_g.sum() / 1e6),
+        "co2_t": float((p_new * load * ef_co2_g_kwh(sfoc, engine.carbon_frac) * dt).sum() / 1e6),
+        "so2_t": float((p_new * load * ef_so2_g_kwh(sfoc, engine.sulphur_frac) * dt).sum() / 1e6),
+        "nox_t": float((p_new * load * ef_nox_g_kwh(engine.engine_rpm) * dt).sum() / 1e6),
     }

@@ -171,12 +171,29 @@ def test_co2_over_fuel_constant_across_loads_and_waves():
 
 def test_simroute_legacy_breaks_co2_fuel_proportionality():
     """The defects we avoid: SIMROUTE's CO2 is not proportional to its fuel (engine load twice)."""
-    a = simroute_legacy_emissions([1.0, 1.0], 16.1, [0.0, 0.0], Engine())
-    b = simroute_legacy_emissions([1.0, 1.0], 16.1, [3.0, 3.0], Engine())
+    a = simroute_legacy_emissions([1.0, 1.0], [16.1, 16.1], 16.1, Engine())
+    b = simroute_legacy_emissions([1.0, 1.0], [13.1, 13.1], 16.1, Engine())
     assert a["co2_t"] / a["fuel_t"] != pytest.approx(b["co2_t"] / b["fuel_t"], rel=1e-3)
     # Calm legacy power is the design power 0.8 * 14400 = 11520 kW (not P(16.1 kn) = 3075 kW):
     sfoc = (0.445 * 0.8**2 - 0.71 * 0.8 + 1.28) * 200.0
     assert a["fuel_t"] == pytest.approx(11520.0 * sfoc * 2.0 / 1e6, rel=1e-12)
+    # Slowed to 13.1 kn: + k (v0^3 - v^3) with k = 0.8 * 14400 / 25^3
+    k = 0.8 * 14400.0 / 25.0**3
+    p = 11520.0 + k * (16.1**3 - 13.1**3)
+    el = p / 14400.0
+    assert b["fuel_t"] == pytest.approx(p * (0.445 * el**2 - 0.71 * el + 1.28) * 200.0 * 2.0 / 1e6, rel=1e-12)
+    assert b["co2_t"] == pytest.approx(p * el * (0.445 * el**2 - 0.71 * el + 1.28) * 200.0 * 0.85 * (M_C + 2 * M_O) / M_C * 2.0 / 1e6, rel=1e-12)
+
+
+def test_legacy_with_every_defect_switched_off_is_steam2():
+    """Fixing the three switches gives P(v0) over the slowed time: what steam2_legs computes for a
+    route timed with the involuntary speed loss (leg speed v, loss v0 - v)."""
+    eng = Engine()
+    dt, v = np.array([1.5, 2.0, 0.5]), np.array([16.1, 12.0, 9.5])
+    fixed = simroute_legacy_emissions(dt, v, 16.1, eng, sfoc_quadratic=0.455, engine_load_twice=False, design_baseline=False)
+    ours = steam2_totals(steam2_legs(dt, v, 16.1 - v, eng))
+    for key in ("fuel_t", "co2_t", "so2_t", "nox_t"):
+        assert fixed[key] == pytest.approx(ours[key], rel=1e-12)
 
 
 def test_power_capped_at_installed_and_flagged():
