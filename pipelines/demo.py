@@ -89,10 +89,46 @@ def step_ingest(ctx: DemoContext) -> dict:
     return {"db": str(ctx.db), **summary, "expected": expected}
 
 
+def step_lanes(ctx: DemoContext) -> dict:
+    """Ports, voyages and traffic lanes from the ingested AIS (the Prefect lanes flow).
+
+    Prints the counts, writes ``lanes.geojson`` next to the workspace and checks the lanes
+    against the scenario's truth: how many of the port pairs the generator sailed got a lane.
+    """
+    import json
+
+    from pipelines.lanes import export_geojson, lanes_flow
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_lanes, read_ports
+
+    out = lanes_flow(db=str(ctx.db))
+    d = out["details"]
+    ctx.echo(f"lanes in {ctx.db}: {out['ports']} ports ({d['named_ports']} named), {out['voyages']:,} port-to-port "
+             f"voyages, {out['lanes']} lanes from {d['resampled_points']:,} resampled points, "
+             f"{out['noise_points']:,} noise points")
+    geojson = export_geojson(ctx.db, ctx.workdir / "lanes.geojson")
+    ctx.echo(f"  GeoJSON: {geojson}")
+    with open_workspace(ctx.db) as ws:
+        ports, lanes = read_ports(ws), read_lanes(ws)
+    code = dict(zip(ports["port_id"], ports["locode"]))
+    have = {(code.get(o), code.get(dd)) for o, dd in zip(lanes["origin_port_id"], lanes["dest_port_id"])}
+    truth = json.loads(ctx.scenario_json.read_text(encoding="utf-8")) if ctx.scenario_json.exists() else {}
+    sailed = {(v["origin"], v["dest"]) for v in truth.get("voyages", []) if v.get("complete", True)}
+    covered = sorted(f"{o}-{dd}" for o, dd in sailed & have)
+    missing = sorted(f"{o}-{dd}" for o, dd in sailed - have)
+    if sailed:
+        ctx.echo(f"  lanes for {len(covered)} of {len(sailed)} port pairs the scenario sailed"
+                 + (f"; none yet for {', '.join(missing)}" if missing else ""))
+    return {"db": str(ctx.db), "geojson": str(geojson), "run_id": out["run_id"],
+            **{k: out[k] for k in ("ports", "voyages", "lanes", "noise_points")},
+            "pairs_sailed": len(sailed), "pairs_with_lane": len(covered), "pairs_without_lane": missing}
+
+
 #: The demo's steps, in order; each component appends its own.
 STEPS: list[tuple[str, Callable[[DemoContext], dict]]] = [
     ("scenario", step_scenario),
     ("ingest", step_ingest),
+    ("lanes", step_lanes),
 ]
 
 

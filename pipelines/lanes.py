@@ -119,6 +119,22 @@ def run_lanes(db: str | Path, ports_csv=None, settings: LanesSettings | None = N
     return {**out, "details": result.summary}
 
 
+def export_geojson(db: str | Path, out: str | Path) -> Path:
+    """Write the workspace's ports, lanes and centroids as a GeoJSON FeatureCollection."""
+    import json
+
+    from dashboards.lanes_geojson import lanes_geojson
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_lane_centroids, read_lanes, read_ports
+
+    with open_workspace(db) as ws:
+        fc = lanes_geojson(read_ports(ws), read_lanes(ws), read_lane_centroids(ws))
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(fc, separators=(",", ":")), encoding="utf-8")
+    return out
+
+
 _FLOW_OBJECTS: dict = {}
 
 

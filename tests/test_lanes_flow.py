@@ -128,3 +128,18 @@ def test_empty_workspace_is_a_clear_error(tmp_path):
     open_workspace(db).close()
     with pytest.raises(LanesInputError, match="no AIS positions"):
         run_lanes(db)
+
+
+def test_demo_lanes_step(workspace, prefect_harness, tmp_path):
+    import shutil
+
+    from pipelines.demo import STEPS, DemoContext, step_lanes
+
+    names = [name for name, _ in STEPS]
+    assert names.index("lanes") == names.index("ingest") + 1
+    db, _ = workspace
+    ctx = DemoContext(workdir=tmp_path, echo=lambda line: None)
+    shutil.copy(db, ctx.db)
+    out = step_lanes(ctx)
+    assert {k: out[k] for k in ("ports", "voyages", "lanes")} == {"ports": 2, "voyages": 12, "lanes": 2}
+    assert (tmp_path / "lanes.geojson").is_file() and out["pairs_sailed"] == 0

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import typer
@@ -33,7 +32,7 @@ def register(app: typer.Typer) -> None:
         """
         from pydantic import ValidationError
 
-        from pipelines.lanes import LanesSettings, run_lanes, summary_counts
+        from pipelines.lanes import LanesSettings, export_geojson, run_lanes, summary_counts
         from thresholds.errors import StormlaneError
 
         try:
@@ -44,7 +43,7 @@ def register(app: typer.Typer) -> None:
             raise StormlaneError(f"bad option {first['loc'][0]}: {first['msg']}") from None
         out = run_lanes(db, ports_csv or None, settings)
         if geojson is not None:
-            write_geojson(db, geojson)
+            export_geojson(db, geojson)
         if json_out:
             emit_json(summary_counts(out))
             return
@@ -58,16 +57,3 @@ def register(app: typer.Typer) -> None:
                    f" (of which {d['slow_points']:,} slower than the lane speed floor)")
         if geojson is not None:
             typer.echo(f"  GeoJSON written to {geojson}")
-
-
-def write_geojson(db: Path, out: Path) -> None:
-    """Ports, lanes and centroids of the workspace as a GeoJSON FeatureCollection."""
-    from dashboards.lanes_geojson import lanes_geojson
-    from pipelines.storage import open_workspace
-    from pipelines.storage.lanes import read_lane_centroids, read_lanes, read_ports
-
-    with open_workspace(db) as ws:
-        fc = lanes_geojson(read_ports(ws), read_lanes(ws), read_lane_centroids(ws))
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(fc, separators=(",", ":")), encoding="utf-8")
