@@ -24,6 +24,8 @@ def register(app: typer.Typer) -> None:
         # quiet and offline (STACK.md): no telemetry look-ups from Prefect
         os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
         os.environ.setdefault("DO_NOT_TRACK", "1")
+        # the steps print their own summaries; Prefect's per-task INFO lines would drown them
+        os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
         from pipelines.demo import run_demo
 
         echo = (lambda line: typer.echo(line, err=True)) if json_out else typer.echo
