@@ -149,7 +149,7 @@ def speed_through_water(model, v0, floor, lpp, dwt, printed, hs, cosa, sina):
 
 
 @njit(inline="always")
-def _pace(model, v0, floor, lpp, dwt, printed, min_sog, hs, wc, ws, cu, cv, has_dir, has_cur, ch, sh):
+def _pace(model, v0, floor, lpp, dwt, printed, min_sog, hs, wc, ws, cu, cv, has_cur, ch, sh):
     """Hours per nmi over ground for heading (cos, sin) in the given interpolated weather."""
     # Direction unknown (absent, or components cancelling out): head seas, the conservative case.
     n = math.sqrt(wc * wc + ws * ws)
@@ -188,25 +188,25 @@ def _time_slot(t_h, dt_h, n_times, step):
 
 
 @njit(inline="always")
-def _node_weather(s, i0, i1, wt, hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur):
+def _node_weather(s, i0, i1, wt, wave, cur, has_cur):
     """Hs, wave-direction components and current at sea node row s, interpolated in time.
 
-    Absent variables are (1, 1) arrays of zeros read at [0, 0]: the loads stay unconditional,
-    which the compiler turns into much faster code than loads under a runtime flag.
+    ``wave`` is (T, n_sea, 3) = (Hs, cos, sin of the direction waves come from), ``cur`` is
+    (T, n_sea, 2) or a (1, 1, 2) array of zeros read at [0, 0] when there is no current (an
+    unconditional load compiles to much faster code than a load under a runtime flag).
     """
-    fh = 1 if has_hs else 0
-    fd = 1 if has_dir else 0
     fc = 1 if has_cur else 0
-    hs = hs_a[s * fh, i0 * fh] * (1.0 - wt) + hs_a[s * fh, i1 * fh] * wt
-    wc = wc_a[s * fd, i0 * fd] * (1.0 - wt) + wc_a[s * fd, i1 * fd] * wt
-    ws = ws_a[s * fd, i0 * fd] * (1.0 - wt) + ws_a[s * fd, i1 * fd] * wt
-    cu = cu_a[s * fc, i0 * fc] * (1.0 - wt) + cu_a[s * fc, i1 * fc] * wt
-    cv = cv_a[s * fc, i0 * fc] * (1.0 - wt) + cv_a[s * fc, i1 * fc] * wt
+    hs = wave[i0, s, 0] * (1.0 - wt) + wave[i1, s, 0] * wt
+    wc = wave[i0, s, 1] * (1.0 - wt) + wave[i1, s, 1] * wt
+    ws = wave[i0, s, 2] * (1.0 - wt) + wave[i1, s, 2] * wt
+    cu = cur[i0 * fc, s * fc, 0] * (1.0 - wt) + cur[i1 * fc, s * fc, 0] * wt
+    cv = cur[i0 * fc, s * fc, 1] * (1.0 - wt) + cur[i1 * fc, s * fc, 1] * wt
     return hs, wc, ws, cu, cv
 
 
 @njit
 def _heap_push(keys, vals, size, key, val):
+    """Push onto a 4-ary min-heap (shallower than a binary heap: fewer cache misses per push)."""
     if size == keys.size:
         nk = np.empty(keys.size * 2, dtype=keys.dtype)
         nv = np.empty(vals.size * 2, dtype=vals.dtype)
@@ -214,10 +214,8 @@ def _heap_push(keys, vals, size, key, val):
         nv[:size] = vals[:size]
         keys, vals = nk, nv
     i = size
-    keys[i] = key
-    vals[i] = val
     while i > 0:
-        parent = (i - 1) >> 1
+        parent = (i - 1) >> 2
         if keys[parent] <= key:
             break
         keys[i] = keys[parent]
@@ -230,6 +228,7 @@ def _heap_push(keys, vals, size, key, val):
 
 @njit
 def _heap_pop(keys, vals, size):
+    """Pop the smallest key of a 4-ary min-heap."""
     top_k = keys[0]
     top_v = vals[0]
     size -= 1
@@ -238,16 +237,21 @@ def _heap_pop(keys, vals, size):
         val = vals[size]
         i = 0
         while True:
-            c = 2 * i + 1
+            c = 4 * i + 1
             if c >= size:
                 break
-            if c + 1 < size and keys[c + 1] < keys[c]:
-                c += 1
-            if keys[c] >= key:
+            best = c
+            bk = keys[c]
+            end = c + 4 if c + 4 < size else size
+            for q in range(c + 1, end):
+                if keys[q] < bk:
+                    bk = keys[q]
+                    best = q
+            if bk >= key:
                 break
-            keys[i] = keys[c]
-            vals[i] = vals[c]
-            i = c
+            keys[i] = bk
+            vals[i] = vals[best]
+            i = best
         keys[i] = key
         vals[i] = val
     return top_k, top_v, size
@@ -265,13 +269,8 @@ def astar(
     lat_rad,
     lon_rad,
     sea_index,
-    hs_a,
-    wc_a,
-    ws_a,
-    cu_a,
-    cv_a,
-    has_hs,
-    has_dir,
+    wave,
+    cur,
     has_cur,
     dt_h,
     n_times,
@@ -310,10 +309,21 @@ def astar(
     glat = lat_rad[goal // nx]
     glon = lon_rad[goal % nx]
     use_h = heuristic_speed > 0.0
+    # haversine to the goal from per-row and per-column factors: one asin and sqrt per node
+    ny = n // nx
+    srow = np.empty(ny)
+    crow = np.empty(ny)
+    for j in range(ny):
+        srow[j] = math.sin(0.5 * (lat_rad[j] - glat)) ** 2
+        crow[j] = math.cos(lat_rad[j]) * math.cos(glat)
+    scol = np.empty(nx)
+    for i in range(nx):
+        scol[i] = math.sin(0.5 * (lon_rad[i] - glon)) ** 2
+    h_scale = 2.0 * radius / heuristic_speed if use_h else 0.0
     g[start] = t_start_h if not distance_mode else 0.0
     h0 = 0.0
     if use_h:
-        h0 = _haversine(lat_rad[start // nx], lon_rad[start % nx], glat, glon, radius) / heuristic_speed
+        h0 = h_scale * math.asin(math.sqrt(min(1.0, srow[start // nx] + crow[start // nx] * scol[start % nx])))
         hcache[start] = h0
     keys, vals, size = _heap_push(keys, vals, size, g[start] + h0, start)
     expanded = 0
@@ -333,7 +343,7 @@ def astar(
         mask = allowed[u]
         su = sea_index[u]
         i0, i1, wt = _time_slot(gu, dt_h, n_times, step)
-        hs_u, wc_u, ws_u, cu_u, cv_u = _node_weather(su, i0, i1, wt, hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur)
+        hs_u, wc_u, ws_u, cu_u, cv_u = _node_weather(su, i0, i1, wt, wave, cur, has_cur)
         for k in range(K):
             if (mask >> np.uint64(k)) & np.uint64(1) == 0:
                 continue
@@ -345,12 +355,10 @@ def astar(
             if distance_mode:
                 c = L
             else:
-                hs_v, wc_v, ws_v, cu_v, cv_v = _node_weather(
-                    sea_index[v], i0, i1, wt, hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur
-                )
+                hs_v, wc_v, ws_v, cu_v, cv_v = _node_weather(sea_index[v], i0, i1, wt, wave, cur, has_cur)
                 c = L * _pace(
                     model, v0, floor, lpp, dwt, printed, min_sog, 0.5 * (hs_u + hs_v), 0.5 * (wc_u + wc_v),
-                    0.5 * (ws_u + ws_v), 0.5 * (cu_u + cu_v), 0.5 * (cv_u + cv_v), has_dir, has_cur, ecos[ju, k], esin[ju, k],
+                    0.5 * (ws_u + ws_v), 0.5 * (cu_u + cu_v), 0.5 * (cv_u + cv_v), has_cur, ecos[ju, k], esin[ju, k],
                 )  # fmt: skip
             ng = gu + c
             if ng < g[v]:
@@ -360,14 +368,15 @@ def astar(
                 if use_h:
                     hv = hcache[v]
                     if hv < 0.0:
-                        hv = _haversine(lat_rad[v // nx], lon_rad[v % nx], glat, glon, radius) / heuristic_speed
+                        jv = v // nx
+                        hv = h_scale * math.asin(math.sqrt(min(1.0, srow[jv] + crow[jv] * scol[v - jv * nx])))
                         hcache[v] = hv
                 keys, vals, size = _heap_push(keys, vals, size, ng + hv, v)
     return g, parent, expanded, scanned, reached
 
 
 @njit(inline="always")
-def _sample(lat, lon, lat0, lon0, dlat, dlon, ny, nx, sea_index, i0, i1, wt, hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur):
+def _sample(lat, lon, lat0, lon0, dlat, dlon, ny, nx, sea_index, i0, i1, wt, wave, cur, has_cur):
     """Bilinear weather at (lat, lon) [deg] over the sea nodes around it, at slot (i0, i1, wt)."""
     y = (lat - lat0) / dlat
     x = (lon - lon0) / dlon
@@ -413,7 +422,7 @@ def _sample(lat, lon, lat0, lon0, dlat, dlon, ny, nx, sea_index, i0, i1, wt, hs_
         if s < 0:
             continue
         wsum += w
-        h1, c1, s1, u1, v1 = _node_weather(s, i0, i1, wt, hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur)
+        h1, c1, s1, u1, v1 = _node_weather(s, i0, i1, wt, wave, cur, has_cur)
         hs += w * h1
         wc += w * c1
         ws += w * s1
@@ -441,13 +450,8 @@ def _eval_path(
     ny,
     nx,
     sea_index,
-    hs_a,
-    wc_a,
-    ws_a,
-    cu_a,
-    cv_a,
-    has_hs,
-    has_dir,
+    wave,
+    cur,
     has_cur,
     dt_h,
     n_times,
@@ -496,16 +500,16 @@ def _eval_path(
                 i0, i1, wt = _time_slot(t, dt_h, n_times, step)
                 hs1, wc1, ws1, cu1, cv1 = _sample(
                     pa_lat / deg, pa_lon / deg, lat0, lon0, dlat, dlon, ny, nx, sea_index, i0, i1, wt,
-                    hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur,
+                    wave, cur, has_cur,
                 )  # fmt: skip
                 hs2, wc2, ws2, cu2, cv2 = _sample(
                     pb_lat / deg, pb_lon / deg, lat0, lon0, dlat, dlon, ny, nx, sea_index, i0, i1, wt,
-                    hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur,
+                    wave, cur, has_cur,
                 )  # fmt: skip
                 hs_max = max(hs_max, hs1, hs2)
                 t += plen * _pace(
                     model, v0, floor, lpp, dwt, printed, min_sog, 0.5 * (hs1 + hs2), 0.5 * (wc1 + wc2),
-                    0.5 * (ws1 + ws2), 0.5 * (cu1 + cu2), 0.5 * (cv1 + cv2), has_dir, has_cur, ch, sh,
+                    0.5 * (ws1 + ws2), 0.5 * (cu1 + cu2), 0.5 * (cv1 + cv2), has_cur, ch, sh,
                 )  # fmt: skip
                 pa_lat, pa_lon = pb_lat, pb_lon
         times[leg + 1] = t
@@ -686,13 +690,8 @@ def smooth_path(
     has_px,
     sea_step_nmi,
     sea_index,
-    hs_a,
-    wc_a,
-    ws_a,
-    cu_a,
-    cv_a,
-    has_hs,
-    has_dir,
+    wave,
+    cur,
     has_cur,
     dt_h,
     n_times,
@@ -732,7 +731,7 @@ def smooth_path(
             two_lon[1] = lon_deg[j]
             tt, _ = _eval_path(
                 two_lat, two_lon, t_i, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
-                hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur, dt_h, n_times, p, radius,
+                wave, cur, has_cur, dt_h, n_times, p, radius,
             )  # fmt: skip
             if tt[1] <= raw_times[j] + 1e-9:
                 best = j
@@ -747,7 +746,7 @@ def smooth_path(
             two_lon[1] = lon_deg[best]
             tt, _ = _eval_path(
                 two_lat, two_lon, t_i, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
-                hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur, dt_h, n_times, p, radius,
+                wave, cur, has_cur, dt_h, n_times, p, radius,
             )  # fmt: skip
             best_t = tt[1]
         keep[nk] = best
@@ -785,26 +784,47 @@ def component_from(start, allowed, di, dj, nx):
 
 
 @njit(cache=True)
-def gather_bilinear_time(flat, idx, w, t_idx0, t_w):
-    """out[s, k] = sum_q w[s, q] * ((1 - t_w[k]) flat[t_idx0[k], idx[s, q]] + t_w[k] flat[t_idx0[k] + 1, idx[s, q]])."""
+def gather_bilinear_time(flat, idx, w, t_idx0, t_w, out):
+    """out[k, s, c] = sum_q w[s, q] ((1 - t_w[k]) flat[t_idx0[k], idx[s, q], c] + t_w[k] flat[t_idx0[k] + 1, idx[s, q], c]).
+
+    ``flat`` is (T0, G, C) with the channels interleaved and no NaN (the caller zeroes gaps).
+    Nodes go in blocks: a block's indices and weights stay in cache while every output time
+    is filled, and its nodes read neighbouring grid points.
+    """
     n = idx.shape[0]
     nt = t_idx0.size
     nt_src = flat.shape[0]
-    out = np.empty((n, nt), dtype=np.float32)
-    for s in range(n):
+    nc = flat.shape[2]
+    block = 2048
+    for s0 in range(0, n, block):
+        s1 = min(s0 + block, n)
         for k in range(nt):
             a = t_idx0[k]
             b = a + 1 if a + 1 < nt_src else a
             wt = t_w[k]
-            acc = 0.0
-            for q in range(4):
-                wq = w[s, q]
-                if wq == 0.0:
-                    continue
-                g = idx[s, q]
-                acc += wq * ((1.0 - wt) * flat[a, g] + wt * flat[b, g])
-            out[s, k] = acc
-    return out
+            for s in range(s0, s1):
+                g0, g1, g2, g3 = idx[s, 0], idx[s, 1], idx[s, 2], idx[s, 3]
+                w0, w1, w2, w3 = w[s, 0], w[s, 1], w[s, 2], w[s, 3]
+                for c in range(nc):
+                    acc = w0 * flat[a, g0, c] + w1 * flat[a, g1, c] + w2 * flat[a, g2, c] + w3 * flat[a, g3, c]
+                    if wt != 0.0:
+                        acc2 = w0 * flat[b, g0, c] + w1 * flat[b, g1, c] + w2 * flat[b, g2, c] + w3 * flat[b, g3, c]
+                        acc = (1.0 - wt) * acc + wt * acc2
+                    out[k, s, c] = acc
+
+
+@njit(cache=True)
+def land_summed_area(ocean):
+    """Summed-area table of land pixels: sat[r, c] = land pixels in rows < r, columns < c."""
+    rows, cols = ocean.shape
+    sat = np.zeros((rows + 1, cols + 1), dtype=np.int32)
+    for r in range(rows):
+        run = 0
+        for c in range(cols):
+            if not ocean[r, c]:
+                run += 1
+            sat[r + 1, c + 1] = sat[r, c + 1] + run
+    return sat
 
 
 @njit(cache=True)
@@ -824,10 +844,10 @@ def gc_leg_is_sea(lat1, lon1, lat2, lon2, lat0, lon0, dlat, dlon, cell_ok, cell_
 @njit(cache=True)
 def eval_path(
     lat_deg, lon_deg, t_start_h, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
-    hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur, dt_h, n_times, p, radius,
+    wave, cur, has_cur, dt_h, n_times, p, radius,
 ):  # fmt: skip
     """Compiled entry point of :func:`_eval_path`."""
     return _eval_path(
         lat_deg, lon_deg, t_start_h, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
-        hs_a, wc_a, ws_a, cu_a, cv_a, has_hs, has_dir, has_cur, dt_h, n_times, p, radius,
+        wave, cur, has_cur, dt_h, n_times, p, radius,
     )  # fmt: skip

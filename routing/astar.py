@@ -43,7 +43,7 @@ from routing.field import NS_PER_HOUR, MeshWeather
 from routing.mesh import Mesh
 from thresholds.units import EARTH_RADIUS_NMI
 
-_EMPTY2 = np.zeros((1, 1), dtype=np.float32)
+_NO_CURRENT = np.zeros((1, 1, 2), dtype=np.float32)
 #: Lowest speed over ground when a foul current overpowers the ship (keeps times finite). [kn]
 MIN_SOG_KN = 0.1
 
@@ -108,16 +108,11 @@ class ShipModel:
 
 @dataclass(frozen=True)
 class WeatherArrays:
-    """The weather arrays in the layout the compiled core reads (dummies where absent)."""
+    """The weather arrays in the layout the compiled core reads (calm zeros where absent)."""
 
     sea_index: np.ndarray
-    hs: np.ndarray
-    wc: np.ndarray
-    ws: np.ndarray
-    cu: np.ndarray
-    cv: np.ndarray
-    has_hs: bool
-    has_dir: bool
+    wave: np.ndarray  # (T, n_sea, 3): Hs, cos and sin of the direction waves come from
+    cur: np.ndarray  # (T, n_sea, 2) current flowing to, kn; (1, 1, 2) zeros when absent
     has_cur: bool
     dt_h: float
     n_times: int
@@ -131,23 +126,16 @@ class WeatherArrays:
         if weather is None:
             sea_index = np.full(mesh.n_nodes, -1, dtype=np.int32)
             sea_index[mesh.sea.ravel()] = np.arange(mesh.n_sea, dtype=np.int32)
-            return cls(sea_index, _EMPTY2, _EMPTY2, _EMPTY2, _EMPTY2, _EMPTY2, False, False, False, 1.0, 1, None, 0.0, 0.0)
-        a = weather.arrays
+            calm = np.zeros((1, mesh.n_sea, 3), dtype=np.float32)
+            return cls(sea_index, calm, _NO_CURRENT, False, 1.0, 1, None, 0.0, 0.0)
         sea_index = weather.sea_index
         if np.any(sea_index[mesh.sea.ravel()] < 0):
             raise ValueError("mesh has sea nodes without weather rows; build the mesh from this weather's sea mask")
-        has_hs = "hs_m" in a
-        has_dir = "wave_cos" in a
-        has_cur = "current_u_kn" in a
+        has_cur = weather.current is not None
         return cls(
             sea_index,
-            a["hs_m"] if has_hs else _EMPTY2,
-            a["wave_cos"] if has_dir else _EMPTY2,
-            a["wave_sin"] if has_dir else _EMPTY2,
-            a["current_u_kn"] if has_cur else _EMPTY2,
-            a["current_v_kn"] if has_cur else _EMPTY2,
-            has_hs,
-            has_dir,
+            weather.wave,
+            weather.current if has_cur else _NO_CURRENT,
             has_cur,
             float(weather.dt_h),
             int(weather.n_times),
@@ -216,8 +204,7 @@ def search(
     t0 = _time.perf_counter()
     gvals, parent, expanded, scanned, reached = _kernels.astar(
         g.nx, mesh.allowed, mesh.steps[:, 0].copy(), mesh.steps[:, 1].copy(), elen, ecos, esin,
-        np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg), wx.sea_index, wx.hs, wx.wc, wx.ws, wx.cu, wx.cv,
-        wx.has_hs, wx.has_dir, wx.has_cur, wx.dt_h, wx.n_times, p,
+        np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg), wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, p,
         int(start), int(goal), float(t_start_h), distance_mode, float(h_speed), EARTH_RADIUS_NMI,
     )  # fmt: skip
     seconds = _time.perf_counter() - t0
@@ -250,8 +237,7 @@ def evaluate_path(
     piece = float(max_piece_nmi if max_piece_nmi is not None else mesh.max_edge_nmi * (1.0 + 1e-9))
     times, hs_max = _kernels.eval_path(
         np.ascontiguousarray(lat_deg, dtype=float), np.ascontiguousarray(lon_deg, dtype=float), float(t_start_h), piece,
-        g.lat0_deg, g.lon0_deg, g.dlat_deg, g.dlon_deg, g.ny, g.nx, wx.sea_index, wx.hs, wx.wc, wx.ws, wx.cu, wx.cv,
-        wx.has_hs, wx.has_dir, wx.has_cur, wx.dt_h, wx.n_times, p, EARTH_RADIUS_NMI,
+        g.lat0_deg, g.lon0_deg, g.dlat_deg, g.dlon_deg, g.ny, g.nx, wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, p, EARTH_RADIUS_NMI,
     )  # fmt: skip
     return times, float(hs_max)
 
@@ -272,8 +258,7 @@ def smooth(
         np.ascontiguousarray(lat_deg, dtype=float), np.ascontiguousarray(lon_deg, dtype=float),
         np.ascontiguousarray(raw_times_h, dtype=float), piece, g.lat0_deg, g.lon0_deg, g.dlat_deg, g.dlon_deg,
         g.ny, g.nx, mesh.cell_ok, mesh.cell_clean, px[0], px[1], px[2], px[3], px[4],
-        0.5 * mesh.min_cell_nmi, wx.sea_index, wx.hs, wx.wc, wx.ws, wx.cu, wx.cv,
-        wx.has_hs, wx.has_dir, wx.has_cur, wx.dt_h, wx.n_times, p, EARTH_RADIUS_NMI,
+        0.5 * mesh.min_cell_nmi, wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, p, EARTH_RADIUS_NMI,
     )  # fmt: skip
 
 

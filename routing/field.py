@@ -131,9 +131,18 @@ class WeatherField:
         ny, nx = mlat.size, mlon.size
         if node_sea is None:
             node_sea = np.ones((ny, nx), dtype=bool)
-        valid = ~self.land_mask()
-        jj, wy = _axis_weights(self.lat_deg, mlat)
-        ii, wx = _axis_weights(self.lon_deg, mlon)
+        # the part of the weather grid around the mesh (views, no copy)
+        ja = max(int(np.searchsorted(self.lat_deg, mlat[0], side="right")) - 2, 0)
+        jb = min(int(np.searchsorted(self.lat_deg, mlat[-1], side="left")) + 2, self.lat_deg.size)
+        ia = max(int(np.searchsorted(self.lon_deg, mlon[0], side="right")) - 2, 0)
+        ib = min(int(np.searchsorted(self.lon_deg, mlon[-1], side="left")) + 2, self.lon_deg.size)
+        if jb - ja < 2 or ib - ia < 2:  # the mesh lies outside the weather grid
+            ja, jb, ia, ib = 0, self.lat_deg.size, 0, self.lon_deg.size
+        glat, glon = self.lat_deg[ja:jb], self.lon_deg[ia:ib]
+        v = {name: arr[first:, ja:jb, ia:ib] for name, arr in self.variables.items()}
+        valid = ~WeatherField(self.time_ns[first:], glat, glon, v).land_mask()
+        jj, wy = _axis_weights(glat, mlat)
+        ii, wx = _axis_weights(glon, mlon)
         # four neighbours (j0,i0), (j0,i1), (j1,i0), (j1,i1) of every node: shape (ny, nx, 4)
         j_pairs = np.stack([jj[:, 0], jj[:, 0], jj[:, 1], jj[:, 1]], axis=-1)[:, None, :]
         i_pairs = np.stack([ii[:, 0], ii[:, 1], ii[:, 0], ii[:, 1]], axis=-1)[None, :, :]
@@ -152,34 +161,43 @@ class WeatherField:
         flat_fill = fill.ravel()
         n_sea = int(flat_fill.sum())
         sea_index[flat_fill] = np.arange(n_sea, dtype=np.int32)
-        flat_idx = (np.clip(j_pairs, 0, None) * self.lon_deg.size + np.clip(i_pairs, 0, None)).reshape(-1, 4)[flat_fill]
+        flat_idx = (np.clip(j_pairs, 0, None) * glon.size + np.clip(i_pairs, 0, None)).reshape(-1, 4)[flat_fill]
         flat_w = (w / np.where(wsum > 0, wsum, 1.0)[..., None]).reshape(-1, 4)[flat_fill]
-        gather = _Gather(flat_idx.astype(np.int64), flat_w.astype(np.float64), t_idx0, t_w, first)
+        gather = _Gather(flat_idx.astype(np.int32), flat_w.astype(np.float32), t_idx0, t_w)
 
-        arrays = {}
-        if "hs_m" in self.variables:
-            arrays["hs_m"] = gather(self.variables["hs_m"])
-        if "wave_from_deg" in self.variables:
-            rad = np.deg2rad(self.variables["wave_from_deg"])
-            arrays["wave_cos"] = gather(np.cos(rad))
-            arrays["wave_sin"] = gather(np.sin(rad))
-        for name in ("tp_s", "tm_s"):
-            if name in self.variables:
-                arrays[name] = gather(self.variables[name])
-        if "current_u_ms" in self.variables and "current_v_ms" in self.variables:
-            arrays["current_u_kn"] = gather(self.variables["current_u_ms"] / np.float32(MS_PER_KN))
-            arrays["current_v_kn"] = gather(self.variables["current_v_ms"] / np.float32(MS_PER_KN))
-        if "wind_u_ms" in self.variables and "wind_v_ms" in self.variables:
-            arrays["wind_u_ms"] = gather(self.variables["wind_u_ms"])
-            arrays["wind_v_ms"] = gather(self.variables["wind_v_ms"])
-        for values in arrays.values():  # gaps of a sea point at some times: no data means calm
-            np.nan_to_num(values, copy=False, nan=0.0)
+        shape0 = (t.size, glat.size, glon.size)
+        zeros = np.zeros(shape0, dtype=np.float32)
+        wave = np.zeros((times.size, n_sea, 3), dtype=np.float32)  # hs, cos, sin of the direction waves come from
+        if "hs_m" in v or "wave_from_deg" in v:
+            rad = np.deg2rad(v["wave_from_deg"]) if "wave_from_deg" in v else None
+            gather(
+                [
+                    v.get("hs_m", zeros),
+                    zeros if rad is None else np.cos(rad),
+                    zeros if rad is None else np.sin(rad),
+                ],
+                wave,
+            )
+        current = None
+        if "current_u_ms" in v and "current_v_ms" in v:
+            current = np.zeros((times.size, n_sea, 2), dtype=np.float32)
+            gather([v["current_u_ms"] / np.float32(MS_PER_KN), v["current_v_ms"] / np.float32(MS_PER_KN)], current)
+        extra = {}
+        for name in ("tp_s", "tm_s", "wind_u_ms", "wind_v_ms"):
+            if name in v:
+                out = np.zeros((times.size, n_sea, 1), dtype=np.float32)
+                gather([v[name]], out)
+                extra[name] = out[:, :, 0]
         return MeshWeather(
             time0_ns=int(times[0]),
             dt_h=float((times[1] - times[0]) / NS_PER_HOUR) if times.size > 1 else 1.0,
             n_times=int(times.size),
             sea_index=sea_index,
-            arrays=arrays,
+            wave=wave,
+            current=current,
+            extra=extra,
+            has_waves="hs_m" in self.variables,
+            has_direction="wave_from_deg" in self.variables,
             weather_sea=has_data,
             attrs=dict(self.attrs),
         )
@@ -222,16 +240,19 @@ def _axis_weights(grid: np.ndarray, points: np.ndarray):
 
 
 class _Gather:
-    """Bilinear gather of (T, ny, nx) arrays onto sea nodes, then linear resampling in time."""
+    """Bilinear gather of (T, ny, nx) arrays onto sea nodes and linear resampling in time, into
+    the channels of a (T', n_sea, C) array (time-major: the search reads neighbouring nodes at
+    one time, which then share cache lines)."""
 
-    def __init__(self, idx, w, t_idx0, t_w, first):
-        self.idx, self.w, self.t_idx0, self.t_w, self.first = idx, w, t_idx0, t_w, first
+    def __init__(self, idx, w, t_idx0, t_w):
+        self.idx, self.w, self.t_idx0, self.t_w = idx, w, t_idx0, t_w
 
-    def __call__(self, values: np.ndarray) -> np.ndarray:
+    def __call__(self, channels: list, out: np.ndarray) -> None:
         from routing._kernels import gather_bilinear_time
 
-        flat = np.ascontiguousarray(values[self.first :].reshape(values.shape[0] - self.first, -1), dtype=np.float32)
-        return gather_bilinear_time(flat, self.idx, self.w, self.t_idx0, self.t_w)
+        flat = np.stack([np.asarray(c, dtype=np.float32).reshape(c.shape[0], -1) for c in channels], axis=-1)
+        np.copyto(flat, 0.0, where=np.isnan(flat))  # land, and sea points without data at some time: calm
+        gather_bilinear_time(flat, self.idx, self.w, self.t_idx0, self.t_w, out)
 
 
 @dataclass(frozen=True)
@@ -247,10 +268,14 @@ class MeshWeather:
     n_times : int
     sea_index : ndarray of int32, shape (N,)
         Row of each mesh node in the arrays, -1 where the node has no weather (land/outside).
-    arrays : dict of str -> ndarray of float32, shape (n_sea, n_times)
-        ``hs_m``, ``wave_cos``/``wave_sin`` (components of the direction waves come from),
-        ``tp_s``, ``tm_s``, ``current_u_kn``/``current_v_kn`` (flowing to), ``wind_u_ms``/``wind_v_ms``
-        as available.
+    wave : ndarray of float32, shape (n_times, n_sea, 3)
+        Hs [m] and the cosine and sine of the direction waves come from (interpolated as
+        components); zeros where the files have none (no waves; unknown direction).
+    current : ndarray of float32, shape (n_times, n_sea, 2), or None
+        Current flowing to, eastward and northward. [kn]
+    extra : dict of str -> ndarray of float32, shape (n_times, n_sea)
+        ``tp_s``, ``tm_s``, ``wind_u_ms``, ``wind_v_ms`` as available (reported, not routed on).
+    has_waves, has_direction : bool
     weather_sea : ndarray of bool, shape (ny, nx)
         Nodes where the weather has data (not weather land, not outside the grid).
     """
@@ -259,7 +284,11 @@ class MeshWeather:
     dt_h: float
     n_times: int
     sea_index: np.ndarray
-    arrays: dict
+    wave: np.ndarray
+    current: np.ndarray | None
+    extra: dict
+    has_waves: bool
+    has_direction: bool
     weather_sea: np.ndarray
     attrs: dict = field(default_factory=dict)
 
@@ -269,12 +298,10 @@ class MeshWeather:
 
     @property
     def hs_max_m(self) -> float:
-        hs = self.arrays.get("hs_m")
-        return float(np.max(hs)) if hs is not None and hs.size else 0.0
+        return float(self.wave[:, :, 0].max()) if self.wave.size else 0.0
 
     @property
     def current_max_kn(self) -> float:
-        u, v = self.arrays.get("current_u_kn"), self.arrays.get("current_v_kn")
-        if u is None or v is None or not u.size:
+        if self.current is None or not self.current.size:
             return 0.0
-        return float(np.max(np.hypot(u, v)))
+        return float(np.max(np.hypot(self.current[:, :, 0], self.current[:, :, 1])))

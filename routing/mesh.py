@@ -204,13 +204,11 @@ class LandMask:
         c1 = np.clip(np.ceil(x_hi - 1e-9).astype(np.int64), 1, cols)
         r1 = np.maximum(r1, r0 + 1)
         c1 = np.maximum(c1, c0 + 1)
-        land_cols = np.cumsum(~self.ocean, axis=0, dtype=np.int64)
-        land_cols = np.vstack([np.zeros((1, cols), dtype=np.int64), land_cols])
-        frac = np.empty((grid.ny, grid.nx))
-        for j in range(grid.ny):
-            per_col = land_cols[r1[j]] - land_cols[r0[j]]
-            cs = np.concatenate(([0], np.cumsum(per_col)))
-            frac[j] = (cs[c1] - cs[c0]) / ((r1[j] - r0[j]) * (c1 - c0))
+        sat = _kernels.land_summed_area(self.ocean)  # summed-area table of land pixels
+        R0, C0 = np.meshgrid(r0, c0, indexing="ij")
+        R1, C1 = np.meshgrid(r1, c1, indexing="ij")
+        land = sat[R1, C1] - sat[R0, C1] - sat[R1, C0] + sat[R0, C0]
+        frac = land / ((R1 - R0) * (C1 - C0))
         return frac
 
 

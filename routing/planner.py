@@ -155,7 +155,12 @@ def sample_weather(mesh: Mesh, mw: MeshWeather | None, lat_deg, lon_deg, t_h) ->
     k0 = np.clip(np.floor(tx).astype(int), 0, mw.n_times - 1)
     k1 = np.minimum(k0 + 1, mw.n_times - 1)
     wt = np.where(k1 > k0, np.clip(tx - k0, 0.0, 1.0), 0.0)
-    acc = {name: np.zeros(lat.size) for name in mw.arrays}
+    channels = {"hs_m": mw.wave[:, :, 0], "wave_cos": mw.wave[:, :, 1], "wave_sin": mw.wave[:, :, 2]}
+    if mw.current is not None:
+        channels["current_u_kn"] = mw.current[:, :, 0]
+        channels["current_v_kn"] = mw.current[:, :, 1]
+    channels.update(mw.extra)
+    acc = {name: np.zeros(lat.size) for name in channels}
     wsum = np.zeros(lat.size)
     for dj, di in ((0, 0), (0, 1), (1, 0), (1, 1)):
         w = (fy if dj else 1.0 - fy) * (fx if di else 1.0 - fx)
@@ -164,14 +169,14 @@ def sample_weather(mesh: Mesh, mw: MeshWeather | None, lat_deg, lon_deg, t_h) ->
         w = np.where(ok, w, 0.0)
         sc = np.where(ok, s, 0)
         wsum += w
-        for name, arr in mw.arrays.items():
-            acc[name] += w * ((1.0 - wt) * arr[sc, k0] + wt * arr[sc, k1])
+        for name, arr in channels.items():  # arr: (T, n_sea)
+            acc[name] += w * ((1.0 - wt) * arr[k0, sc] + wt * arr[k1, sc])
     wsum = np.where(wsum > 0, wsum, np.nan)
     vals = {name: a / wsum for name, a in acc.items()}
     out = {}
-    if "hs_m" in vals:
+    if mw.has_waves:
         out["hs_m"] = vals["hs_m"]
-    if "wave_cos" in vals:
+    if mw.has_direction:
         out["wave_from_deg"] = np.asarray(wrap_deg(np.rad2deg(np.arctan2(vals["wave_sin"], vals["wave_cos"]))))
     for name in ("tp_s", "tm_s", "wind_u_ms", "wind_v_ms"):
         if name in vals:
@@ -210,6 +215,7 @@ def plan_routes(
     """
     timings = {}
     t_all = _time.perf_counter()
+    c_all = _time.process_time()
     depart_ns = int(req.depart_utc.value)
     start, goal = (float(req.start[0]), float(req.start[1])), (float(req.goal[0]), float(req.goal[1]))
     gc_nmi = float(haversine_nmi(start[0], start[1], goal[0], goal[1]))
@@ -237,9 +243,11 @@ def plan_routes(
     grid = MeshGrid.from_bbox(bbox, spacing, anchor=start)
 
     t = _time.perf_counter()
+    c = _time.process_time()
     use_mask = req.use_land_mask and not req.ignore_land and land_mask_fn is not None
     land = land_mask_fn(grid) if use_mask else None
     timings["land_mask_s"] = _time.perf_counter() - t
+    timings["land_mask_cpu_s"] = _time.process_time() - c
     if land is None:
         node_sea = np.ones((grid.ny, grid.nx), dtype=bool)
     else:
@@ -247,12 +255,15 @@ def plan_routes(
         node_sea = land.is_ocean(lat2d, lon2d)
 
     t = _time.perf_counter()
+    c = _time.process_time()
     mw = None
     if weather is not None:
         mw = weather.on_mesh(grid.lat_deg, grid.lon_deg, depart_ns, node_sea=node_sea, fill_missing=req.ignore_land)
     timings["weather_to_mesh_s"] = _time.perf_counter() - t
+    timings["weather_to_mesh_cpu_s"] = _time.process_time() - c
 
     t = _time.perf_counter()
+    c = _time.process_time()
     mesh = build_mesh(
         grid,
         edges=req.edges,
@@ -264,6 +275,7 @@ def plan_routes(
     wx = WeatherArrays.build(mesh, mw, step_time=req.weather_time == "simroute")
     calm_wx = WeatherArrays.build(mesh, None) if mw is not None else wx
     timings["mesh_s"] = _time.perf_counter() - t
+    timings["mesh_cpu_s"] = _time.process_time() - c
 
     # --- start and goal on sea nodes of one connected sea area
     start_node, start_snap = mesh.snap(start[0], start[1], req.snap_limit_nmi, what="start")
@@ -297,11 +309,15 @@ def plan_routes(
 
     results = {}
     t = _time.perf_counter()
+    c = _time.process_time()
     results["time"] = search(mesh, wx, req.ship, start_node, goal_node, t_start_h=t_node_h, cost="time")
     timings["search_time_s"] = _time.perf_counter() - t
+    timings["search_time_cpu_s"] = _time.process_time() - c
     t = _time.perf_counter()
+    c = _time.process_time()
     results["distance"] = search(mesh, wx, req.ship, start_node, goal_node, cost="distance")
     timings["search_distance_s"] = _time.perf_counter() - t
+    timings["search_distance_cpu_s"] = _time.process_time() - c
 
     def polyline(nodes):
         la, lo = grid.node_latlon(nodes)
@@ -328,6 +344,7 @@ def plan_routes(
     }
 
     t = _time.perf_counter()
+    c = _time.process_time()
     routes = {}
     opt_lat, opt_lon = polyline(results["time"].nodes)
     opt_t, opt_hs = evaluate_path(mesh, wx, req.ship, opt_lat, opt_lon, t_start_h=t0_h)
@@ -342,6 +359,7 @@ def plan_routes(
         log.warning("smoothing would arrive %.3f h later; keeping the raw route", sm_t[-1] - opt_t[-1])
         sm_lat, sm_lon, sm_t, sm_hs = opt_lat, opt_lon, opt_t, opt_hs
     timings["retime_smooth_s"] = _time.perf_counter() - t
+    timings["retime_smooth_cpu_s"] = _time.process_time() - c
 
     end_h = None if wx.time0_ns is None else (mw.end_ns - wx.time0_ns) / NS_PER_HOUR
 
@@ -366,6 +384,7 @@ def plan_routes(
     calm_props = dict(base_props, cost="distance", speed_loss_model="none", calm_water=True, max_hs_m_along=0.0)
     routes["min_distance_calm"] = _make_route("min_distance_calm", mesh, None, None, md_lat, md_lon, mdc_t, depart, calm_props)
     timings["total_s"] = _time.perf_counter() - t_all
+    timings["total_cpu_s"] = _time.process_time() - c_all
     stats = {
         "timings": timings,
         "expanded_time": results["time"].expanded,

@@ -32,7 +32,7 @@ def test_bilinear_is_exact_for_a_linear_field():
     mw = f.on_mesh(grid.lat_deg, grid.lon_deg, T0)
     gl, go = np.meshgrid(grid.lat_deg, grid.lon_deg, indexing="ij")
     expected = 1.0 + 2.0 * (gl - 40.0) + 3.0 * (go - 2.0)
-    got = mw.arrays["hs_m"][mw.sea_index.reshape(11, 11), 0]
+    got = mw.wave[0, mw.sea_index.reshape(11, 11), 0]
     np.testing.assert_allclose(got, expected, rtol=1e-6)
     assert mw.weather_sea.all()
 
@@ -48,7 +48,7 @@ def test_land_nans_renormalise_and_mark_weather_land():
     assert not mw.weather_sea[3, 3]
     # node (40.75, 2.75): equal weights, land dropped -> (2 + 4 + 2) / 3
     s = mw.sea_index[2 * 5 + 2]
-    assert mw.weather_sea[2, 2] and mw.arrays["hs_m"][s, 0] == pytest.approx(8.0 / 3.0, rel=1e-6)
+    assert mw.weather_sea[2, 2] and mw.wave[0, s, 0] == pytest.approx(8.0 / 3.0, rel=1e-6)
     # nodes outside the grid by more than half a step have no weather
     grid2 = MeshGrid(39.0, 2.0, 0.5, 0.5, 5, 3)
     mw2 = f.on_mesh(grid2.lat_deg, grid2.lon_deg, T0)
@@ -64,7 +64,7 @@ def test_time_axis_regularised_and_directions_through_components():
     grid = MeshGrid(40.0, 2.0, 0.5, 0.5, 3, 3)
     mw = f.on_mesh(grid.lat_deg, grid.lon_deg, T0 + H // 2)
     assert mw.dt_h == 1.0 and mw.n_times == 5 and mw.time0_ns == T0
-    np.testing.assert_allclose(mw.arrays["hs_m"][0], [0.0, 1.0, 2.0, 3.0, 4.0], rtol=1e-6)
+    np.testing.assert_allclose(mw.wave[:, 0, 0], [0.0, 1.0, 2.0, 3.0, 4.0], rtol=1e-6)
     mesh = build_mesh(grid, weather_sea=mw.weather_sea)
     # halfway between 350 and 10 degrees at 1.5 h: 0 degrees (a raw-angle average would give 180)
     w = sample_weather(mesh, mw, [40.5], [2.5], [1.5])
