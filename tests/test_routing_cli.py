@@ -112,6 +112,7 @@ def test_planner_weather_coverage_errors():
         plan_routes(outside, field, land_mask_fn=None)
 
 
+@pytest.mark.filterwarnings("ignore:Logger 'routing.planner' attempted to send logs:UserWarning")  # Prefect's handler, when set up by other tests
 def test_planner_start_off_node_keeps_exact_endpoints_and_warns_after_weather_end(caplog):
     field = small_field(hours=(0, 1))
     req = RouteRequest((39.513, 2.517), (40.488, 3.4711), T0, ShipModel(10.0, "bowditch"), spacing_deg=0.05)

@@ -159,3 +159,24 @@ def test_r6_simroute_conventions_close_the_minimum_distance_gap(r6_field, r6_pla
     theirs = emulated.routes["min_distance"].time_h
     assert abs(theirs - SIM_MD_H) < abs(ours - SIM_MD_H)
     assert theirs == pytest.approx(SIM_MD_H, rel=0.02)
+
+
+def test_r6_through_the_cli(shared_data, r6_field, capsys):
+    import json
+
+    from pipelines.cli import main
+
+    folder = shared_file(shared_data, "weather/simroute_cmems_medsea_wav")
+    try:
+        main([
+            "route", "--from", "39.225,2.900", "--to", "41.500,2.775", "--depart", "2020-01-20T09:00Z",
+            "--weather", str(folder / "Waves_MEDSEA_20200120.nc"), str(folder / "Waves_MEDSEA_20200121.nc"),
+            "--vessel", "simroute-r6", "--speed-loss", "bowditch", "--mesh-nmi", "1.5", "--bbox", "2.0,38.95,5.1,41.65",
+            "--edges", "48", "--json",
+        ])  # fmt: skip
+    except SystemExit as exc:
+        assert exc.code in (0, None)
+    data = json.loads(capsys.readouterr().out)
+    assert data["optimal"]["time_h"] == pytest.approx(SIM_OPT_H, rel=0.03)
+    assert data["min_distance"]["time_h"] == pytest.approx(SIM_MD_H, rel=0.03)
+    assert data["optimal"]["waypoints"][0] == [39.225, 2.9, "2020-01-20T09:00:00Z"]
