@@ -184,18 +184,59 @@ def _corrupt(sentence: str) -> str:
     return ",".join(parts)
 
 
+#: Six-bit ASCII armoring of AIS payloads (ITU-R M.1371-5 Annex 8 / IEC 61162-1 "6-bit
+#: encapsulation"): value v -> chr(v + 48) for v < 40, chr(v + 56) otherwise.
+_ARMOR = np.array([v + 48 if v < 40 else v + 56 for v in range(64)], dtype=np.uint8)
+_POSITION_BITS = 168  # messages 1, 2 and 3
+
+
+def _xor(text: str) -> int:
+    return reduce(lambda a, b: a ^ b, text.encode("ascii"), 0)
+
+
+def armor_position_payloads(payloads: list[bytes], channels: list[str]) -> list[str]:
+    """``!AIVDM`` sentences for 168-bit position payloads (pyais ``to_bytes`` output), armored
+    and check-summed in one vectorised pass.
+
+    Gives byte-identical sentences to ``pyais.encode.encode_dict`` (tested); pyais' own armoring
+    loop is about half of its encoding time.
+    """
+    n = len(payloads)
+    if n == 0:
+        return []
+    raw = np.frombuffer(b"".join(payloads), dtype=np.uint8).reshape(n, _POSITION_BITS // 8)
+    bits = np.unpackbits(raw, axis=1).reshape(n, _POSITION_BITS // 6, 6)
+    values = bits @ np.array([32, 16, 8, 4, 2, 1], dtype=np.uint8)
+    chars = _ARMOR[values]
+    xor_payload = np.bitwise_xor.reduce(chars, axis=1)
+    text = chars.tobytes().decode("ascii")
+    width = _POSITION_BITS // 6
+    base = _xor("AIVDM,1,1,,") ^ _xor(",") ^ _xor(",0")
+    out = []
+    for i, (ch, xp) in enumerate(zip(channels, xor_payload.tolist())):
+        cs = base ^ ord(ch) ^ xp
+        out.append(f"!AIVDM,1,1,,{ch},{text[i * width:(i + 1) * width]},0*{cs:02X}")
+    return out
+
+
 def write_nmea(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, gzip: bool = False,
                prefix: str = "nmea", source: str = "stormlane") -> pd.DataFrame:
     """Write the ``nmea`` records as ``!AIVDM`` sentences with tag blocks, one file per UTC day.
 
-    Returns ``file`` and the 1-based ``line`` of each record's first sentence.
+    Message bits come from pyais' encoder (``MessageType1/3.create(...).to_bytes()``, and
+    ``encode_dict`` for the two-sentence message 5); position payloads are armored in a batch
+    (:func:`armor_position_payloads`). Returns ``file`` and the 1-based ``line`` of each
+    record's first sentence.
     """
     from pyais.encode import encode_dict
+    from pyais.messages import MessageType1, MessageType3
 
+    classes = {1: MessageType1, 3: MessageType3}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     recs = records[records["fmt"] == "nmea"]
     vess = vessels.to_dict("records")
+    tag_base = _xor(f"s:{source},c:")
     locs = []
     group_id = 0
     for day, pos in _day_groups(recs):
@@ -203,6 +244,9 @@ def write_nmea(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, g
         name = f"{prefix}-{day}.nmea" + (".gz" if gzip else "")
         lines: list[str] = []
         first_line = np.empty(len(sub), dtype=np.int64)
+        pending: list[tuple[int, str, bool]] = []  # (line index, tag block, corrupt) per position message
+        payloads: list[bytes] = []
+        channels: list[str] = []
         cols = zip(sub["msg_type"].tolist(), sub["mmsi"].tolist(), sub["time_s"].tolist(),
                    sub["lat_deg"].tolist(), sub["lon_deg"].tolist(), sub["sog_kn"].tolist(),
                    sub["cog_deg"].tolist(), sub["heading_deg"].tolist(), sub["nav_status"].tolist(),
@@ -210,14 +254,13 @@ def write_nmea(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, g
                    sub["eta_s"].tolist(), sub["draught_m"].tolist(), sub["dirty_kind"].tolist())
         for j, (mt, mmsi, t, lat, lon, sog, cog, hdg, nav, ch, vi, dest, eta_s, dr, kind) in enumerate(cols):
             first_line[j] = len(lines) + 1
-            tb = tag_block(f"s:{source},c:{t}")
             if mt == 5:
                 v = vess[vi]
                 eta = pd.Timestamp(max(eta_s, 0), unit="s")
                 data = {
-                    "type": 5, "msg_type": 5, "mmsi": mmsi, "ais_version": 0, "imo": int(v["imo"]), "callsign": v["callsign"],
-                    "shipname": v["name"], "ship_type": int(v["ship_type"]), "to_bow": int(v["to_bow"]),
-                    "to_stern": int(v["to_stern"]), "to_port": int(v["to_port"]),
+                    "type": 5, "msg_type": 5, "mmsi": mmsi, "ais_version": 0, "imo": int(v["imo"]),
+                    "callsign": v["callsign"], "shipname": v["name"], "ship_type": int(v["ship_type"]),
+                    "to_bow": int(v["to_bow"]), "to_stern": int(v["to_stern"]), "to_port": int(v["to_port"]),
                     "to_starboard": int(v["to_starboard"]), "epfd": 1,
                     "month": eta.month if eta_s >= 0 else 0, "day": eta.day if eta_s >= 0 else 0,
                     "hour": eta.hour if eta_s >= 0 else 24, "minute": eta.minute if eta_s >= 0 else 60,
@@ -231,16 +274,21 @@ def write_nmea(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, g
                     params = f"g:{k}-{n}-{group_id},s:{source},c:{t}" if k == 1 else f"g:{k}-{n}-{group_id}"
                     lines.append(tag_block(params) + sen)
                 continue
-            data = {
-                # pyais needs "msg_type" as well as "type" to encode a message 3 as 3
-                "type": mt, "msg_type": mt, "mmsi": mmsi, "status": nav if nav >= 0 else 15, "turn": -128,
-                "speed": sog, "accuracy": 1, "lon": lon, "lat": lat, "course": cog, "heading": int(hdg),
-                "second": t % 60, "maneuver": 0, "raim": 0, "radio": 0,
-            }
-            (sen,) = encode_dict(data, talker_id="AI", sentence_type="VDM", radio_channel=ch)
-            if kind == "bad_checksum":
-                sen = _corrupt(sen)
-            lines.append(tb + sen)
+            msg = classes[mt].create(
+                msg_type=mt, mmsi=mmsi, status=nav if nav >= 0 else 15, turn=-128, speed=sog, accuracy=1,
+                lon=lon, lat=lat, course=cog, heading=int(hdg), second=t % 60, maneuver=0, raim=0, radio=0,
+            )
+            data, nbits = msg.to_bytes()
+            if nbits != _POSITION_BITS:  # pragma: no cover - messages 1/3 are always 168 bits
+                raise ValueError(f"message {mt} of {nbits} bits")
+            payloads.append(data)
+            channels.append(ch)
+            stamp = str(t)
+            pending.append((len(lines), f"\\s:{source},c:{stamp}*{tag_base ^ _xor(stamp):02X}\\",
+                            kind == "bad_checksum"))
+            lines.append("")
+        for (i, tb, corrupt), sen in zip(pending, armor_position_payloads(payloads, channels)):
+            lines[i] = tb + (_corrupt(sen) if corrupt else sen)
         handle, extra = _open(out_dir / name, gzip)
         handle.write("\n".join(lines) + "\n")
         _close(handle, extra)
