@@ -5,7 +5,7 @@ Issue 6 target: deviations and evaluations for 100 lane-departures in under 10 s
 The case is generated (deterministic): the demo region (Western Mediterranean, lon -1.5..11.5,
 lat 35.5..45.0) on the CMEMS global wave grid (1/12 deg, 3-hourly, 4 days) with a moving storm
 (Hs up to 8 m) and land from global-land-mask; 10 lanes between the demo ports with centroids
-every ~8 nmi; 10 departures per lane, 6 h apart. Each lane-departure runs the deviation
+every ~8 nmi along the calm-water minimum-distance sea route; 10 departures per lane, 6 h apart. Each lane-departure runs the deviation
 (R-tree search, sea legs when the mesh's land check is available) and evaluates both the lane
 and the deviation (speed loss of three models, STEAM2, operator and IMO rules, events).
 
@@ -27,11 +27,11 @@ from pipelines.config import load_operator_profile, load_vessel  # noqa: E402
 from routing.deviate import deviate_lane, lane_route, threshold_inputs  # noqa: E402
 from routing.evaluate import evaluate_route  # noqa: E402
 from routing.sampling import PointSampler  # noqa: E402
-from thresholds.geodesy import haversine_nmi, intermediate_point  # noqa: E402
+from thresholds.geodesy import intermediate_point  # noqa: E402
 
 TARGET_S = 10.0
 T0 = pd.Timestamp("2025-01-14T00:00Z")
-LANES = [  # (from, to) approach points of data/ports.csv, straight legs at sea
+LANES = [  # (from, to) approach points of data/ports.csv; lanes follow the calm minimum-distance route
     ((41.31, 2.22), (39.43, -0.26)),  # Barcelona - Valencia
     ((41.31, 2.22), (43.30, 5.30)),  # Barcelona - Marseille
     ((43.30, 5.30), (44.38, 8.91)),  # Marseille - Genova
@@ -68,25 +68,40 @@ def make_weather():
 
 
 def make_lane(a, b, step_nmi=8.0):
-    d = haversine_nmi(a[0], a[1], b[0], b[1])
-    n = max(int(np.ceil(d / step_nmi)) + 1, 2)
-    lat, lon = intermediate_point(a[0], a[1], b[0], b[1], np.linspace(0.0, 1.0, n))
+    """A sea lane between two ports: the calm-water minimum-distance route of the routing planner
+    (so it stays at sea), resampled every ~``step_nmi`` like DBSCAN centroids."""
+    from routing.astar import ShipModel
+    from routing.planner import RouteRequest, plan_routes
+
+    req = RouteRequest(a, b, T0, ShipModel(14.0, "none"), spacing_deg=2.0 / 60.0)
+    path = plan_routes(req, None).routes["min_distance"]
+    seg = path.leg_dist_nmi
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    n = max(int(np.ceil(cum[-1] / step_nmi)) + 1, 2)
+    targets = np.linspace(0.0, cum[-1], n)
+    lat, lon = [], []
+    for s in targets:
+        j = min(int(np.searchsorted(cum, s, side="right") - 1), seg.size - 1)
+        f = 0.0 if seg[j] == 0 else (s - cum[j]) / seg[j]
+        la, lo = intermediate_point(path.lat_deg[j], path.lon_deg[j], path.lat_deg[j + 1], path.lon_deg[j + 1], f)
+        lat.append(la)
+        lon.append(lo)
     speed = np.full(n, 14.0)
     speed[:2] = 9.0  # slower out of port
     return np.asarray(lat), np.asarray(lon), speed
 
 
 def land_check():
-    """The mesh's "edge crosses land" test when the routing helper's mesh module is available."""
-    try:
-        from routing import mesh  # noqa: F401
-    except ImportError:
-        return None, "not available (routing.mesh missing)"
-    for name in ("leg_at_sea", "segment_at_sea"):
-        fn = getattr(mesh, name, None)
-        if fn is not None:
-            return fn, f"routing.mesh.{name}"
-    return None, "not available (no leg check in routing.mesh)"
+    """The routing mesh's pixel-exact "leg crosses land" test over the region (0.05 deg cells).
+
+    Resampled lane legs can still clip a headland between two centroids: such steps are
+    flagged (``leg_crosses_land``) and searched, as in a real workspace.
+    """
+    from routing.mesh import MeshGrid, build_mesh, global_land_mask_window
+
+    grid = MeshGrid.from_bbox((-1.5, 35.5, 11.5, 45.0), 0.05)
+    mesh = build_mesh(grid, land=global_land_mask_window(grid))
+    return mesh.leg_is_sea, "routing.mesh.Mesh.leg_is_sea (global-land-mask pixels)"
 
 
 def main() -> None:

@@ -24,6 +24,10 @@ Improvements on the paper (each one is tested):
   the heading-independent limits at the ETA's weather time step; each of the ≤ 10 nearest is then
   re-checked with the full threshold set (including beam seas, which depend on the leg's heading)
   in the weather at its own recomputed ETA.
+* **Deviations make progress.** The ≤ 10 candidates are the nearest passing cells that lie
+  further along the lane than the current position (projection on the lane's centroid
+  polyline): Algorithm 1 can send the ship back and forth between the same cells on consecutive
+  adverse steps; this cannot.
 * **Legs are looked at, not only points.** Algorithm 1 judges only the points; a leg between two
   passing points can cross a storm core. Among the passing candidates, the first whose leg is
   clear at every grid spacing (sampled at its own times) is preferred; if none is, the nearest
@@ -182,6 +186,32 @@ class DeviationStep:
     leg_rules_fired: list = field(default_factory=list)
 
 
+class _LaneAlong:
+    """Distance along a lane's centroid polyline of the nearest point of the polyline. [nmi]
+
+    Local equirectangular frame about the lane's mean latitude (the lanes are a few hundred nmi
+    at most; the frame only ranks positions along the lane).
+    """
+
+    def __init__(self, lat, lon):
+        self.cos0 = float(np.cos(np.deg2rad(np.mean(lat))))
+        self.x = np.asarray(lon, dtype=float) * self.cos0 * 60.0
+        self.y = np.asarray(lat, dtype=float) * 60.0
+        seg = np.hypot(np.diff(self.x), np.diff(self.y))
+        self.seg = np.where(seg > 0, seg, 1e-12)
+        self.cum_nmi = np.concatenate([[0.0], np.cumsum(seg)])
+
+    def along(self, lat, lon) -> np.ndarray:
+        px = np.asarray(lon, dtype=float).reshape(-1, 1) * self.cos0 * 60.0
+        py = np.asarray(lat, dtype=float).reshape(-1, 1) * 60.0
+        x0, y0, dx, dy = self.x[:-1], self.y[:-1], np.diff(self.x), np.diff(self.y)
+        t = np.clip(((px - x0) * dx + (py - y0) * dy) / self.seg**2, 0.0, 1.0)
+        d2 = (x0 + t * dx - px) ** 2 + (y0 + t * dy - py) ** 2
+        j = np.argmin(d2, axis=1)
+        rows = np.arange(px.shape[0])
+        return self.cum_nmi[j] + t[rows, j] * self.seg[j]
+
+
 def _times(t_ns) -> pd.DatetimeIndex:
     return pd.DatetimeIndex(np.asarray(t_ns, dtype=np.int64).astype("datetime64[ns]")).tz_localize("UTC")
 
@@ -307,6 +337,8 @@ def deviate_lane(
     t0 = pd.Timestamp(depart_utc)
     t0 = t0.tz_localize("UTC") if t0.tzinfo is None else t0.tz_convert("UTC")
     judge = _Judge(weather_at, check, cells.spacing_nmi)
+    lane_along = _LaneAlong(lat, lon)
+    cur_along = 0.0
     lane_at_sea: dict[int, bool] = {}
 
     def at_sea(la1, lo1, la2, lo2, lane_leg: int | None = None) -> bool:
@@ -362,12 +394,16 @@ def deviate_lane(
             break
         if accept:
             cur_lat, cur_lon, cur_ns, cur_is_lane = float(tgt_lat[accept - 1]), float(tgt_lon[accept - 1]), int(eta_ns[accept - 1]), True
+            cur_along = float(lane_along.cum_nmi[i + accept - 1])
         k = i + bad
         vk = float(v[bad])
         rules = list(fired[bad]) + ([] if sea[bad] else ["leg_crosses_land"])
         # [1], Alg. 1 line 7: nearest passing cell, best-first, <= 10, within 3 h of sailing.
         c_lat, c_lon, c_dist = cells.nearest(pd.Timestamp(int(eta_ns[bad]), tz="UTC"), float(lat[k]), float(lon[k]),
-                                             k=max_candidates, max_dist_nmi=vk * horizon_h)
+                                             k=4 * max_candidates, max_dist_nmi=vk * horizon_h)
+        # the <= 10 nearest passing cells ahead of the current position along the lane
+        ahead = lane_along.along(c_lat, c_lon) > cur_along + 1e-6 if c_lat.size else np.zeros(0, dtype=bool)
+        c_lat, c_lon, c_dist = c_lat[ahead][:max_candidates], c_lon[ahead][:max_candidates], c_dist[ahead][:max_candidates]
         chosen = None
         if c_lat.size:
             dc = np.asarray(haversine_nmi(cur_lat, cur_lon, c_lat, c_lon), dtype=float).reshape(-1)
@@ -391,6 +427,7 @@ def deviate_lane(
                                        vk, rules, float(c_dist[q]), tried, list(leg_fired))
                 weathers.append({key: val[q : q + 1] for key, val in wc.items()})
                 cur_lat, cur_lon, cur_ns, cur_is_lane = float(c_lat[q]), float(c_lon[q]), int(eta_c[q]), False
+                cur_along = float(lane_along.along(c_lat[q : q + 1], c_lon[q : q + 1])[0])
         if chosen is None:
             log.info("lane step %d: no passing cell within %.1f nmi (%s)", k, vk * horizon_h, ", ".join(rules))
             leg_fired = judge.legs([cur_lat], [cur_lon], [cur_ns], [lat[k]], [lon[k]], [vk])[0]
@@ -398,6 +435,7 @@ def deviate_lane(
                                    rules, 0.0, int(c_lat.size), leg_fired)
             weathers.append({key: val[bad : bad + 1] for key, val in w.items()})
             cur_lat, cur_lon, cur_ns, cur_is_lane = float(lat[k]), float(lon[k]), int(eta_ns[bad]), True
+            cur_along = float(lane_along.cum_nmi[k])
         steps.append(chosen)
         i = k + 1
 
