@@ -26,17 +26,20 @@ Improvements on the paper (each one is tested):
   in the weather at its own recomputed ETA.
 * **Deviations make progress.** The ≤ 10 candidates are the nearest passing cells that lie
   further along the lane than the current position (projection on the lane's centroid
-  polyline): Algorithm 1 can send the ship back and forth between the same cells on consecutive
-  adverse steps; this cannot.
+  polyline), and lane centroids the deviation has already passed are not sailed back to (listed
+  in ``properties["skipped_centroids"]``): Algorithm 1 can send the ship back and forth between
+  the same cells on consecutive adverse steps, or back to a centroid it overtook; this cannot.
 * **Legs are looked at, not only points.** Algorithm 1 judges only the points; a leg between two
   passing points can cross a storm core. Among the passing candidates, the first whose leg is
   clear at every grid spacing (sampled at its own times) is preferred; if none is, the nearest
   passing one is taken and the leg is flagged (``leg_rules_fired``). Every leg of the result
   carries that flag, so reports never present an adverse leg as safe.
-* **Steps with no safe cell in reach are flagged, not silently kept.** The lane centroid is kept
-  so the route stays continuous, and the waypoint's status is ``"unresolved"`` with the rules that
-  fired; the route's ``properties`` count them. Departure and arrival points are never moved (the
-  ship must leave and reach the port); if they break a limit they are flagged too.
+* **Steps with no safe cell in reach are flagged, not silently kept.** The waypoint's status is
+  ``"unresolved"`` with the rules that fired at the centroid, and the route's ``properties`` count
+  them. The ship then heads for the least adverse reachable cell ahead (fewest rules fired, then
+  lowest Hs) when one is clearly calmer than the centroid, else for the centroid itself.
+  Departure and arrival points are never moved (the ship must leave and reach the port); if they
+  break a limit they are flagged too.
 
 The module is pure: weather, thresholds and the land check are passed in as callables
 (``pipelines`` wires :mod:`routing.field`, :mod:`thresholds.operator` and :mod:`routing.mesh`).
@@ -212,6 +215,48 @@ class _LaneAlong:
         return self.cum_nmi[j] + t[rows, j] * self.seg[j]
 
 
+def _least_adverse(judge, cells, lane_along, cur_lat, cur_lon, cur_ns, cur_along, tgt_lat, tgt_lon, next_lat, next_lon,
+                   speed_kn, radius_nmi, n_rules_target, hs_target, at_sea, max_tries: int = 30):
+    """The reachable grid cell ahead with the fewest rules fired, then the lowest Hs, when it is
+    clearly better than the lane centroid (fewer rules, or Hs lower by >= 0.25 m); else None."""
+    ny, nx = cells.lat_deg.size, cells.lon_deg.size
+    dlat = radius_nmi / 60.0
+    dlon = dlat / max(np.cos(np.deg2rad(tgt_lat)), 1e-3)
+    jj = np.flatnonzero(np.abs(cells.lat_deg - tgt_lat) <= dlat)
+    ii = np.flatnonzero(np.abs(cells.lon_deg - tgt_lon) <= dlon)
+    stride = max(1, int(np.ceil(np.sqrt(jj.size * ii.size / 200.0))))  # at most ~200 cells judged
+    jj, ii = jj[::stride], ii[::stride]
+    if jj.size == 0 or ii.size == 0 or ny == 0 or nx == 0:
+        return None
+    la = np.repeat(cells.lat_deg[jj], ii.size)
+    lo = np.tile(cells.lon_deg[ii], jj.size)
+    dist = np.asarray(haversine_nmi(tgt_lat, tgt_lon, la, lo), dtype=float).reshape(-1)
+    keep = (dist <= radius_nmi) & (lane_along.along(la, lo) > cur_along + 1e-6)
+    la, lo, dist = la[keep], lo[keep], dist[keep]
+    dc = np.asarray(haversine_nmi(cur_lat, cur_lon, la, lo), dtype=float).reshape(-1)
+    keep = dc > 0
+    la, lo, dist, dc = la[keep], lo[keep], dist[keep], dc[keep]
+    if la.size == 0:
+        return None
+    eta = cur_ns + np.round(dc / speed_kn * 3.6e12).astype(np.int64)
+    hdg = np.asarray(initial_bearing_deg(cur_lat, cur_lon, la, lo), dtype=float).reshape(-1)
+    w, fired = judge.points(eta, la, lo, hdg, np.full(la.size, speed_kn))
+    hs = w.get("hs_m", np.full(la.size, np.nan))
+    n_rules = np.array([len(f) for f in fired])
+    hs_key = np.where(np.isfinite(hs), hs, np.inf)
+    order = np.lexsort((dist, hs_key, n_rules))
+    hs_t = hs_target if np.isfinite(hs_target) else np.inf
+    for q in order[:max_tries]:
+        better = n_rules[q] < n_rules_target or (n_rules[q] == n_rules_target and hs_key[q] <= hs_t - 0.25)
+        if not better:
+            return None
+        if not (at_sea(cur_lat, cur_lon, float(la[q]), float(lo[q])) and at_sea(float(la[q]), float(lo[q]), next_lat, next_lon)):
+            continue
+        leg = judge.legs([cur_lat], [cur_lon], [cur_ns], [la[q]], [lo[q]], [speed_kn])[0]
+        return float(la[q]), float(lo[q]), int(eta[q]), {k: v[q : q + 1] for k, v in w.items()}, leg, float(dist[q])
+    return None
+
+
 def _times(t_ns) -> pd.DatetimeIndex:
     return pd.DatetimeIndex(np.asarray(t_ns, dtype=np.int64).astype("datetime64[ns]")).tz_localize("UTC")
 
@@ -339,6 +384,7 @@ def deviate_lane(
     judge = _Judge(weather_at, check, cells.spacing_nmi)
     lane_along = _LaneAlong(lat, lon)
     cur_along = 0.0
+    skipped: list[int] = []
     lane_at_sea: dict[int, bool] = {}
 
     def at_sea(la1, lo1, la2, lo2, lane_leg: int | None = None) -> bool:
@@ -430,14 +476,33 @@ def deviate_lane(
                 cur_along = float(lane_along.along(c_lat[q : q + 1], c_lon[q : q + 1])[0])
         if chosen is None:
             log.info("lane step %d: no passing cell within %.1f nmi (%s)", k, vk * horizon_h, ", ".join(rules))
-            leg_fired = judge.legs([cur_lat], [cur_lon], [cur_ns], [lat[k]], [lon[k]], [vk])[0]
-            chosen = DeviationStep(k, "unresolved", lat[k], lon[k], lat[k], lon[k], pd.Timestamp(int(eta_ns[bad]), tz="UTC"), vk,
-                                   rules, 0.0, int(c_lat.size), leg_fired)
-            weathers.append({key: val[bad : bad + 1] for key, val in w.items()})
-            cur_lat, cur_lon, cur_ns, cur_is_lane = float(lat[k]), float(lon[k]), int(eta_ns[bad]), True
-            cur_along = float(lane_along.cum_nmi[k])
+            # Nothing passes within reach: sail to the least adverse reachable cell ahead (fewest
+            # rules fired, then lowest Hs; the lane centroid unless a cell is clearly calmer),
+            # flagged "unresolved" with the rules that fired at the centroid.
+            alt = _least_adverse(judge, cells, lane_along, cur_lat, cur_lon, cur_ns, cur_along, float(lat[k]), float(lon[k]),
+                                 float(lat[k + 1]), float(lon[k + 1]), vk, vk * horizon_h, len(fired[bad]),
+                                 float(w["hs_m"][bad]) if "hs_m" in w else float("nan"), at_sea)
+            if alt is None:
+                leg_fired = judge.legs([cur_lat], [cur_lon], [cur_ns], [lat[k]], [lon[k]], [vk])[0]
+                chosen = DeviationStep(k, "unresolved", lat[k], lon[k], lat[k], lon[k], pd.Timestamp(int(eta_ns[bad]), tz="UTC"), vk,
+                                       rules, 0.0, int(c_lat.size), leg_fired)
+                weathers.append({key: val[bad : bad + 1] for key, val in w.items()})
+                cur_lat, cur_lon, cur_ns, cur_is_lane = float(lat[k]), float(lon[k]), int(eta_ns[bad]), True
+                cur_along = float(lane_along.cum_nmi[k])
+            else:
+                a_lat, a_lon, a_ns, a_w, a_leg, a_moved = alt
+                chosen = DeviationStep(k, "unresolved", lat[k], lon[k], a_lat, a_lon, pd.Timestamp(int(a_ns), tz="UTC"), vk,
+                                       rules, a_moved, int(c_lat.size), a_leg)
+                weathers.append(a_w)
+                cur_lat, cur_lon, cur_ns, cur_is_lane = a_lat, a_lon, int(a_ns), False
+                cur_along = float(lane_along.along([a_lat], [a_lon])[0])
         steps.append(chosen)
         i = k + 1
+        # Lane centroids the deviation has already passed (projection behind the current point)
+        # are not sailed back to; the arrival is always kept.
+        while i < n - 1 and lane_along.cum_nmi[i] <= cur_along + 1e-6:
+            skipped.append(i)
+            i += 1
 
     out_lat = np.array([s.lat_deg for s in steps])
     out_lon = np.array([s.lon_deg for s in steps])
@@ -455,6 +520,7 @@ def deviate_lane(
             "n_unresolved": sum(s.status == "unresolved" for s in steps),
             "n_endpoint_adverse": sum(s.status == "endpoint" and bool(s.rules_fired) for s in steps),
             "n_legs_adverse": sum(bool(s.leg_rules_fired) for s in steps),
+            "skipped_centroids": skipped,
             "steps": [
                 {
                     "seq": s.seq,

@@ -104,22 +104,20 @@ class PointSampler:
             k1 = k + 1
         j0, fy, y_out = self._axis(self.lat_deg, lat)
         i0, fx, x_out = self._axis(self.lon_deg, lon)
-        corners = ((j0, i0, (1 - fy) * (1 - fx)), (j0, i0 + 1, (1 - fy) * fx), (j0 + 1, i0, fy * (1 - fx)), (j0 + 1, i0 + 1, fy * fx))
+        ny, nx = self.lat_deg.size, self.lon_deg.size
+        w_c = np.stack([(1 - fy) * (1 - fx), (1 - fy) * fx, fy * (1 - fx), fy * fx])  # (4, n)
+        cell = np.stack([j0 * nx + i0, j0 * nx + i0 + 1, (j0 + 1) * nx + i0, (j0 + 1) * nx + i0 + 1])
+        flat = np.stack([k * (ny * nx) + cell, k1 * (ny * nx) + cell])  # (2, 4, n) indices into the raveled field
         bad = t_out | y_out | x_out
 
         def interp(arr):
-            out = []
-            for kk in (k, k1):
-                num = np.zeros(lat.size)
-                den = np.zeros(lat.size)
-                for jj, ii, w in corners:
-                    v = arr[kk, jj, ii].astype(float)
-                    ok = np.isfinite(v)
-                    num += np.where(ok, w * v, 0.0)
-                    den += np.where(ok, w, 0.0)
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    out.append(np.where(den >= 0.5, num / den, np.nan))
-            val = (1.0 - wt) * out[0] + wt * out[1]
+            v = np.take(arr.reshape(-1), flat).astype(float)  # (2, 4, n)
+            ok = np.isfinite(v)
+            num = np.where(ok, w_c * v, 0.0).sum(axis=1)
+            den = np.where(ok, w_c, 0.0).sum(axis=1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                both = np.where(den >= 0.5, num / den, np.nan)
+            val = (1.0 - wt) * both[0] + wt * both[1]
             return np.where(bad, np.nan, val)
 
         result = {}

@@ -1,0 +1,442 @@
+"""Retrospective voyage audit: the Prefect flow and the plain functions it wires.
+
+``stormlane audit (--voyage ID | --mmsi N --start ISO --end ISO) [--weather FILE...]`` takes the
+sailed AIS track from the workspace, evaluates it in the hindcast weather, computes the
+time-optimal and minimum-distance routes for the same departure and vessel (and the cargo-safe
+deviation of the voyage's lane when the workspace has one) and compares them
+(:func:`routing.audit.audit_routes`).
+
+Flow: ``load_audit_inputs`` (I/O task: workspace + weather files) -> :func:`audit_voyage` (plain)
+-> ``store_audit`` (I/O task: results tables, optional HTML report).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from thresholds.errors import StormlaneError
+
+log = logging.getLogger(__name__)
+
+#: Weather must cover the track; a little slack at the ends is accepted (the last fix may fall
+#: a few minutes after the last weather time). [h]
+COVERAGE_SLACK_H = 0.0
+
+
+class AuditError(StormlaneError):
+    """The audit cannot run: unknown voyage, no AIS fixes, weather not covering the voyage."""
+
+
+@dataclass
+class AuditInputs:
+    """Everything an audit reads, gathered before any computation."""
+
+    positions: pd.DataFrame
+    mmsi: int
+    start_utc: pd.Timestamp
+    end_utc: pd.Timestamp
+    weather_ds: object  # canonical xarray.Dataset
+    weather_meta: dict
+    vessel: object
+    vessel_profile: str
+    limits: object
+    profile_name: str
+    voyage: dict | None = None
+    static: dict = field(default_factory=dict)
+    lane: pd.DataFrame | None = None
+    lane_id: str | None = None
+    weather_files: list = field(default_factory=list)
+    port_names: dict = field(default_factory=dict)
+
+
+def _utc(t) -> pd.Timestamp:
+    ts = pd.Timestamp(t)
+    return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+
+
+def default_vessel_profile(static: dict) -> str:
+    """Vessel profile for an AIS ship when none is given: by AIS ship type and length.
+
+    Cargo (70-79): ``container-feeder`` under 200 m, else ``container-large``; passenger
+    (60-69): ``ro-pax``; tanker (80-89): ``tanker-aframax``; anything else ``container-feeder``
+    (the seed paper's Lpp < 200 m container limits, the strictest published ones).
+    """
+    kind = static.get("ship_type")
+    length = static.get("length_m")
+    kind = int(kind) if kind is not None and np.isfinite(kind) else None
+    if kind is not None and 60 <= kind <= 69:
+        return "ro-pax"
+    if kind is not None and 80 <= kind <= 89:
+        return "tanker-aframax"
+    if length is not None and np.isfinite(length) and float(length) >= 200.0:
+        return "container-large"
+    return "container-feeder"
+
+
+def _lane_for_voyage(ws, voyage: dict | None) -> tuple[str | None, pd.DataFrame | None]:
+    """The lane built from this voyage, else the busiest lane between the same ports."""
+    from pipelines.storage.lanes import read_lane_centroids, read_lane_voyages, read_lanes
+
+    if voyage is None:
+        return None, None
+    try:
+        lv = read_lane_voyages(ws)
+        lanes = read_lanes(ws)
+    except Exception:  # noqa: BLE001 - workspace without lanes: no deviation, said in the findings
+        return None, None
+    hit = lv.loc[lv["voyage_id"] == voyage["voyage_id"], "lane_id"]
+    lane_id = str(hit.iloc[0]) if len(hit) else None
+    if lane_id is None and voyage.get("origin_port_id") is not None and voyage.get("dest_port_id") is not None:
+        same = lanes[(lanes["origin_port_id"] == voyage["origin_port_id"]) & (lanes["dest_port_id"] == voyage["dest_port_id"])]
+        if len(same):
+            lane_id = str(same.sort_values("n_voyages", ascending=False)["lane_id"].iloc[0])
+    if lane_id is None:
+        return None, None
+    return lane_id, read_lane_centroids(ws, lane_id)
+
+
+def _port_names(ws, voyage: dict | None) -> dict:
+    """``origin`` / ``destination`` port names of a voyage (empty when unknown)."""
+    if voyage is None:
+        return {}
+    from pipelines.storage.lanes import read_ports
+
+    ports = read_ports(ws).set_index("port_id")["name"]
+    out = {}
+    for key, col in (("origin", "origin_port_id"), ("destination", "dest_port_id")):
+        pid = voyage.get(col)
+        if pid is not None and not pd.isna(pid) and int(pid) in ports.index:
+            out[key] = str(ports.loc[int(pid)])
+    return out
+
+
+def load_audit_inputs(db, *, voyage_id: str | None = None, mmsi: int | None = None, start=None, end=None,
+                      weather_paths=(), vessel: str | None = None, profile: str | None = None) -> AuditInputs:
+    """Read the track, static data, voyage, lane and weather of an audit (no computation).
+
+    Weather comes from ``weather_paths`` (local CMEMS/ERA5/GRIB files, :func:`weather.io.read_local`)
+    or, when none are given, from the workspace's weather tables.
+    """
+    from pipelines.config import load_operator_profile, load_vessel
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import read_positions, read_vessels
+
+    if voyage_id is None and (mmsi is None or start is None or end is None):
+        raise AuditError("give --voyage ID, or --mmsi N with --start and --end")
+    db = Path(db)
+    if not db.exists():
+        raise AuditError(f"workspace {db} does not exist (run `stormlane ingest-ais` / `stormlane demo` first)")
+    voyage = None
+    with open_workspace(db) as ws:
+        if voyage_id is not None:
+            from pipelines.storage.lanes import read_voyages
+
+            voyages = read_voyages(ws)
+            row = voyages[voyages["voyage_id"].astype(str) == str(voyage_id)]
+            if row.empty:
+                known = ", ".join(voyages["voyage_id"].astype(str).head(5))
+                raise AuditError(f"no voyage {voyage_id!r} in {db} ({len(voyages)} voyages{'; e.g. ' + known if known else ''}; "
+                                 "run `stormlane lanes` first)")
+            voyage = row.iloc[0].to_dict()
+            mmsi = int(voyage["mmsi"])
+            start, end = voyage["depart_utc"], voyage["arrive_utc"]
+        start_utc, end_utc = _utc(start), _utc(end)
+        if not end_utc > start_utc:
+            raise AuditError(f"--end {end_utc.isoformat()} must be after --start {start_utc.isoformat()}")
+        positions = read_positions(ws, mmsi=int(mmsi), start=start_utc, end=end_utc + pd.Timedelta(seconds=1))
+        if len(positions) < 2:
+            raise AuditError(f"MMSI {mmsi} has {len(positions)} AIS fix(es) between {start_utc.isoformat()} and "
+                             f"{end_utc.isoformat()} in {db}; an audit needs a sailed track")
+        static_df = read_vessels(ws)
+        srow = static_df[static_df["mmsi"] == int(mmsi)]
+        static = {k: (None if pd.isna(v) else v) for k, v in srow.iloc[0].to_dict().items()} if len(srow) else {}
+        lane_id, lane = _lane_for_voyage(ws, voyage)
+        port_names = _port_names(ws, voyage)
+        files = [str(p) for p in weather_paths]
+        if files:
+            from weather.io import read_local
+
+            ds, meta = read_local(files)
+        else:
+            ds, meta = weather_from_workspace(ws, start_utc, end_utc)
+    profile_name = vessel or default_vessel_profile(static)
+    limits = load_operator_profile(profile)
+    return AuditInputs(
+        positions=positions, mmsi=int(mmsi), start_utc=start_utc, end_utc=end_utc, weather_ds=ds, weather_meta=meta,
+        vessel=load_vessel(profile_name), vessel_profile=profile_name, limits=limits, profile_name=getattr(limits, "name", str(profile)),
+        voyage=voyage, static=static, lane=lane, lane_id=lane_id, weather_files=files, port_names=port_names,
+    )
+
+
+def weather_from_workspace(ws, start_utc, end_utc, pad_h: float = 6.0):
+    """The canonical weather Dataset of the workspace's latest grid over a time window."""
+    import xarray as xr
+
+    from pipelines.storage.weather import get_grid, read_cells
+
+    try:
+        g = get_grid(ws)
+    except StormlaneError as err:
+        raise AuditError(f"no --weather files given and {err}") from None
+    cells = read_cells(ws, int(g["grid_id"]), start=start_utc - pd.Timedelta(hours=pad_h), end=end_utc + pd.Timedelta(hours=pad_h))
+    if cells.empty:
+        raise AuditError(f"the workspace weather grid {g['name']!r} ({g['start_utc']} .. {g['end_utc']}) has no data between "
+                         f"{start_utc.isoformat()} and {end_utc.isoformat()}; give --weather FILE...")
+    times = pd.DatetimeIndex(sorted(cells["time_utc"].unique()))
+    times = times.tz_convert("UTC") if times.tz is not None else times.tz_localize("UTC")
+    ny, nx = int(g["nlat"]), int(g["nlon"])
+    lat = g["lat0_deg"] + g["dlat_deg"] * np.arange(ny)
+    lon = g["lon0_deg"] + g["dlon_deg"] * np.arange(nx)
+    ct = pd.DatetimeIndex(cells["time_utc"])
+    ct = ct.tz_convert("UTC") if ct.tz is not None else ct.tz_localize("UTC")
+    ti = times.get_indexer(ct)
+    data = {}
+    for name in ("hs_m", "wave_from_deg", "tp_s", "tm_s", "wind_u_ms", "wind_v_ms", "current_u_ms", "current_v_ms"):
+        if name not in cells or cells[name].isna().all():
+            continue
+        arr = np.full((times.size, ny, nx), np.nan, dtype=np.float32)
+        arr[ti, cells["lat_idx"].to_numpy(), cells["lon_idx"].to_numpy()] = cells[name].to_numpy(dtype=np.float32)
+        data[name] = (("time_utc", "lat", "lon"), arr)
+    ds = xr.Dataset(data, coords={"time_utc": times.tz_localize(None).values, "lat": lat, "lon": lon},
+                    attrs={"product": str(g["product"]), "source_files": str(g["source_files"])})
+    return ds, {"product": str(g["product"]), "source": f"workspace grid {g['name']}", "grid": str(g["name"])}
+
+
+def _check_coverage(sampler, start_utc: pd.Timestamp, end_utc: pd.Timestamp, what: str) -> None:
+    slack = pd.Timedelta(hours=COVERAGE_SLACK_H)
+    if start_utc < sampler.start_utc - slack or end_utc > sampler.end_utc + slack:
+        raise AuditError(
+            f"the weather covers {sampler.start_utc.isoformat()} .. {sampler.end_utc.isoformat()}, not the {what} "
+            f"{start_utc.isoformat()} .. {end_utc.isoformat()}; give --weather files that cover it"
+        )
+
+
+def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alternatives: bool = True) -> dict:
+    """The audit itself (plain function): track, alternatives, evaluations, comparison.
+
+    Returns
+    -------
+    dict
+        ``track`` (Route), ``evaluations``, ``table``, ``proposed``, ``findings`` (see
+        :func:`routing.audit.audit_routes`), ``plan_stats`` (routing statistics), ``deviation``
+        (Route or None) and ``notes`` (what was not computed and why).
+    """
+    from pipelines.routing_weather import field_from_dataset
+    from routing.audit import audit_routes, track_to_route
+    from routing.sampling import PointSampler
+
+    track = track_to_route(inputs.positions)
+    field_ = field_from_dataset(inputs.weather_ds)
+    sampler = PointSampler.from_field(field_)
+    _check_coverage(sampler, track.time_utc[0], track.time_utc[-1], "voyage")
+    alts: dict = {}
+    notes: list[str] = []
+    plan_stats: dict = {}
+    deviation = None
+    if alternatives:
+        from routing.astar import ShipModel
+        from routing.planner import RouteRequest, plan_routes
+
+        ship = ShipModel.from_vessel(inputs.vessel, model=speed_loss_model)
+        req = RouteRequest(
+            start=(float(track.lat_deg[0]), float(track.lon_deg[0])), goal=(float(track.lat_deg[-1]), float(track.lon_deg[-1])),
+            depart_utc=track.time_utc[0], ship=ship, vessel_name=inputs.vessel_profile,
+        )
+        try:
+            plan = plan_routes(req, field_)
+        except StormlaneError as err:
+            notes.append(f"time-optimal and minimum-distance routes not computed: {err}")
+            plan = None
+        if plan is not None:
+            plan_stats = dict(plan.stats)
+            alts["optimal"] = _renamed(plan.routes["optimal_smoothed"], "optimal")
+            alts["min_distance"] = _renamed(plan.routes["min_distance"], "min_distance")
+        if inputs.lane is not None and len(inputs.lane) >= 2:
+            deviation = _deviation(inputs, sampler, track.time_utc[0], plan.mesh if plan is not None else None, notes)
+            if deviation is not None:
+                alts["deviation"] = deviation
+        else:
+            notes.append("no lane for this voyage in the workspace: no cargo-safe deviation")
+    out = audit_routes(track, sampler, inputs.vessel, limits=inputs.limits, alternatives=alts, speed_loss_model=speed_loss_model)
+    out["findings"] = out["findings"] + notes
+    out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler})
+    return out
+
+
+def _renamed(route, name):
+    from routing.route import Route
+
+    return Route(name, route.lat_deg, route.lon_deg, route.time_utc, route.leg_speed_kn, dict(route.weather), dict(route.properties))
+
+
+def _deviation(inputs: AuditInputs, sampler, depart_utc, mesh, notes: list):
+    from routing.deviate import deviate_lane, threshold_inputs
+
+    lane = inputs.lane.sort_values("seq")
+    weather_at, check, cells = threshold_inputs(sampler, inputs.vessel, inputs.limits)
+    leg_at_sea = None
+    if mesh is not None:
+        g = mesh.grid
+        lat, lon = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy()
+        inside = (lat.min() >= g.bbox[1]) and (lat.max() <= g.bbox[3]) and (lon.min() >= g.bbox[0]) and (lon.max() <= g.bbox[2])
+        if inside:
+            leg_at_sea = mesh.leg_is_sea
+    if leg_at_sea is None:
+        leg_at_sea = lane_land_check(lane)
+    try:
+        return deviate_lane(
+            lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy(), depart_utc,
+            weather_at=weather_at, check=check, cells=cells, leg_at_sea=leg_at_sea, default_speed_kn=inputs.vessel.speed_kn,
+            properties={"lane_id": inputs.lane_id},
+        )
+    except (StormlaneError, ValueError) as err:
+        notes.append(f"deviation of lane {inputs.lane_id} not computed: {err}")
+        return None
+
+
+def lane_land_check(lane: pd.DataFrame, pad_deg: float = 1.0, spacing_deg: float = 0.05):
+    """A land test for legs around a lane: :meth:`routing.mesh.Mesh.leg_is_sea` (pixel-exact
+    coastline of global-land-mask) on a mesh of the lane's bbox, padded."""
+    from routing.mesh import MeshGrid, build_mesh, global_land_mask_window
+
+    lat, lon = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy()
+    bbox = (float(lon.min()) - pad_deg, float(lat.min()) - pad_deg, float(lon.max()) + pad_deg, float(lat.max()) + pad_deg)
+    grid = MeshGrid.from_bbox(bbox, spacing_deg)
+    return build_mesh(grid, land=global_land_mask_window(grid)).leg_is_sea
+
+
+def audit_id_of(inputs: AuditInputs) -> str:
+    """Stable id of an audit: the voyage id, else ``<mmsi>@<start>``."""
+    if inputs.voyage is not None:
+        return f"voyage:{inputs.voyage['voyage_id']}"
+    return f"{inputs.mmsi}@{inputs.start_utc.strftime('%Y-%m-%dT%H:%MZ')}"
+
+
+def audit_summary(inputs: AuditInputs, result: dict) -> dict:
+    """The CLI's JSON object: one key per route (historical, deviation, optimal, min_distance),
+    plus the voyage, the proposed alternative, the comparison table and the findings."""
+    out = {
+        "audit_id": audit_id_of(inputs),
+        "voyage": {
+            "voyage_id": None if inputs.voyage is None else str(inputs.voyage["voyage_id"]),
+            "mmsi": inputs.mmsi,
+            "ship_name": inputs.static.get("name"),
+            "start_utc": inputs.start_utc.isoformat(),
+            "end_utc": inputs.end_utc.isoformat(),
+            "lane_id": inputs.lane_id,
+            **inputs.port_names,
+        },
+        "vessel_profile": inputs.vessel_profile,
+        "operator_profile": inputs.profile_name,
+        "weather": {"files": inputs.weather_files, **{k: v for k, v in inputs.weather_meta.items() if isinstance(v, (str, int, float))}},
+    }
+    for role, ev in result["evaluations"].items():
+        out[role] = ev.to_dict(waypoints=True)
+    out["proposed"] = result["proposed"]
+    table = result["table"].replace({np.nan: None})
+    out["comparison"] = {role: row for role, row in table.to_dict(orient="index").items()}
+    out["findings"] = result["findings"]
+    return out
+
+
+def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str = "bowditch"):
+    """The report model (:class:`dashboards.model.VoyageAudit`) of an audit, through
+    :func:`pipelines.reporting.voyage_audit_model`."""
+    from pipelines.reporting import voyage_audit_model
+
+    lim = inputs.limits
+    if hasattr(lim, "limits_for"):
+        lim = lim.limits_for(inputs.vessel.vessel_class, inputs.vessel.lpp_m)
+    voyage = dict(inputs.voyage or {})
+    voyage.update({k: v for k, v in (inputs.port_names or {}).items() if v})
+    return voyage_audit_model(
+        result, mmsi=inputs.mmsi, static=inputs.static, voyage=voyage, vessel=inputs.vessel, limits=lim,
+        weather_ds=inputs.weather_ds, weather_meta=inputs.weather_meta, speed_loss_model=speed_loss_model,
+        profile_name=inputs.profile_name,
+        methods=[
+            "Track: AIS fixes thinned to one per 5 min; speeds made good between kept fixes.",
+            "Weather met: bilinear over sea points, linear in time, sampled every <= 15 min of sailing.",
+            "Fuel and emissions: STEAM2 with the wave power increase (routing/emissions.py).",
+            "Alternatives: time-optimal (smoothed) and minimum-distance A* routes for the same departure and vessel; "
+            "cargo-safe deviation of the voyage's lane (Spyrou-Sioula et al. 2022, Alg. 1, with sea legs and recomputed ETAs).",
+        ] + [f"Note: {n}" for n in result.get("notes", [])],
+    )
+
+
+def store_audit(db, inputs: AuditInputs, result: dict, report: str | Path | None = None,
+                speed_loss_model: str = "bowditch") -> dict:
+    """Write the audit to the workspace's results tables and, optionally, the HTML report."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.results import write_audit
+
+    summary = audit_summary(inputs, result)
+    with open_workspace(db) as ws:
+        write_audit(
+            ws, summary["audit_id"], mmsi=inputs.mmsi, voyage_id=summary["voyage"]["voyage_id"], depart_utc=inputs.start_utc,
+            arrive_utc=inputs.end_utc, vessel=inputs.vessel_profile, weather=inputs.weather_files,
+            summary={k: summary[k] for k in ("voyage", "vessel_profile", "operator_profile", "proposed", "findings")},
+            evaluations=result["evaluations"],
+        )
+    if report is not None:
+        from dashboards.report import render_audit_report
+
+        path = render_audit_report(audit_model(inputs, result, speed_loss_model), Path(report))
+        summary["report"] = str(path)
+    return summary
+
+
+def run_audit(db, *, voyage_id: str | None = None, mmsi: int | None = None, start=None, end=None, weather=(),
+              vessel: str | None = None, profile: str | None = None, report=None, speed_loss_model: str = "bowditch") -> dict:
+    """Plain entry point (CLI, demo, tests): read, audit, store; returns :func:`audit_summary`."""
+    inputs = load_audit_inputs(db, voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather_paths=weather or (),
+                               vessel=vessel, profile=profile)
+    result = audit_voyage(inputs, speed_loss_model=speed_loss_model)
+    return store_audit(db, inputs, result, report=report, speed_loss_model=speed_loss_model)
+
+
+def _retry_io(task, task_run, state) -> bool:
+    """Retry I/O tasks on transient errors only: a user error (StormlaneError) fails at once."""
+    try:
+        state.result()
+    except StormlaneError:
+        return False
+    except Exception:  # noqa: BLE001
+        return True
+    return False
+
+
+def audit_flow(db: str, voyage_id: str | None = None, mmsi: int | None = None, start: str | None = None, end: str | None = None,
+               weather: list[str] | None = None, vessel: str | None = None, profile: str | None = None,
+               report: str | None = None, speed_loss_model: str = "bowditch") -> dict:
+    """The audit as a Prefect flow: read (I/O task, retried) -> audit (plain) -> store (I/O task, retried)."""
+    from prefect import flow, task
+    from prefect.cache_policies import NO_CACHE
+
+    # inputs are DataFrames and Datasets: no input hashing / caching (the audit is cheap to redo)
+    load = task(load_audit_inputs, name="load-audit-inputs", retries=3, retry_delay_seconds=[2, 5, 15], retry_condition_fn=_retry_io,
+                cache_policy=NO_CACHE)
+    compute = task(audit_voyage, name="audit-voyage", cache_policy=NO_CACHE)
+    store = task(store_audit, name="store-audit", retries=3, retry_delay_seconds=[2, 5, 15], retry_condition_fn=_retry_io,
+                 cache_policy=NO_CACHE)
+
+    @flow(name="voyage-audit")
+    def voyage_audit(db: str, voyage_id: str | None = None, mmsi: int | None = None, start: str | None = None, end: str | None = None,
+                     weather: list[str] | None = None, vessel: str | None = None, profile: str | None = None,
+                     report: str | None = None, speed_loss_model: str = "bowditch") -> dict:
+        inputs = load(db, voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather_paths=weather or (), vessel=vessel, profile=profile)
+        result = compute(inputs, speed_loss_model=speed_loss_model)
+        return store(db, inputs, result, report=report, speed_loss_model=speed_loss_model)
+
+    return voyage_audit(db=str(db), voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather=weather, vessel=vessel,
+                        profile=profile, report=None if report is None else str(report), speed_loss_model=speed_loss_model)
+
+
+if __name__ == "__main__":
+    import sys
+
+    print(audit_flow(db=sys.argv[1], voyage_id=sys.argv[2])["findings"])

@@ -1,0 +1,71 @@
+"""`stormlane audit`: retrospective audit of a sailed voyage against its alternatives."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from pipelines.commands._common import DbOption, JsonOption, emit_json
+
+
+def _fmt(x, digits=2):
+    if x is None:
+        return "-"
+    try:
+        return f"{float(x):.{digits}f}"
+    except (TypeError, ValueError):
+        return str(x)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("audit")
+    def audit(
+        voyage: Optional[str] = typer.Option(None, "--voyage", help="Voyage id in the workspace (see `stormlane lanes`)."),
+        mmsi: Optional[int] = typer.Option(None, "--mmsi", help="Ship's MMSI (with --start and --end instead of --voyage)."),
+        start: Optional[str] = typer.Option(None, "--start", help="Start of the sailed period, ISO 8601 (UTC if no offset)."),
+        end: Optional[str] = typer.Option(None, "--end", help="End of the sailed period, ISO 8601."),
+        db: Path = DbOption,
+        weather: Optional[List[Path]] = typer.Option(
+            None, "--weather", help="Hindcast weather files (CMEMS/ERA5 NetCDF, GRIB); default the workspace's weather tables."
+        ),
+        vessel: Optional[str] = typer.Option(
+            None, "--vessel", help="Vessel profile name or TOML file; default chosen from the AIS ship type and length."
+        ),
+        profile: Optional[str] = typer.Option(None, "--profile", help="Operator-limits profile name or TOML file (default: the file's default)."),
+        speed_loss: str = typer.Option("bowditch", "--speed-loss", help="Speed-loss model for the alternatives and the fuel: bowditch, aertssen, khokhlov, none."),
+        report: Optional[Path] = typer.Option(None, "--report", help="Also write the self-contained HTML audit report here."),
+        json_out: bool = JsonOption,
+    ) -> None:
+        """Evaluate a sailed voyage in the hindcast weather and compare it with the time-optimal and
+        minimum-distance routes (and the lane's cargo-safe deviation) for the same departure.
+
+        Prints the comparison table (time, distance, Hs met, fuel, CO2, hours over limits, IMO
+        events) and the findings; with --json one object with a key per route.
+        """
+        from pipelines.audit import run_audit
+        from thresholds.errors import StormlaneError
+
+        if voyage is None and (mmsi is None or start is None or end is None):
+            raise StormlaneError("give --voyage ID, or --mmsi N with --start ISO and --end ISO")
+        if voyage is not None and mmsi is not None:
+            raise StormlaneError("give either --voyage or --mmsi/--start/--end, not both")
+        summary = run_audit(db, voyage_id=voyage, mmsi=mmsi, start=start, end=end, weather=[str(p) for p in weather or []],
+                            vessel=vessel, profile=profile, report=report, speed_loss_model=speed_loss)
+        if json_out:
+            emit_json(summary)
+            return
+        v = summary["voyage"]
+        typer.echo(f"audit {summary['audit_id']}: MMSI {v['mmsi']} {v['ship_name'] or ''} {v['start_utc']} .. {v['end_utc']}")
+        typer.echo(f"vessel profile {summary['vessel_profile']}, operator limits {summary['operator_profile']}")
+        cols = [("time_h", "time h", 1), ("dist_nmi", "nmi", 1), ("max_hs_m", "max Hs", 2), ("mean_hs_m", "mean Hs", 2),
+                ("fuel_t", "fuel t", 2), ("co2_t", "CO2 t", 2), ("exposure_h", "over limits h", 1), ("n_safety_events", "IMO events", 0)]
+        typer.echo(f"{'route':<14}" + "".join(f"{label:>14}" for _, label, _ in cols))
+        for role, row in summary["comparison"].items():
+            typer.echo(f"{role:<14}" + "".join(f"{_fmt(row.get(c), d):>14}" for c, _, d in cols))
+        typer.echo(f"proposed: {summary['proposed'] or 'none'}")
+        for line in summary["findings"]:
+            typer.echo(f"- {line}")
+        if summary.get("report"):
+            typer.echo(f"report: {summary['report']}")

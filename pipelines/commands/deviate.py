@@ -1,0 +1,48 @@
+"""`stormlane deviate`: cargo-safe deviation of one lane for one departure."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from pipelines.commands._common import DbOption, JsonOption, emit_json
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("deviate")
+    def deviate(
+        lane: str = typer.Option(..., "--lane", help="Lane id in the workspace (see `stormlane lanes`)."),
+        depart: str = typer.Option(..., "--depart", help="Departure time, ISO 8601 (UTC if no offset)."),
+        db: Path = DbOption,
+        weather: Optional[List[Path]] = typer.Option(None, "--weather", help="Weather files; default the workspace's weather tables."),
+        vessel: Optional[str] = typer.Option(None, "--vessel", help="Vessel profile name or TOML file (default container-feeder)."),
+        profile: Optional[str] = typer.Option(None, "--profile", help="Operator-limits profile name or TOML file."),
+        json_out: bool = JsonOption,
+    ) -> None:
+        """Walk the lane's centroids from the departure and move every adverse one to the nearest
+        cell that passes the vessel's thresholds (R-tree, <= 10 candidates, within 3 h of sailing),
+        keeping legs at sea and recomputing ETAs; prints what moved and the comparison with the lane.
+        """
+        from pipelines.deviate import deviate_in_workspace
+
+        out = deviate_in_workspace(db, lane, depart, weather=[str(p) for p in weather or []], vessel=vessel, profile=profile)
+        if json_out:
+            emit_json(out)
+            return
+        a, b = out["lane"], out["deviation"]
+        typer.echo(f"lane {out['lane_id']} departing {out['depart_utc']} ({out['vessel_profile']})")
+        typer.echo(f"  lane:      {a['time_h']:.1f} h, {a['dist_nmi']:.1f} nmi, max Hs {a['max_hs_m']:.2f} m, "
+                   f"{a['exposure_h']:.1f} h over limits, {a['n_safety_events']} IMO event(s)")
+        typer.echo(f"  deviation: {b['time_h']:.1f} h, {b['dist_nmi']:.1f} nmi, max Hs {b['max_hs_m']:.2f} m, "
+                   f"{b['exposure_h']:.1f} h over limits, {b['n_safety_events']} IMO event(s); "
+                   f"{b['n_deviated']} point(s) moved, {b['n_unresolved']} unresolved, {b['n_legs_adverse']} adverse leg(s)")
+        for s in out["steps"]:
+            if s["status"] in ("deviated", "unresolved") or s["rules_fired"]:
+                typer.echo(f"    #{s['seq']}: {s['status']} ({', '.join(s['rules_fired']) or 'ok'}), moved {s['moved_nmi']:.1f} nmi")
+        m = out["metrics"]
+        if m["hs_decrease_pct"] is not None and m["hs_decrease_pct"] == m["hs_decrease_pct"]:
+            typer.echo(f"  mean Hs over the lane's adverse portion: {m['hs_decrease_pct']:.0f} % lower on the deviation")
+        if out.get("note"):
+            typer.echo(f"  note: {out['note']}")
