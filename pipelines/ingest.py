@@ -77,7 +77,7 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
 
 
 def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
-                progress: Callable[[int], None] | None = None, crash_hook=None) -> dict:
+                progress: Callable[[int], None] | None = None, before_commit=None) -> dict:
     """Load one AIS file into an open workspace; returns its counts (see module docstring)."""
     from pipelines.storage import ais as store
 
@@ -93,7 +93,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         info = stage_file(ws, f, progress)
         meta = {"fingerprint": f.fingerprint, "path": str(f.path), "format": f.format,
                 "size_bytes": f.size_bytes, "ignored": info["ignored"]}
-        counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, crash_hook=crash_hook)
+        counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit)
     except BaseException:
         store.discard_stage(ws)
         raise

@@ -82,13 +82,13 @@ def test_csv_typing_same_in_sql_and_pandas(tmp_path):
     assert_frames_equal(sql, conform_stage(pure))
     # A few of the edge cases, spelled out.
     row = pure.set_index("line")
-    assert row.loc[24, "mmsi"] == 219000005 and row.loc[24, "lat_deg"] == 55.5 and row.loc[24, "parse_error"] == "bad_sog"
-    assert row.loc[24, "cog_deg"] == 100.0 and row.loc[24, "heading_deg"] == 90.0 and row.loc[24, "imo"] == 1234567
-    assert pd.isna(row.loc[24, "beam_m"]) and pd.isna(row.loc[24, "length_m"]) and pd.isna(row.loc[24, "destination"])
-    assert row.loc[25, "time_utc"] == pd.Timestamp("2025-01-01T00:21:00Z") and row.loc[25, "ship_type"] == 32
-    assert row.loc[25, "parse_error"] == "bad_sog"  # "1_0": no digit separators
-    assert row.loc[26, "name"] == 'Q "QUOTED", NAME'
-    assert row.loc[27, "parse_error"] == "bad_line" and row.loc[28, "parse_error"] == "bad_line"
+    assert row.loc[23, "mmsi"] == 219000005 and row.loc[23, "lat_deg"] == 55.5 and row.loc[23, "parse_error"] == "bad_sog"
+    assert row.loc[23, "cog_deg"] == 100.0 and row.loc[23, "heading_deg"] == 90.0 and row.loc[23, "imo"] == 1234567
+    assert pd.isna(row.loc[23, "beam_m"]) and pd.isna(row.loc[23, "length_m"]) and pd.isna(row.loc[23, "destination"])
+    assert row.loc[24, "time_utc"] == pd.Timestamp("2025-01-01T00:21:00Z") and row.loc[24, "ship_type"] == 32
+    assert row.loc[24, "parse_error"] == "bad_sog"  # "1_0": no digit separators
+    assert row.loc[25, "name"] == 'Q "QUOTED", NAME'
+    assert row.loc[26, "parse_error"] == "bad_line" and row.loc[27, "parse_error"] == "bad_line"
 
 
 def test_two_files_with_stored_context_agree(tmp_path):

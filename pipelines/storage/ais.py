@@ -465,13 +465,14 @@ WHERE time_utc > t1 GROUP BY mmsi
 """
 
 
-def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, crash_hook=None) -> dict:
+def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
 
     Returns the file's counts: ``read``, ``loaded``, ``quarantined``, ``duplicates``,
-    ``static``, ``ignored``, ``reasons``, ``file_id``. ``crash_hook`` (tests only) is called
-    inside the transaction just before the commit.
+    ``static``, ``ignored``, ``reasons``, ``file_id``. ``before_commit`` (tests only) is called
+    inside the transaction just before the commit (to kill the process there, or to look at
+    the workspace from another cursor).
     """
     con = ws.con
     _prepare(con)
@@ -550,8 +551,8 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
              counts["loaded"], counts["quarantined"], dups, static, counts["ignored"],
              json.dumps(counts["reasons"], sort_keys=True), float(max_speed_kn)],
         )
-        if crash_hook is not None:
-            crash_hook()
+        if before_commit is not None:
+            before_commit()
     _drop_temp(con)
     return counts
 
