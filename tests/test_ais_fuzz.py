@@ -1,0 +1,153 @@
+"""Random and mutated CSV/NMEA lines: no unhandled exception, counts add up, SQL == pandas."""
+
+from __future__ import annotations
+
+import hashlib
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ais_fixtures import DMA_HEADER, dma_row
+from lanes.clean import clean_positions
+from lanes.io.csv_formats import read_csv_stage
+from lanes.io.nmea import parse_lines
+from pipelines.ingest import ingest_file
+from pipelines.storage import Workspace
+from pipelines.storage import ais as store
+
+BASE_CSV = [
+    dma_row(f"01/01/2025 00:{m:02d}:00", "219000001", f"{55 + m * 0.002:.6f}", "11.000000") for m in range(6)
+] + [dma_row("01/01/2025 00:00:30", "257000002", "60.000000", "5.000000", status="Moored", sog="0.0")]
+
+# Real sentences (DMA AisLib stream and pyais sample), with $PGHP, multipart and a tag block.
+BASE_NMEA = [
+    "$PGHP,1,2010,6,11,11,46,11,929,244,0,,1,72*21",
+    "!AIVDM,2,1,1,,53cMa3@000010WSW?V105=<45B2222222222220t388151:9e2UiDm851DTh,0*65",
+    "!AIVDM,2,2,1,,j1C32CQp888,2*17",
+    "$PGHP,1,2010,6,11,11,46,12,553,219,,2190048,1,1B*5B",
+    "!BSVDM,1,1,,A,13:WB@0vC2PmgjpP`WO=DbdF0<0U,0*5D",
+    "\\s:stormlane,c:1735689600*00\\!AIVDM,1,1,,A,13RlIW?04F1beOVEFLB9bRvH0L0L,0*6C",
+    "!AIVDM,1,1,,B,35VwAv0300QcEQ`EGcpN40jD0PUQ,0*61",
+    "!AIVDM,1,1,,B,,0*25",
+    "$PSTT,30A,20131112,120000*6D",
+    "!AIVDM,1,1,,B,B39H9GP0;@H136UI3ijEowU5oP06,0*14",
+]
+
+ALPHABET = st.characters(codec="utf-8", exclude_characters="\n")
+
+
+@st.composite
+def mutated(draw, base):
+    line = draw(st.sampled_from(base))
+    op = draw(st.sampled_from(["keep", "replace", "delete", "insert", "random", "dup_field", "truncate"]))
+    if op == "keep" or not line:
+        return line
+    i = draw(st.integers(0, len(line) - 1))
+    if op == "replace":
+        return line[:i] + draw(st.text(ALPHABET, min_size=1, max_size=1)) + line[i + 1:]
+    if op == "delete":
+        j = draw(st.integers(i, min(len(line), i + 12)))
+        return line[:i] + line[j:]
+    if op == "insert":
+        return line[:i] + draw(st.text(ALPHABET, max_size=8)) + line[i:]
+    if op == "truncate":
+        return line[:i]
+    if op == "dup_field":
+        f = line.split(",")
+        k = draw(st.integers(0, len(f) - 1))
+        return ",".join(f[:k] + [f[k]] + f[k:])
+    return draw(st.text(ALPHABET, max_size=60))
+
+
+class _Reused:
+    """One in-memory workspace for all examples, emptied before each (migrating costs 0.2 s)."""
+
+    ws = None
+
+    def __enter__(self):
+        if _Reused.ws is None:
+            _Reused.ws = Workspace(":memory:")
+        for t in ("ais_positions", "ais_quarantine", "vessels", "ais_files"):
+            _Reused.ws.con.execute(f"DELETE FROM {t}")
+        return _Reused.ws
+
+    def __exit__(self, *exc):
+        return False
+
+
+def memory_ws():
+    return _Reused()
+
+
+def outcome_sql(ws, file_id):
+    q = ws.con.execute("SELECT line, reason FROM ais_quarantine WHERE file_id = ? ORDER BY line", [file_id]).fetchall()
+    return dict(q)
+
+
+def check(counts, pure):
+    assert counts["read"] == counts["loaded"] + counts["quarantined"] + counts["duplicates"]
+    assert sum(counts["reasons"].values()) == counts["quarantined"] + counts["duplicates"]
+    for k in ("read", "loaded", "quarantined", "duplicates", "reasons"):
+        assert counts[k] == pure.counts[k], k
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                  HealthCheck.too_slow])
+@given(lines=st.lists(mutated(BASE_CSV), min_size=1, max_size=12), crlf=st.booleans())
+def test_mutated_csv_lines(tmp_path_factory, lines, crlf):
+    d = tmp_path_factory.mktemp("fuzzcsv")
+    body = "\r\n" if crlf else "\n"
+    text = body.join([DMA_HEADER] + lines) + body
+    path = d / ("f" + hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:12] + ".csv")
+    path.write_bytes(text.encode("utf-8", "surrogatepass"))
+    with memory_ws() as ws:
+        counts = ingest_file(ws, path, fmt="dma")
+        sql_q = outcome_sql(ws, counts["file_id"])
+    stage, meta = read_csv_stage(path)
+    pure = clean_positions(stage)
+    check(counts, pure)
+    assert sql_q == dict(zip(pure.quarantine.line, pure.quarantine.reason))
+    assert counts["ignored"] == meta["ignored"]
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                  HealthCheck.too_slow])
+@given(junk=st.binary(max_size=300))
+def test_random_bytes_after_a_valid_header(tmp_path_factory, junk):
+    d = tmp_path_factory.mktemp("fuzzbytes")
+    data = (DMA_HEADER + "\n").encode() + junk
+    path = d / ("b" + hashlib.sha1(data).hexdigest()[:12] + ".csv")
+    path.write_bytes(data)
+    with memory_ws() as ws:
+        counts = ingest_file(ws, path, fmt="dma")
+    pure = clean_positions(read_csv_stage(path)[0])
+    check(counts, pure)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                  HealthCheck.too_slow])
+@given(lines=st.lists(mutated(BASE_NMEA), min_size=1, max_size=15))
+def test_mutated_nmea_lines(lines):
+    stage, meta = parse_lines(lines)
+    with memory_ws() as ws:
+        store.stage_frame(ws, stage)
+        meta_db = {"fingerprint": "sha256:" + hashlib.sha256("\n".join(lines).encode("utf-8", "surrogatepass"))
+                   .hexdigest(), "path": "fuzz.nmea", "format": "nmea", "size_bytes": 0, "ignored": meta["ignored"]}
+        counts = store.classify_and_commit(ws, meta_db)
+        sql_q = outcome_sql(ws, counts["file_id"])
+    pure = clean_positions(stage)
+    check(counts, pure)
+    assert sql_q == dict(zip(pure.quarantine.line, pure.quarantine.reason))
+    # Every non-blank line is metadata, ignored, or inside exactly one item.
+    n_items_lines = int((stage["raw"].str.count("\n") + 1).sum()) if len(stage) else 0
+    assert n_items_lines + meta["ignored"] <= len(lines)
+
+
+@settings(max_examples=30, deadline=None)
+@given(text=st.text(ALPHABET, max_size=200))
+def test_random_text_as_nmea(text):
+    lines = text.split("\r")
+    stage, meta = parse_lines(lines)
+    pure = clean_positions(stage)
+    c = pure.counts
+    assert c["read"] == c["loaded"] + c["quarantined"] + c["duplicates"]
