@@ -67,7 +67,7 @@ def test_csv_typing_same_in_sql_and_pandas(tmp_path):
     lines = list(DMA_LINES) + [
         dma_row(" 01/01/2025 00:20:00 ", " 219000005 ", " 55.5 ", "\t11.5", sog="nan", cog="1e2", hdg="+90",
                 status="5", imo="IMO1234567", ship="70", width="0", length="-3", draught="abc", dest="Unknown"),
-        dma_row("1/1/2025 0:21:00", "219000005", "55.5", "11.5", sog="1_0", cog="inf", hdg="", status="",
+        dma_row("1/1/2025 0:21:00", "219000005", "55.5", "11.5", sog="1__0", cog="inf", hdg="", status="",
                 ship="Towing long/wide", name="  "),
         dma_row("01/01/2025 00:22:00", "219000005", "55.5", "11.5", name='"Q ""QUOTED"", NAME"'),
         '01/01/2025 00:23:00,"unterminated,219000005,55.5,11.5',
@@ -86,7 +86,7 @@ def test_csv_typing_same_in_sql_and_pandas(tmp_path):
     assert row.loc[23, "cog_deg"] == 100.0 and row.loc[23, "heading_deg"] == 90.0 and row.loc[23, "imo"] == 1234567
     assert pd.isna(row.loc[23, "beam_m"]) and pd.isna(row.loc[23, "length_m"]) and pd.isna(row.loc[23, "destination"])
     assert row.loc[24, "time_utc"] == pd.Timestamp("2025-01-01T00:21:00Z") and row.loc[24, "ship_type"] == 32
-    assert row.loc[24, "parse_error"] == "bad_sog"  # "1_0": no digit separators
+    assert row.loc[24, "parse_error"] == "bad_sog"  # "1__0" is not a number ("1_0" would be 10)
     assert row.loc[25, "name"] == 'Q "QUOTED", NAME'
     assert row.loc[26, "parse_error"] == "bad_line" and row.loc[27, "parse_error"] == "bad_line"
 

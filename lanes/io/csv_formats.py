@@ -10,11 +10,13 @@ trailing ``\\r`` removed):
 * A line is split on commas; a line containing a double quote is parsed as one RFC 4180 record
   (Python's :mod:`csv`). A line with another number of fields than the header is ``bad_line``.
   Empty lines are skipped and counted as ``ignored``.
-* Every field is trimmed of spaces and tabs. An empty field is missing.
+* Every field is trimmed of ASCII white space (:data:`WS`, as DuckDB's casts do). An empty
+  field is missing.
 * MMSI: exactly 9 ASCII digits, else missing (quarantined as ``bad_mmsi``).
 * Timestamp: the spec's formats (DMA day-first ``%d/%m/%Y %H:%M:%S``; NOAA ISO-8601), UTC.
-* Latitude, longitude, SOG, COG, heading: a decimal number (no ``_`` separators); other text
-  sets ``parse_error`` to ``bad_<field>`` (the first such field in that order).
+* Latitude, longitude, SOG, COG, heading: a decimal number (as ``TRY_CAST(x AS DOUBLE)`` reads
+  it; "nan" is not a number); other text sets ``parse_error`` to ``bad_<field>`` (the first
+  such field in that order).
 * Navigational status: a number, or one of the DMA status texts (:data:`NAV_STATUS_WORDS`).
 * Static fields never reject a row: unknown values ("Unknown", "Undefined", "", garbage) are
   missing. IMO may carry an ``IMO`` prefix; ship type may be a DMA category word, mapped to the
@@ -232,21 +234,28 @@ def read_lines(path) -> list[str]:
     return out
 
 
-_TRIM = " \t"
+#: ASCII white space trimmed around every field (the set DuckDB's casts ignore).
+WS = " \t\n\r\x0b\x0c"
+#: The MMSI text: nine ASCII digits, white space around allowed.
+MMSI_RE = "[ \t\n\r\x0b\x0c]*[0-9]{9}[ \t\n\r\x0b\x0c]*"
+_TRIM = WS
+_MMSI = re.compile(MMSI_RE)
 
 
 def parse_number(text) -> float:
-    """A decimal number as DuckDB's ``TRY_CAST(x AS DOUBLE)`` reads it; NaN-valued ``None``
-    when the text is not a number (``_`` separators and non-ASCII digits are refused)."""
+    """A decimal number as DuckDB's ``TRY_CAST(x AS DOUBLE)`` reads it, or ``None`` when the text
+    is not a number (non-ASCII digits and "nan" are refused; ``_`` between digits is accepted by
+    both)."""
     if text is None:
         return None
     s = text.strip(_TRIM)
-    if not s or "_" in s or not s.isascii():
+    if not s or not s.isascii() or any(c in WS for c in s):
         return None
     try:
-        return float(s)
+        v = float(s)
     except ValueError:
         return None
+    return None if v != v else v
 
 
 def _clean_text(values: pd.Series) -> pd.Series:
@@ -269,7 +278,7 @@ def type_fields(fields: pd.DataFrame, spec: CsvSpec) -> pd.DataFrame:
         return _clean_text(fields[name]) if name in fields.columns else pd.Series([""] * n, index=fields.index)
 
     m = text("mmsi")
-    ok = m.map(lambda s: len(s) == 9 and s.isascii() and s.isdigit())
+    ok = m.map(lambda s: _MMSI.fullmatch(s) is not None)
     out["mmsi"] = pd.array([int(s) if k else pd.NA for s, k in zip(m, ok)], dtype="Int64")
 
     t = text("time_utc")

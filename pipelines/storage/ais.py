@@ -40,8 +40,8 @@ import numpy as np
 import pandas as pd
 
 from lanes import clean as C
+from lanes.io.csv_formats import MMSI_RE, NAV_STATUS_WORDS, NULL_WORDS, SHIP_TYPE_WORDS, WS, CsvSpec, split_csv_line
 from thresholds.units import EARTH_RADIUS_NMI
-from lanes.io.csv_formats import NAV_STATUS_WORDS, NULL_WORDS, SHIP_TYPE_WORDS, CsvSpec, split_csv_line
 
 COMPONENT = "ais"
 
@@ -101,8 +101,8 @@ MIGRATIONS = [
 ]
 
 _NUM_FIELDS = ("lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg")
-_FLOAT_COLS = ("lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg", "nav_status", "length_m", "beam_m", "draught_m")
 _TOL = C.SENTINEL_TOL
+_TEXT_STATIC = tuple("s_" + c for c in C.STATIC_COLUMNS)
 
 
 def _q(name: str) -> str:
@@ -113,14 +113,31 @@ def _q(name: str) -> str:
 def _prepare(con: duckdb.DuckDBPyConnection) -> None:
     """Session settings and helpers of the ingest SQL (idempotent per connection)."""
     con.execute("SET TimeZone = 'UTC'")
-    con.execute(
-        "CREATE OR REPLACE TEMP MACRO ais_num(x) AS "
-        "CASE WHEN contains(x, '_') THEN NULL ELSE nullif(TRY_CAST(x AS DOUBLE), 'nan'::DOUBLE) END"
-    )
+    con.execute("CREATE OR REPLACE TEMP MACRO ais_num(x) AS nullif(TRY_CAST(x AS DOUBLE), 'nan'::DOUBLE)")
     try:
         con.create_function("ais_csv_split", split_csv_line, ["VARCHAR"], "VARCHAR[]", side_effects=False)
     except (duckdb.CatalogException, duckdb.NotImplementedException, RuntimeError):
         pass  # already registered on this connection
+
+
+def _params() -> dict:
+    """Named parameters shared by the staging and cleaning SQL (constants of lanes.clean and
+    lanes.io.csv_formats, always bound, never formatted into the SQL)."""
+    return {
+        "ws": WS,
+        "null_words": list(NULL_WORDS),
+        "nav_k": list(NAV_STATUS_WORDS),
+        "nav_v": list(NAV_STATUS_WORDS.values()),
+        "ship_k": list(SHIP_TYPE_WORDS),
+        "ship_v": list(SHIP_TYPE_WORDS.values()),
+        "tmin": C.TIME_MIN_UTC.tz_convert(None).to_pydatetime(),
+        "tmax": C.TIME_MAX_UTC.tz_convert(None).to_pydatetime(),
+    }
+
+
+def _used(sql: str, params: dict) -> dict:
+    """Only the named parameters a statement refers to (DuckDB refuses unused ones)."""
+    return {k: v for k, v in params.items() if f"${k}" in sql}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -148,12 +165,68 @@ def read_files(ws) -> pd.DataFrame:
 
 
 # ---------------------------------------------------------------------------------------------
-# Staging
+# Staging: every reader fills ``ais_stage`` (typed values + the rule 1-6 reason ``reason0``)
 # ---------------------------------------------------------------------------------------------
+def _reason_case() -> str:
+    """Rules 1-6 of lanes.clean as one CASE over the typed columns (first match wins)."""
+    rec = ", ".join(f"'{c}'" for c in C.RECORD_CODES)
+    return f"""CASE
+        WHEN kind = '{C.KIND_STATIC}' THEN NULL
+        WHEN parse_error IN ({rec}) THEN parse_error
+        WHEN mmsi IS NULL OR mmsi < {C.MMSI_MIN} OR mmsi > {C.MMSI_MAX} THEN '{C.BAD_MMSI}'
+        WHEN time_utc IS NULL OR time_utc < $tmin OR time_utc >= $tmax THEN '{C.BAD_TIME}'
+        WHEN parse_error IS NOT NULL THEN parse_error
+        WHEN lat_deg IS NULL OR lon_deg IS NULL OR abs(lat_deg - {C.LAT_NA_DEG}) <= {_TOL}
+             OR abs(lon_deg - {C.LON_NA_DEG}) <= {_TOL} THEN '{C.NO_POSITION}'
+        WHEN lat_deg < -90.0 OR lat_deg > 90.0 THEN '{C.BAD_LAT}'
+        WHEN lon_deg < -180.0 OR lon_deg > 180.0 THEN '{C.BAD_LON}'
+        WHEN sog_kn < 0.0 OR sog_kn > {C.SOG_NA_KN + _TOL} THEN '{C.BAD_SOG}'
+        WHEN cog_deg < 0.0 OR cog_deg > {C.COG_NA_DEG + _TOL} THEN '{C.BAD_COG}'
+        WHEN (heading_deg < 0.0 OR heading_deg >= 360.0) AND abs(heading_deg - {C.HEADING_NA_DEG}) > {_TOL}
+             THEN '{C.BAD_HEADING}'
+        WHEN nav_status < 0 OR nav_status > {C.NAV_STATUS_MAX} OR nav_status <> floor(nav_status)
+             THEN '{C.BAD_NAV_STATUS}'
+    END"""
+
+
+# Normalised values (rule 6: sentinels of the motion fields to NULL, lon 180 -> -180).
+_NORM = {
+    "lat_deg": "lat_deg",
+    "lon_deg": f"CASE WHEN abs(lon_deg - 180.0) <= {_TOL} THEN -180.0 ELSE lon_deg END",
+    "sog_kn": f"CASE WHEN sog_kn >= {C.SOG_NA_MIN_KN - _TOL} AND sog_kn <= {C.SOG_NA_KN + _TOL} THEN NULL ELSE sog_kn END",
+    "cog_deg": f"CASE WHEN abs(cog_deg - {C.COG_NA_DEG}) <= {_TOL} THEN NULL ELSE cog_deg END",
+    "heading_deg": f"CASE WHEN abs(heading_deg - {C.HEADING_NA_DEG}) <= {_TOL} THEN NULL ELSE heading_deg END",
+    "nav_status": "nav_status",
+}
+_VALUES = tuple(_NORM)
+
+
+def _norm(alias: str = "") -> str:
+    pre = f"{alias}." if alias else ""
+    out = []
+    for col, expr in _NORM.items():
+        e = expr
+        for c in _NORM:
+            e = e.replace(c, pre + c) if pre else e
+        out.append(f"{e} AS {col}")
+    return ", ".join(out)
+
+
+def _create_stage(con, typed_sql: str, extra_params: dict | None = None) -> None:
+    """``ais_stage`` = the reader's typed SELECT plus ``reason0`` (rules 1-6)."""
+    sql = f"CREATE OR REPLACE TEMP TABLE ais_stage AS WITH typed AS ({typed_sql}) SELECT *, {_reason_case()} AS reason0 FROM typed"
+    params = {**_params(), **(extra_params or {})}
+    con.execute(sql, _used(sql, params))
+
+
+def _empty_lines(con) -> None:
+    con.execute("CREATE OR REPLACE TEMP TABLE ais_lines (raw VARCHAR)")
+
+
 def _lines_table(ws, path: Path, gz: bool) -> bool:
     """Fill ``ais_lines`` with the file's physical lines in order (``rowid`` = line - 1).
 
-    DuckDB's CSV scanner reads the lines in parallel; files it refuses (stray ``\\r``, invalid
+    DuckDB's CSV scanner reads the lines in parallel; files it refuses (stray ``\r``, invalid
     UTF-8, control characters) are split by Python with the same rules instead. Returns True when
     the Python fallback was used.
     """
@@ -179,76 +252,79 @@ def _lines_table(ws, path: Path, gz: bool) -> bool:
         return True
 
 
-def header_line(ws) -> str | None:
-    row = ws.con.execute("SELECT raw FROM ais_lines WHERE rowid = 0").fetchone()
-    return row[0] if row else None
-
-
 def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_fields: int) -> dict:
     """Type a DMA/NOAA CSV file into ``ais_stage`` (rules in :mod:`lanes.io.csv_formats`).
 
     ``index`` maps stage fields to 0-based columns of the header (``n_fields`` columns).
-    Returns ``{"ignored": empty lines, "python_fallback": bool}``.
+    Static fields stay text here (``s_*``); they are typed per distinct value when merged into
+    ``vessels``. Returns ``{"ignored": empty lines, "python_fallback": bool}``.
     """
     _prepare(ws.con)
     fallback = _lines_table(ws, path, gz)
     con = ws.con
 
-    def txt(fld):
-        if fld not in index:
-            return "CAST(NULL AS VARCHAR)"
-        return f"CASE WHEN nf_ok THEN trim(f[{index[fld] + 1}], ' \t') END"
+    def fld(name):
+        return f"f[{index[name] + 1}]" if name in index else "CAST(NULL AS VARCHAR)"
 
-    words_nav = (list(NAV_STATUS_WORDS), list(NAV_STATUS_WORDS.values()))
-    words_ship = (list(SHIP_TYPE_WORDS), list(SHIP_TYPE_WORDS.values()))
-    perr_cases = " ".join(
-        f"WHEN t_{fld} <> '' AND n_{fld} IS NULL THEN '{code}'"
-        for fld, code in (("lat_deg", C.BAD_LAT), ("lon_deg", C.BAD_LON), ("sog_kn", C.BAD_SOG),
-                          ("cog_deg", C.BAD_COG), ("heading_deg", C.BAD_HEADING), ("nav_status", C.BAD_NAV_STATUS))
+    def blank(x):
+        return f"({x} IS NULL OR trim({x}, $ws) = '')"
+
+    # A field's parse error: its value did not type although its text is not blank (the blank
+    # test only runs on the few rows whose cast failed).
+    perr = " ".join(
+        f"WHEN {name} IS NULL AND NOT {blank(fld(name))} THEN '{code}'"
+        for name, code in (("lat_deg", C.BAD_LAT), ("lon_deg", C.BAD_LON), ("sog_kn", C.BAD_SOG),
+                           ("cog_deg", C.BAD_COG), ("heading_deg", C.BAD_HEADING), ("nav_status", C.BAD_NAV_STATUS))
+        if name in index
     )
-    fields = ["mmsi", "time_utc", *_NUM_FIELDS, "nav_status", "imo", "ship_type", "name", "callsign", "destination",
-              "length_m", "beam_m", "draught_m"]
-    texts = ",\n".join(f"{txt(fld)} AS t_{fld}" for fld in fields)
-    sql = f"""
-    CREATE OR REPLACE TEMP TABLE ais_stage AS
-    WITH src AS (
-        SELECT rowid + 1 AS line, raw,
-               CASE WHEN contains(raw, '"') THEN ais_csv_split(raw) ELSE string_split(raw, ',') END AS f
-        FROM ais_lines WHERE rowid >= 1 AND raw IS NOT NULL AND raw <> ''
-    ), g AS (
-        SELECT line, raw, len(f) = {int(n_fields)} AS nf_ok, {texts} FROM src
-    ), n AS (
-        SELECT *,
-            {", ".join(f"ais_num(t_{fld}) AS n_{fld}" for fld in _NUM_FIELDS)},
-            coalesce(ais_num(t_nav_status), MAP($nav_k::VARCHAR[], $nav_v::INTEGER[])[lower(t_nav_status)]) AS n_nav_status,
-            CASE WHEN upper(t_imo) LIKE 'IMO%' THEN trim(t_imo[4:], ' \t') ELSE t_imo END AS v_imo,
-            coalesce(ais_num(t_ship_type), MAP($ship_k::VARCHAR[], $ship_v::INTEGER[])[lower(t_ship_type)]) AS n_ship_type
-        FROM g
-    )
-    SELECT line, raw, '{C.KIND_POSITION}' AS kind,
-        CASE WHEN NOT nf_ok THEN '{C.BAD_LINE}' {perr_cases} END AS parse_error,
-        CASE WHEN length(t_mmsi) = 9 AND ltrim(t_mmsi, '0123456789') = '' THEN CAST(t_mmsi AS BIGINT) END AS mmsi,
-        CAST(try_strptime(t_time_utc, $time_formats::VARCHAR[]) AS TIMESTAMPTZ) AS time_utc,
-        {", ".join(f"n_{fld} AS {fld}" for fld in _NUM_FIELDS)},
-        CAST(n_nav_status AS DOUBLE) AS nav_status,
-        CASE WHEN length(v_imo) BETWEEN 1 AND 9 AND ltrim(v_imo, '0123456789') = '' AND CAST(v_imo AS BIGINT) > 0
-             THEN CAST(v_imo AS BIGINT) END AS imo,
-        CASE WHEN NOT list_contains($null_words::VARCHAR[], lower(t_name)) THEN t_name END AS name,
-        CASE WHEN NOT list_contains($null_words::VARCHAR[], lower(t_callsign)) THEN t_callsign END AS callsign,
-        CAST(CASE WHEN n_ship_type BETWEEN 1 AND 99 AND n_ship_type = floor(n_ship_type) THEN n_ship_type END AS INTEGER)
-            AS ship_type,
-        CASE WHEN ais_num(t_length_m) > 0 THEN ais_num(t_length_m) END AS length_m,
-        CASE WHEN ais_num(t_beam_m) > 0 THEN ais_num(t_beam_m) END AS beam_m,
-        CASE WHEN ais_num(t_draught_m) > 0 THEN ais_num(t_draught_m) END AS draught_m,
-        CASE WHEN NOT list_contains($null_words::VARCHAR[], lower(t_destination)) THEN t_destination END AS destination
-    FROM n
+    nav = "CAST(NULL AS DOUBLE)"
+    if "nav_status" in index:
+        x = fld("nav_status")
+        nav = f"coalesce(ais_num({x}), MAP($nav_k::VARCHAR[], $nav_v::INTEGER[])[lower(trim({x}, $ws))])"
+    typed = f"""
+        SELECT line, CAST(NULL AS VARCHAR) AS raw, '{C.KIND_POSITION}' AS kind,
+            CASE WHEN NOT nf_ok THEN '{C.BAD_LINE}' {perr} END AS parse_error,
+            mmsi, time_utc, lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, nav_status,
+            {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
+            {", ".join(f"{c}" for c in _TEXT_STATIC)}
+        FROM (
+            SELECT line, nf_ok, f,
+                CASE WHEN regexp_full_match({fld('mmsi')}, $mmsi_re) THEN CAST({fld('mmsi')} AS BIGINT) END AS mmsi,
+                try_strptime({fld('time_utc')}, $time_formats::VARCHAR[]) AS time_utc,
+                {", ".join(f"ais_num({fld(n)}) AS {n}" for n in _NUM_FIELDS)},
+                CAST({nav} AS DOUBLE) AS nav_status,
+                {", ".join(f"{fld(c[2:])} AS {c}" for c in _TEXT_STATIC)}
+            FROM (
+                SELECT rowid + 1 AS line, f, len(f) = {int(n_fields)} AS nf_ok FROM (
+                    SELECT rowid, CASE WHEN contains(raw, '"') THEN ais_csv_split(raw) ELSE string_split(raw, ',') END AS f
+                    FROM ais_lines WHERE rowid >= 1 AND raw IS NOT NULL AND raw <> ''
+                )
+            )
+        )
     """
-    con.execute(sql, {
-        "nav_k": words_nav[0], "nav_v": words_nav[1], "ship_k": words_ship[0], "ship_v": words_ship[1],
-        "time_formats": list(spec.time_formats), "null_words": list(NULL_WORDS),
-    })
+    _create_stage(con, typed, {"mmsi_re": MMSI_RE, "time_formats": list(spec.time_formats)})
     ignored = con.execute("SELECT count(*) FROM ais_lines WHERE rowid >= 1 AND (raw IS NULL OR raw = '')").fetchone()[0]
     return {"ignored": int(ignored), "python_fallback": fallback}
+
+
+_STATIC_TYPES = {"imo": "BIGINT", "name": "VARCHAR", "callsign": "VARCHAR", "ship_type": "INTEGER",
+                 "length_m": "DOUBLE", "beam_m": "DOUBLE", "draught_m": "DOUBLE", "destination": "VARCHAR"}
+
+
+def _static_typing(col: str) -> str:
+    """SQL typing the static text column ``s_<col>`` (same rules as csv_formats.type_static)."""
+    x = f"s_{col}"
+    t = f"trim({x}, $ws)"
+    if col == "imo":
+        v = f"(CASE WHEN upper({t}) LIKE 'IMO%' THEN trim({t}[4:], $ws) ELSE {t} END)"
+        return (f"CASE WHEN length({v}) BETWEEN 1 AND 9 AND ltrim({v}, '0123456789') = '' AND CAST({v} AS BIGINT) > 0 "
+                f"THEN CAST({v} AS BIGINT) END")
+    if col == "ship_type":
+        n = f"coalesce(ais_num({x}), MAP($ship_k::VARCHAR[], $ship_v::INTEGER[])[lower({t})])"
+        return f"CAST(CASE WHEN {n} BETWEEN 1 AND 99 AND {n} = floor({n}) THEN {n} END AS INTEGER)"
+    if col in ("length_m", "beam_m", "draught_m"):
+        return f"CASE WHEN ais_num({x}) > 0 THEN ais_num({x}) END"
+    return f"CASE WHEN NOT list_contains($null_words::VARCHAR[], lower({t})) THEN {t} END"
 
 
 def parquet_columns(ws, path: Path) -> list[tuple[str, str]]:
@@ -264,7 +340,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
     joined by commas; ``line`` is the 1-based row number.
     """
     _prepare(ws.con)
-    con = ws.con
+    _empty_lines(ws.con)
     cols = dict(parquet_columns(ws, path))
 
     def src(fld):
@@ -275,19 +351,19 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
             return "CAST(NULL AS DOUBLE)"
         return f"nullif(TRY_CAST({src(fld)} AS DOUBLE), 'nan'::DOUBLE)"
 
-    tcol = mapping.get("time_utc")
-    ttype = cols.get(tcol, "")
-    if "TIME ZONE" in ttype or ttype.startswith("TIMESTAMP"):
-        time_expr = f"CAST({src('time_utc')} AS TIMESTAMPTZ)"
+    ttype = cols.get(mapping.get("time_utc"), "")
+    if "TIME ZONE" in ttype:
+        time_expr = f"CAST(CAST({src('time_utc')} AS TIMESTAMPTZ) AS TIMESTAMP)"
+    elif ttype.startswith("TIMESTAMP") or ttype == "DATE":
+        time_expr = f"CAST({src('time_utc')} AS TIMESTAMP)"
     else:
-        time_expr = f"TRY_CAST({src('time_utc')} AS TIMESTAMPTZ)"
+        time_expr = f"CAST(TRY_CAST({src('time_utc')} AS TIMESTAMPTZ) AS TIMESTAMP)"
     mtype = cols.get(mapping.get("mmsi"), "")
     if any(k in mtype for k in ("INT", "DECIMAL", "DOUBLE", "FLOAT")):
         mmsi_expr = f"CASE WHEN {src('mmsi')} = floor({src('mmsi')}) THEN CAST({src('mmsi')} AS BIGINT) END"
     else:
-        mmsi_expr = (f"CASE WHEN length(trim(CAST({src('mmsi')} AS VARCHAR))) = 9 AND "
-                     f"ltrim(trim(CAST({src('mmsi')} AS VARCHAR)), '0123456789') = '' "
-                     f"THEN CAST(trim(CAST({src('mmsi')} AS VARCHAR)) AS BIGINT) END")
+        m = f"CAST({src('mmsi')} AS VARCHAR)"
+        mmsi_expr = f"CASE WHEN regexp_full_match({m}, $mmsi_re) THEN CAST({m} AS BIGINT) END"
     perr = " ".join(
         f"WHEN {src(fld)} IS NOT NULL AND {num(fld)} IS NULL THEN '{code}'"
         for fld, code in (("lat_deg", C.BAD_LAT), ("lon_deg", C.BAD_LON), ("sog_kn", C.BAD_SOG),
@@ -295,174 +371,156 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
         if fld in mapping
     )
     raw = "concat_ws(',', " + ", ".join(f"coalesce(CAST({_q(c)} AS VARCHAR), '')" for c in cols) + ")"
-
-    def pos_num(fld):
-        return f"CASE WHEN {num(fld)} > 0 THEN {num(fld)} END" if fld in mapping else "CAST(NULL AS DOUBLE)"
-
-    def text(fld):
-        if fld not in mapping:
-            return "CAST(NULL AS VARCHAR)"
-        t = f"trim(CAST({src(fld)} AS VARCHAR), ' \t')"
-        return f"CASE WHEN NOT list_contains($null_words::VARCHAR[], lower({t})) THEN {t} END"
-
-    imo = "CAST(NULL AS BIGINT)"
-    if "imo" in mapping:
-        v = f"regexp_replace(trim(CAST({src('imo')} AS VARCHAR), ' \t'), '^[Ii][Mm][Oo]', '')"
-        imo = (f"CASE WHEN length({v}) BETWEEN 1 AND 9 AND ltrim({v}, '0123456789') = '' AND CAST({v} AS BIGINT) > 0 "
-               f"THEN CAST({v} AS BIGINT) END")
-    ship = "CAST(NULL AS INTEGER)"
-    if "ship_type" in mapping:
-        ship = (f"CAST(CASE WHEN {num('ship_type')} BETWEEN 1 AND 99 AND {num('ship_type')} = floor({num('ship_type')}) "
-                f"THEN {num('ship_type')} END AS INTEGER)")
-    sql = f"""
-    CREATE OR REPLACE TEMP TABLE ais_stage AS
+    statics = ", ".join(
+        (f"CAST({src(c)} AS VARCHAR) AS s_{c}" if c in mapping else f"CAST(NULL AS VARCHAR) AS s_{c}")
+        for c in C.STATIC_COLUMNS
+    )
+    typed = f"""
     SELECT file_row_number + 1 AS line, {raw} AS raw, '{C.KIND_POSITION}' AS kind,
         CASE {perr or "WHEN false THEN NULL"} END AS parse_error,
-        {mmsi_expr} AS mmsi,
-        {time_expr} AS time_utc,
+        {mmsi_expr} AS mmsi, {time_expr} AS time_utc,
         {", ".join(f"{num(fld)} AS {fld}" for fld in (*_NUM_FIELDS, "nav_status"))},
-        {imo} AS imo, {text('name')} AS name, {text('callsign')} AS callsign, {ship} AS ship_type,
-        {pos_num('length_m')} AS length_m, {pos_num('beam_m')} AS beam_m, {pos_num('draught_m')} AS draught_m,
-        {text('destination')} AS destination
+        {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
+        {statics}
     FROM read_parquet($path, file_row_number = true)
     """
-    params = {"path": str(path)}
-    if "$null_words" in sql:
-        params["null_words"] = list(NULL_WORDS)
-    con.execute(sql, params)
+    _create_stage(ws.con, typed, {"path": str(path), "mmsi_re": MMSI_RE})
     return {"ignored": 0, "python_fallback": False}
 
 
 def stage_frame(ws, stage: pd.DataFrame) -> dict:
     """Put a typed stage built in Python (NMEA, or any reader) into ``ais_stage``."""
     _prepare(ws.con)
-    st = C.conform_stage(stage)
-    df = st.copy()
+    _empty_lines(ws.con)
+    df = C.conform_stage(stage).copy()
     for col in ("mmsi", "imo", "ship_type"):
         df[col] = df[col].astype("float64")  # NA -> NaN -> NULL on the DuckDB side
+    df["time_utc"] = df["time_utc"].dt.tz_convert(None)
     ws.con.register("ais_stage_df", df)
     try:
-        ws.con.execute(
-            """CREATE OR REPLACE TEMP TABLE ais_stage AS SELECT
+        typed = f"""SELECT
                 CAST(line AS BIGINT) AS line, CAST(raw AS VARCHAR) AS raw, CAST(kind AS VARCHAR) AS kind,
                 CAST(parse_error AS VARCHAR) AS parse_error, CAST(mmsi AS BIGINT) AS mmsi,
-                CAST(time_utc AS TIMESTAMPTZ) AS time_utc,
+                CAST(time_utc AS TIMESTAMP) AS time_utc,
                 lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, nav_status,
                 CAST(imo AS BIGINT) AS imo, CAST(name AS VARCHAR) AS name, CAST(callsign AS VARCHAR) AS callsign,
                 CAST(ship_type AS INTEGER) AS ship_type, length_m, beam_m, draught_m,
-                CAST(destination AS VARCHAR) AS destination
+                CAST(destination AS VARCHAR) AS destination,
+                {", ".join(f"CAST(NULL AS VARCHAR) AS {c}" for c in _TEXT_STATIC)}
             FROM ais_stage_df"""
-        )
+        _create_stage(ws.con, typed)
     finally:
         ws.con.unregister("ais_stage_df")
     return {"ignored": 0, "python_fallback": False}
 
 
+def _typed_static_select() -> str:
+    return ", ".join(f"coalesce({c}, {_static_typing(c)}) AS {c}" for c in C.STATIC_COLUMNS)
+
+
 def read_stage(ws) -> pd.DataFrame:
-    """The current typed stage as a DataFrame (for tests comparing the SQL and pandas typing)."""
-    df = ws.con.execute("SELECT * FROM ais_stage ORDER BY line").fetchdf()
+    """The current typed stage as a DataFrame, statics typed (tests compare it with pandas)."""
+    cols = ["mmsi", "timezone('UTC', time_utc) AS time_utc", *_NUM_FIELDS, "nav_status", _typed_static_select()]
+    # A bad line keeps no typed field (the bulk path leaves whatever its fields typed to).
+    sql = (f"SELECT line, coalesce(s.raw, l.raw) AS raw, kind, parse_error, "
+           f"COLUMNS(c -> c NOT IN ('line', 'raw', 'kind', 'parse_error')) FROM ("
+           f"  SELECT line, raw, kind, parse_error, {', '.join(cols)} FROM ais_stage) s "
+           f"LEFT JOIN (SELECT rowid + 1 AS line, raw FROM ais_lines) l USING (line) ORDER BY line")
+    df = ws.con.execute(sql, _used(sql, _params())).fetchdf()
+    bad = df["parse_error"] == C.BAD_LINE
+    keep = {"line", "raw", "kind", "parse_error"}
+    df.loc[bad, [c for c in df.columns if c not in keep]] = None
     return C.conform_stage(df)
 
 
 # ---------------------------------------------------------------------------------------------
-# Cleaning (rules of lanes.clean, as SQL) and the one-transaction commit
+# Cleaning (rules 7-8 of lanes.clean as SQL + the numpy jump kernel) and the one-transaction commit
 # ---------------------------------------------------------------------------------------------
-def _classify_sql() -> str:
-    rec = ", ".join(f"'{c}'" for c in C.RECORD_CODES)
-    return f"""
-    CREATE OR REPLACE TEMP TABLE ais_cls AS
-    SELECT line, raw, mmsi, time_utc, lat_deg,
-        CASE WHEN abs(lon_deg - 180.0) <= {_TOL} THEN -180.0 ELSE lon_deg END AS lon_deg,
-        CASE WHEN sog_kn >= {C.SOG_NA_MIN_KN - _TOL} AND sog_kn <= {C.SOG_NA_KN + _TOL} THEN NULL ELSE sog_kn END AS sog_kn,
-        CASE WHEN abs(cog_deg - {C.COG_NA_DEG}) <= {_TOL} THEN NULL ELSE cog_deg END AS cog_deg,
-        CASE WHEN abs(heading_deg - {C.HEADING_NA_DEG}) <= {_TOL} THEN NULL ELSE heading_deg END AS heading_deg,
-        nav_status,
-        CASE
-            WHEN parse_error IN ({rec}) THEN parse_error
-            WHEN mmsi IS NULL OR mmsi < {C.MMSI_MIN} OR mmsi > {C.MMSI_MAX} THEN '{C.BAD_MMSI}'
-            WHEN time_utc IS NULL OR time_utc < $tmin OR time_utc >= $tmax THEN '{C.BAD_TIME}'
-            WHEN parse_error IS NOT NULL THEN parse_error
-            WHEN lat_deg IS NULL OR lon_deg IS NULL OR abs(lat_deg - {C.LAT_NA_DEG}) <= {_TOL}
-                 OR abs(lon_deg - {C.LON_NA_DEG}) <= {_TOL} THEN '{C.NO_POSITION}'
-            WHEN lat_deg < -90.0 OR lat_deg > 90.0 THEN '{C.BAD_LAT}'
-            WHEN lon_deg < -180.0 OR lon_deg > 180.0 THEN '{C.BAD_LON}'
-            WHEN sog_kn < 0.0 OR sog_kn > {C.SOG_NA_KN + _TOL} THEN '{C.BAD_SOG}'
-            WHEN cog_deg < 0.0 OR cog_deg > {C.COG_NA_DEG + _TOL} THEN '{C.BAD_COG}'
-            WHEN (heading_deg < 0.0 OR heading_deg >= 360.0) AND abs(heading_deg - {C.HEADING_NA_DEG}) > {_TOL}
-                 THEN '{C.BAD_HEADING}'
-            WHEN nav_status < 0 OR nav_status > {C.NAV_STATUS_MAX} OR nav_status <> floor(nav_status)
-                 THEN '{C.BAD_NAV_STATUS}'
-        END AS reason
-    FROM ais_stage WHERE kind <> '{C.KIND_STATIC}'
-    """
+_OK = f"kind <> '{C.KIND_STATIC}' AND reason0 IS NULL"
 
 
-_VALUES = ("lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg", "nav_status")
-
-
-def _dedupe_sql() -> str:
-    same = " AND ".join(
-        f"(CASE WHEN in_db THEN p_{v} ELSE f_{v} END) IS NOT DISTINCT FROM {v}" for v in _VALUES
-    )
-    firsts = ", ".join(f"first_value(o.{v}) OVER w AS f_{v}" for v in _VALUES)
-    pvals = ", ".join(f"p.{v} AS p_{v}" for v in _VALUES)
+def _dedupe_sql(has_old: bool) -> str:
+    """Rows (line, reason) that repeat the (mmsi, time) of an earlier row of the file or of a
+    stored row: ``duplicate`` when all normalised values agree, else ``duplicate_time``."""
+    firsts = ", ".join(f"first_value({v}) OVER w AS f_{v}" for v in _VALUES)
+    if has_old:
+        same = " AND ".join(f"(CASE WHEN in_db THEN p_{v} ELSE f_{v} END) IS NOT DISTINCT FROM {v}" for v in _VALUES)
+        old = f"""old AS (
+            SELECT p.mmsi, CAST(p.time_utc AS TIMESTAMP) AS time_utc, {", ".join(f"p.{v} AS p_{v}" for v in _VALUES)}
+            FROM ais_positions p SEMI JOIN (SELECT DISTINCT mmsi FROM ais_stage WHERE {_OK}) USING (mmsi)
+            WHERE p.time_utc BETWEEN (SELECT min(time_utc) FROM ais_stage WHERE {_OK})
+                                 AND (SELECT max(time_utc) FROM ais_stage WHERE {_OK})
+        ),"""
+        keys_old = "UNION SELECT mmsi, time_utc FROM old"
+        join_old = "LEFT JOIN old USING (mmsi, time_utc)"
+        in_db = "old.p_lat_deg IS NOT NULL AS in_db, " + ", ".join(f"old.p_{v}" for v in _VALUES) + ","
+    else:
+        same = " AND ".join(f"f_{v} IS NOT DISTINCT FROM {v}" for v in _VALUES)
+        old = keys_old = join_old = ""
+        in_db = "false AS in_db,"
     return f"""
     CREATE OR REPLACE TEMP TABLE ais_dup AS
-    WITH rng AS (SELECT min(time_utc) AS t0, max(time_utc) AS t1 FROM ais_ok),
-    old AS (
-        SELECT p.mmsi, p.time_utc, {", ".join(f"p.{v}" for v in _VALUES)}
-        FROM ais_positions p, rng WHERE p.time_utc BETWEEN rng.t0 AND rng.t1
-    ),
+    WITH {old}
     keys AS (
-        SELECT mmsi, time_utc FROM ais_ok GROUP BY mmsi, time_utc HAVING count(*) > 1
-        UNION
-        SELECT o.mmsi, o.time_utc FROM ais_ok o SEMI JOIN old USING (mmsi, time_utc)
+        SELECT mmsi, time_utc FROM ais_stage WHERE {_OK} GROUP BY mmsi, time_utc HAVING count(*) > 1
+        {keys_old}
     ),
     cand AS (
-        SELECT o.*, p.mmsi IS NOT NULL AS in_db, {pvals},
-               first_value(o.line) OVER w AS first_line, {firsts}
-        FROM ais_ok o SEMI JOIN keys USING (mmsi, time_utc)
-        LEFT JOIN old p USING (mmsi, time_utc)
-        WINDOW w AS (PARTITION BY o.mmsi, o.time_utc ORDER BY o.line)
+        SELECT s.line, s.mmsi, s.time_utc, {_norm('s')} FROM ais_stage s SEMI JOIN keys USING (mmsi, time_utc)
+        WHERE s.kind <> '{C.KIND_STATIC}' AND s.reason0 IS NULL
+    ),
+    ranked AS (
+        SELECT cand.*, {in_db} first_value(line) OVER w AS first_line, {firsts}
+        FROM cand {join_old}
+        WINDOW w AS (PARTITION BY mmsi, time_utc ORDER BY line)
     )
     SELECT line, CASE WHEN {same} THEN '{C.DUPLICATE}' ELSE '{C.DUPLICATE_TIME}' END AS reason
-    FROM cand WHERE in_db OR line <> first_line
+    FROM ranked WHERE in_db OR line <> first_line
     """
 
 
-def _jump_candidates_sql() -> str:
-    # A superset of the tracks the numpy kernel must look at: any consecutive pair implying more
-    # than 0.999 x the limit (the margin absorbs float differences between SQL and numpy).
+def _track_sql(has_old: bool) -> str:
+    """Fixes of the tracks that may hold a speed jump, sorted (line -1 = stored context fix).
+
+    A track is fetched when any consecutive pair implies more than 0.999 x the limit: a superset
+    of what the numpy kernel flags (the margin absorbs float differences between SQL and numpy).
+    """
     r = float(EARTH_RADIUS_NMI)
+    lon = _NORM["lon_deg"]
+    new = (f"SELECT s.line, s.mmsi, s.time_utc, s.lat_deg, {lon.replace('lon_deg', 's.lon_deg')} AS lon_deg "
+           f"FROM ais_stage s ANTI JOIN ais_dup d USING (line) WHERE s.kind <> '{C.KIND_STATIC}' AND s.reason0 IS NULL")
+    ctx = ""
+    if has_old:
+        ctx = f"""
+        UNION ALL SELECT -1, mmsi, time_utc, lat_deg, lon_deg FROM ex WHERE time_utc BETWEEN t0 AND t1
+        UNION ALL SELECT -1, mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc) FROM ex
+            WHERE time_utc < t0 GROUP BY mmsi
+        UNION ALL SELECT -1, mmsi, min(time_utc), arg_min(lat_deg, time_utc), arg_min(lon_deg, time_utc) FROM ex
+            WHERE time_utc > t1 GROUP BY mmsi"""
+        pre = f"""new AS ({new}),
+        span AS (SELECT mmsi, min(time_utc) AS t0, max(time_utc) AS t1 FROM new GROUP BY mmsi),
+        ex AS (SELECT p.mmsi, CAST(p.time_utc AS TIMESTAMP) AS time_utc, p.lat_deg, p.lon_deg, s.t0, s.t1
+               FROM ais_positions p JOIN span s USING (mmsi)),
+        t AS (SELECT * FROM new {ctx}),"""
+    else:
+        pre = f"t AS ({new}),"
     return f"""
-    WITH l AS (
-        SELECT mmsi, time_utc, lat_deg, lon_deg,
-            lag(time_utc) OVER w AS t0, lag(lat_deg) OVER w AS lat0, lag(lon_deg) OVER w AS lon0
-        FROM ais_track WINDOW w AS (PARTITION BY mmsi ORDER BY time_utc)
-    )
-    SELECT DISTINCT mmsi FROM l
-    WHERE t0 IS NOT NULL AND
-        2.0 * {r} * asin(sqrt(least(1.0,
-            pow(sin(radians(lat_deg - lat0) / 2.0), 2)
-            + cos(radians(lat0)) * cos(radians(lat_deg)) * pow(sin(radians(lon_deg - lon0) / 2.0), 2))))
-        > 0.999 * $vmax * (epoch_us(time_utc) - epoch_us(t0)) / 3.6e9
+    WITH {pre}
+    l AS (
+        SELECT *, lag(time_utc) OVER w AS t0_, lag(lat_deg) OVER w AS lat0, lag(lon_deg) OVER w AS lon0
+        FROM t WINDOW w AS (PARTITION BY mmsi ORDER BY time_utc)
+    ),
+    b AS (
+        SELECT *, coalesce(
+            2.0 * {r} * asin(sqrt(least(1.0,
+                pow(sin(radians(lat_deg - lat0) / 2.0), 2)
+                + cos(radians(lat0)) * cos(radians(lat_deg)) * pow(sin(radians(lon_deg - lon0) / 2.0), 2))))
+            > 0.999 * $vmax * (epoch_us(time_utc) - epoch_us(t0_)) / 3.6e9, false) AS brk
+        FROM l
+    ),
+    c AS (SELECT *, bool_or(brk) OVER (PARTITION BY mmsi) AS any_brk FROM b)
+    SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg FROM c WHERE any_brk ORDER BY mmsi, time_utc
     """
-
-
-_CONTEXT_SQL = """
-CREATE OR REPLACE TEMP TABLE ais_track AS
-WITH span AS (SELECT mmsi, min(time_utc) AS t0, max(time_utc) AS t1 FROM ais_keep GROUP BY mmsi),
-ex AS (SELECT p.mmsi, p.time_utc, p.lat_deg, p.lon_deg, s.t0, s.t1 FROM ais_positions p JOIN span s USING (mmsi))
-SELECT line, mmsi, time_utc, lat_deg, lon_deg FROM ais_keep
-UNION ALL
-SELECT -1, mmsi, time_utc, lat_deg, lon_deg FROM ex WHERE time_utc BETWEEN t0 AND t1
-UNION ALL
-SELECT -1, mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc) FROM ex
-WHERE time_utc < t0 GROUP BY mmsi
-UNION ALL
-SELECT -1, mmsi, min(time_utc), arg_min(lat_deg, time_utc), arg_min(lon_deg, time_utc) FROM ex
-WHERE time_utc > t1 GROUP BY mmsi
-"""
 
 
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
@@ -476,68 +534,62 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     """
     con = ws.con
     _prepare(con)
-    params_t = {"tmin": C.TIME_MIN_UTC.to_pydatetime(), "tmax": C.TIME_MAX_UTC.to_pydatetime()}
     with ws.transaction():
         if file_record(ws, meta["fingerprint"]) is not None:
             raise RuntimeError(f"{meta['path']}: loaded concurrently by another ingest")
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
-        con.execute(_classify_sql(), params_t)
-        con.execute(
-            "CREATE OR REPLACE TEMP TABLE ais_ok AS SELECT line, mmsi, time_utc, "
-            + ", ".join(_VALUES) + " FROM ais_cls WHERE reason IS NULL"
-        )
-        con.execute(_dedupe_sql())
-        con.execute("CREATE OR REPLACE TEMP TABLE ais_keep AS SELECT * FROM ais_ok ANTI JOIN ais_dup USING (line)")
-        # Stored fixes around this file's tracks are context (never flagged) for the jump rule.
-        con.execute(_CONTEXT_SQL)
-        cand = con.execute(_jump_candidates_sql(), {"vmax": float(max_speed_kn)}).fetchnumpy()["mmsi"]
+        has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
+        con.execute(_dedupe_sql(has_old))
+        tr = con.execute(_track_sql(has_old), {"vmax": float(max_speed_kn)}).fetchnumpy()
         jumped = np.empty(0, dtype=np.int64)
-        if len(cand):
-            con.register("ais_cand_df", pd.DataFrame({"mmsi": np.asarray(cand, dtype=np.int64)}))
-            try:
-                tr = con.execute(
-                    "SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg FROM ais_track "
-                    "SEMI JOIN ais_cand_df USING (mmsi) ORDER BY mmsi, time_utc"
-                ).fetchnumpy()
-            finally:
-                con.unregister("ais_cand_df")
-            t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
+        if len(tr["line"]):
             lines = np.asarray(tr["line"], dtype=np.int64)
-            mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"]),
-                                     np.asarray(tr["lon_deg"]), max_speed_kn, fixed=lines < 0)
+            t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
+            mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"], dtype=float),
+                                     np.asarray(tr["lon_deg"], dtype=float), max_speed_kn, fixed=lines < 0)
             jumped = lines[mask]
         con.register("ais_jump_df", pd.DataFrame({"line": jumped}))
         try:
-            con.execute("CREATE OR REPLACE TEMP TABLE ais_jump AS SELECT CAST(line AS BIGINT) AS line FROM ais_jump_df")
+            con.execute(
+                f"""CREATE OR REPLACE TEMP TABLE ais_out AS
+                SELECT line, reason FROM ais_dup
+                UNION ALL SELECT CAST(line AS BIGINT), '{C.SPEED_JUMP}' FROM ais_jump_df"""
+            )
         finally:
             con.unregister("ais_jump_df")
 
         loaded = con.execute(
-            "INSERT INTO ais_positions SELECT mmsi, time_utc, lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, "
-            "nav_status, ?, line FROM ais_keep ANTI JOIN ais_jump USING (line)",
+            f"""INSERT INTO ais_positions
+            SELECT mmsi, CAST(time_utc AS TIMESTAMPTZ), {_norm()}, ?, line
+            FROM ais_stage ANTI JOIN ais_out USING (line) WHERE {_OK}""",
             [file_id],
         ).fetchone()[0]
         con.execute(
-            f"""INSERT INTO ais_quarantine
-            SELECT ?, c.line, coalesce(c.reason, d.reason, '{C.SPEED_JUMP}'), c.raw, c.mmsi, c.time_utc
-            FROM ais_cls c LEFT JOIN ais_dup d USING (line) LEFT JOIN ais_jump j USING (line)
-            WHERE c.reason IS NOT NULL OR d.line IS NOT NULL OR j.line IS NOT NULL""",
-            [file_id],
+            """INSERT INTO ais_quarantine
+            SELECT ?, s.line, coalesce(s.reason0, o.reason), coalesce(s.raw, l.raw),
+                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN s.mmsi END,
+                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN CAST(s.time_utc AS TIMESTAMPTZ) END
+            FROM ais_stage s LEFT JOIN ais_out o USING (line)
+            LEFT JOIN (SELECT rowid + 1 AS line, raw FROM ais_lines) l USING (line)
+            WHERE s.kind <> ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
+            [file_id, C.BAD_LINE, C.BAD_LINE, C.KIND_STATIC],
         )
         reasons = dict(con.execute(
             "SELECT reason, count(*) FROM ais_quarantine WHERE file_id = ? GROUP BY reason ORDER BY reason", [file_id]
         ).fetchall())
-        read = int(con.execute("SELECT count(*) FROM ais_cls").fetchone()[0])
-        static = int(con.execute(f"SELECT count(*) FROM ais_stage WHERE kind = '{C.KIND_STATIC}'").fetchone()[0])
+        read, static = con.execute(
+            "SELECT count(*) FILTER (WHERE kind <> ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
+            [C.KIND_STATIC, C.KIND_STATIC],
+        ).fetchone()
         _upsert_vessels(con, file_id)
         dups = int(sum(v for k, v in reasons.items() if k in C.DUPLICATE_CODES))
         counts = {
             "file_id": file_id,
-            "read": read,
+            "read": int(read),
             "loaded": int(loaded),
             "quarantined": int(sum(reasons.values())) - dups,
             "duplicates": dups,
-            "static": static,
+            "static": int(static),
             "ignored": int(meta.get("ignored", 0)),
             "reasons": {str(k): int(v) for k, v in reasons.items()},
         }
@@ -547,8 +599,8 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             """INSERT INTO ais_files (file_id, fingerprint, path, format, size_bytes, n_read, n_loaded, n_quarantined,
                    n_duplicates, n_static, n_ignored, reasons, max_speed_kn)
                VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)""",
-            [file_id, meta["fingerprint"], str(meta["path"]), meta["format"], int(meta["size_bytes"]), read,
-             counts["loaded"], counts["quarantined"], dups, static, counts["ignored"],
+            [file_id, meta["fingerprint"], str(meta["path"]), meta["format"], int(meta["size_bytes"]), counts["read"],
+             counts["loaded"], counts["quarantined"], dups, counts["static"], counts["ignored"],
              json.dumps(counts["reasons"], sort_keys=True), float(max_speed_kn)],
         )
         if before_commit is not None:
@@ -558,32 +610,38 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
 
 
 def _upsert_vessels(con, file_id: int) -> None:
-    """Latest non-missing static value per MMSI of this file, merged into ``vessels``."""
-    key = "{'t': coalesce(time_utc, TIMESTAMPTZ '1677-09-22 00:00:00+00'), 'l': line}"
-    aggs = ",\n".join(
-        f"arg_max({c}, {key}) FILTER (WHERE {c} IS NOT NULL) AS {c}" for c in C.STATIC_COLUMNS
-    )
+    """Latest non-missing static value per MMSI of this file, merged into ``vessels``.
+
+    The stage is first reduced to its distinct (MMSI, static values) combinations with their
+    latest (time, line); typing the text values on those few rows gives the same result as
+    typing every row.
+    """
+    statics = list(C.STATIC_COLUMNS) + list(_TEXT_STATIC)
+    key = "{'t': coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'), 'l': line}"
+    aggs = ",\n".join(f"arg_max({c}, k) FILTER (WHERE {c} IS NOT NULL) AS {c}" for c in C.STATIC_COLUMNS)
     any_set = " OR ".join(f"{c} IS NOT NULL" for c in C.STATIC_COLUMNS)
     merge = ",\n".join(
         f"{c} = CASE WHEN vessels.updated_utc IS NULL OR EXCLUDED.updated_utc >= vessels.updated_utc "
         f"THEN coalesce(EXCLUDED.{c}, vessels.{c}) ELSE coalesce(vessels.{c}, EXCLUDED.{c}) END"
         for c in C.STATIC_COLUMNS
     )
-    con.execute(
-        f"""INSERT INTO vessels
-        SELECT mmsi, {", ".join(C.STATIC_COLUMNS)}, updated_utc, ? AS file_id FROM (
-            SELECT mmsi, max(time_utc) AS updated_utc, {aggs}
-            FROM ais_stage WHERE mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} GROUP BY mmsi
-        ) WHERE {any_set}
+    sql = f"""INSERT INTO vessels
+        WITH combos AS (
+            SELECT mmsi, {", ".join(statics)}, max({key}) AS k, max(time_utc) AS tmax
+            FROM ais_stage WHERE mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'
+            GROUP BY mmsi, {", ".join(statics)}
+        ),
+        typed AS (SELECT mmsi, k, tmax, {_typed_static_select()} FROM combos),
+        agg AS (SELECT mmsi, CAST(max(tmax) AS TIMESTAMPTZ) AS updated_utc, {aggs} FROM typed GROUP BY mmsi)
+        SELECT mmsi, {", ".join(C.STATIC_COLUMNS)}, updated_utc, $file_id AS file_id FROM agg WHERE {any_set}
         ON CONFLICT (mmsi) DO UPDATE SET {merge},
             updated_utc = greatest(vessels.updated_utc, EXCLUDED.updated_utc),
-            file_id = EXCLUDED.file_id""",
-        [file_id],
-    )
+            file_id = EXCLUDED.file_id"""
+    con.execute(sql, _used(sql, {**_params(), "file_id": file_id}))
 
 
 def _drop_temp(con) -> None:
-    for t in ("ais_lines", "ais_stage", "ais_cls", "ais_ok", "ais_dup", "ais_keep", "ais_track", "ais_jump"):
+    for t in ("ais_lines", "ais_stage", "ais_dup", "ais_out"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
 
 

@@ -1,0 +1,284 @@
+"""Benchmark of the AIS ingest (issue 2): cleaned CSV -> DuckDB and NMEA, next to raw baselines.
+
+Run: ``.venv/bin/python bench/ingest.py [--rows 5000000] [--messages 300000] [--keep DIR]``
+
+1. Generates DMA-style CSV (the real DMA column layout, 26 columns, day-first timestamps,
+   static fields on every row; ~0.5 % dirty rows of every kind) into a temporary folder.
+2. Raw baseline: DuckDB ``read_csv`` (auto-detected types) -> Parquet, no cleaning.
+3. Cleaned ingest: ``pipelines.ingest.ingest_paths`` into a fresh workspace (fingerprint, typed
+   staging, every rule of ``lanes/clean.py``, quarantine with raw text, one transaction).
+4. NMEA: generates ``$PGHP`` + tag-block framed ``!AIVDM`` messages (types 1 and 18 positions, a
+   few 4 and 5), runs the plain pyais loop (``BinaryIOStream`` + ``decode()`` on every message)
+   and then ``ingest_paths`` on the same file.
+
+Targets (issue 2): cleaned CSV >= 1.5 M rows/s on 2 cores and >= 0.5 x the raw baseline;
+NMEA ingest >= the pyais loop's messages/s. Timings on a shared machine are noisy: each figure is
+the best of ``--repeat`` runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+DMA_HEADER = ("# Timestamp,Type of mobile,MMSI,Latitude,Longitude,Navigational status,ROT,SOG,COG,Heading,IMO,"
+              "Callsign,Name,Ship type,Cargo type,Width,Length,Type of position fixing device,Draught,Destination,"
+              "ETA,Data source type,A,B,C,D")
+
+
+def generate_dma_csv(path: Path, n_rows: int, n_vessels: int = 2000, seed: int = 0, dirty_frac: float = 0.005) -> dict:
+    """Write ``n_rows`` DMA-style rows (time-ordered, ``n_vessels`` ships at 6-20 kn, 10 s
+    cadence) with a share of dirty rows; returns what was injected."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.csv as pcsv
+
+    rng = np.random.default_rng(seed)
+    i = np.arange(n_rows)
+    v = i % n_vessels
+    step = i // n_vessels
+    mmsi_v = rng.choice(np.arange(219000000, 220000000), n_vessels, replace=False)
+    lat0 = rng.uniform(54.5, 57.5, n_vessels)
+    lon0 = rng.uniform(8.0, 14.0, n_vessels)
+    sog_v = rng.uniform(6, 20, n_vessels)
+    cog_v = rng.uniform(0, 360, n_vessels)
+    dt_s = step * 10 + (v % 10)
+    dist_deg = sog_v[v] * dt_s / 3600.0 / 60.0
+    lat = lat0[v] + dist_deg * np.cos(np.radians(cog_v[v])) + rng.normal(0, 2e-5, n_rows)
+    lon = lon0[v] + dist_deg * np.sin(np.radians(cog_v[v])) / np.cos(np.radians(lat0[v])) + rng.normal(0, 2e-5, n_rows)
+    t0 = np.datetime64("2025-01-01T00:00:00", "s")
+    tstr = pc.strftime(pa.array(t0 + dt_s.astype("timedelta64[s]")), format="%d/%m/%Y %H:%M:%S").to_numpy(
+        zero_copy_only=False).astype(object)
+    sog = np.round(np.abs(sog_v[v] + rng.normal(0, 0.2, n_rows)), 1).astype(object)
+    cog = (np.round(cog_v[v] + rng.normal(0, 1, n_rows), 1) % 360).astype(object)
+    hdg = (np.round(cog_v[v]).astype(int) % 360).astype(object)
+    mmsi = mmsi_v[v].astype(object)
+    lat_s = np.char.mod("%.6f", lat).astype(object)
+    lon_s = np.char.mod("%.6f", lon).astype(object)
+    status = np.full(n_rows, "Under way using engine", dtype=object)
+    names = np.array([f"VESSEL {k}" for k in range(n_vessels)], dtype=object)
+
+    # Dirty rows: spread over the file, ~dirty_frac of the rows in total.
+    n_dirty = int(n_rows * dirty_frac)
+    idx = rng.choice(n_rows, n_dirty, replace=False)
+    kinds = np.array(["sentinel_pos", "bad_mmsi", "bad_time", "out_of_range", "sentinels", "jump"])
+    kind = kinds[rng.integers(0, len(kinds), n_dirty)]
+    for k in kinds:
+        sel = idx[kind == k]
+        if k == "sentinel_pos":
+            lat_s[sel], lon_s[sel] = "91.000000", "181.000000"
+        elif k == "bad_mmsi":
+            mmsi[sel] = 12345678
+        elif k == "bad_time":
+            tstr[sel] = "31/02/2025 25:61:00"
+        elif k == "out_of_range":
+            lat_s[sel] = "95.500000"
+        elif k == "sentinels":
+            sog[sel], cog[sel], hdg[sel] = 102.3, 360.0, 511
+        elif k == "jump":
+            lat_s[sel] = np.char.mod("%.6f", lat[sel] + 2.0).astype(object)
+    injected = {str(k): int((kind == k).sum()) for k in kinds}
+    # Exact duplicates: repeat some rows right after themselves (appended as extra rows).
+    table = pa.table({
+        "ts": pa.array(tstr, pa.string()), "mob": pa.array(np.full(n_rows, "Class A", dtype=object), pa.string()),
+        "mmsi": pa.array(mmsi.astype(str), pa.string()), "lat": pa.array(lat_s, pa.string()),
+        "lon": pa.array(lon_s, pa.string()), "st": pa.array(status, pa.string()),
+        "rot": pa.array(np.zeros(n_rows)), "sog": pa.array(sog.astype(str), pa.string()),
+        "cog": pa.array(cog.astype(str), pa.string()), "hdg": pa.array(hdg.astype(str), pa.string()),
+        "imo": pa.array(np.full(n_rows, "Unknown", dtype=object), pa.string()),
+        "cs": pa.array(np.full(n_rows, "OXAB2", dtype=object), pa.string()),
+        "name": pa.array(names[v], pa.string()), "type": pa.array(np.full(n_rows, "Cargo", dtype=object), pa.string()),
+        "cargo": pa.nulls(n_rows, pa.string()), "w": pa.array(np.full(n_rows, 20)), "l": pa.array(np.full(n_rows, 120)),
+        "fix": pa.array(np.full(n_rows, "GPS", dtype=object), pa.string()), "dr": pa.array(np.full(n_rows, 7.5)),
+        "dest": pa.array(np.full(n_rows, "AARHUS", dtype=object), pa.string()), "eta": pa.nulls(n_rows, pa.string()),
+        "src": pa.array(np.full(n_rows, "AIS", dtype=object), pa.string()),
+        "A": pa.array(np.full(n_rows, 100)), "B": pa.array(np.full(n_rows, 20)),
+        "C": pa.array(np.full(n_rows, 10)), "D": pa.array(np.full(n_rows, 10)),
+    })
+    with open(path, "wb") as fh:
+        fh.write((DMA_HEADER + "\n").encode())
+        pcsv.write_csv(table, fh, pcsv.WriteOptions(include_header=False, quoting_style="none"))
+    return injected
+
+
+# --- NMEA -----------------------------------------------------------------------------------
+def _armour(values: np.ndarray) -> np.ndarray:
+    """6-bit values -> AIS payload characters (ITU-R M.1371-5 Annex 8 Table 44)."""
+    return np.where(values < 40, values + 48, values + 56).astype(np.uint8)
+
+
+def _bits(value: np.ndarray, width: int) -> np.ndarray:
+    value = np.asarray(value, dtype=np.int64) & ((1 << width) - 1)
+    shifts = np.arange(width - 1, -1, -1, dtype=np.int64)
+    return ((value[:, None] >> shifts) & 1).astype(np.uint8)
+
+
+def encode_type1(mmsi, status, sog_kn, lon_deg, lat_deg, cog_deg, hdg) -> list[str]:
+    """Vectorised encoder of 168-bit message 1 payloads (28 characters each)."""
+    n = len(mmsi)
+    parts = [
+        _bits(np.full(n, 1), 6), _bits(np.zeros(n), 2), _bits(mmsi, 30), _bits(status, 4), _bits(np.full(n, 128), 8),
+        _bits(np.round(np.asarray(sog_kn) * 10), 10), _bits(np.zeros(n), 1),
+        _bits(np.round(np.asarray(lon_deg) * 600000), 28), _bits(np.round(np.asarray(lat_deg) * 600000), 27),
+        _bits(np.round(np.asarray(cog_deg) * 10), 12), _bits(hdg, 9), _bits(np.zeros(n), 6), _bits(np.zeros(n), 2),
+        _bits(np.zeros(n), 3), _bits(np.zeros(n), 1), _bits(np.zeros(n), 19),
+    ]
+    bits = np.concatenate(parts, axis=1)
+    six = bits.reshape(n, 28, 6) @ (1 << np.arange(5, -1, -1))
+    chars = _armour(six)
+    return [bytes(row).decode("ascii") for row in chars]
+
+
+def _checksum(body: str) -> str:
+    c = 0
+    for ch in body.encode():
+        c ^= ch
+    return f"{c:02X}"
+
+
+def generate_nmea(path: Path, n_messages: int, n_vessels: int = 1500, seed: int = 1) -> None:
+    """DMA-like framing: a ``\\si:...\\`` tag block line, a ``$PGHP`` time line and the sentence;
+    99 % message 1 positions, some message 4/5 from a real feed."""
+    rng = np.random.default_rng(seed)
+    v = rng.integers(0, n_vessels, n_messages)
+    mmsi_v = rng.choice(np.arange(219000000, 220000000), n_vessels, replace=False)
+    t_ms = np.sort(rng.integers(0, 3600 * 1000 * 6, n_messages))
+    lat = rng.uniform(54.5, 57.5, n_vessels)[v] + t_ms * 1e-9
+    lon = rng.uniform(8.0, 14.0, n_vessels)[v] + t_ms * 1e-9
+    payloads = encode_type1(mmsi_v[v], np.zeros(n_messages, dtype=int), rng.uniform(0, 20, n_messages).round(1),
+                            lon, lat, rng.uniform(0, 359.9, n_messages).round(1), rng.integers(0, 360, n_messages))
+    extra = ["!BSVDM,1,1,,A,402R3bQunn;ss0s>KfPOeUQ0080:,0*09",
+             "!BSVDM,2,1,1,B,53uRcl02<VQA<A5B22098U=@tj2222222222220N3`?5540Ht@4jhAiC,0*62\n"
+             "!BSVDM,2,2,1,B,`88888888888880,2*67"]
+    out = []
+    for k in range(n_messages):
+        ms = int(t_ms[k])
+        h, rem = divmod(ms, 3600000)
+        m, rem = divmod(rem, 60000)
+        s, msec = divmod(rem, 1000)
+        gh = f"PGHP,1,2025,1,1,{h},{m},{s},{msec},219,,2190067,1,00"
+        out.append("\\si:AISD*3F\\")
+        out.append(f"${gh}*{_checksum(gh)}")
+        if k % 100 == 99:
+            out.append(extra[(k // 100) % 2])
+        else:
+            body = f"AIVDM,1,1,,A,{payloads[k]},0"
+            out.append(f"!{body}*{_checksum(body)}")
+    path.write_text("\n".join(out) + "\n", encoding="ascii")
+
+
+def pyais_loop(path: Path) -> tuple[int, float]:
+    from pyais.stream import FileReaderStream
+
+    t = time.perf_counter()
+    n = 0
+    for msg in FileReaderStream(str(path)):
+        try:
+            msg.decode()
+        except Exception:  # noqa: BLE001
+            pass
+        n += 1
+    return n, time.perf_counter() - t
+
+
+def best(fn, repeat: int):
+    results = [fn() for _ in range(repeat)]
+    return min(results, key=lambda r: r[-1])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rows", type=int, default=5_000_000)
+    ap.add_argument("--messages", type=int, default=300_000)
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--keep", type=Path, default=None, help="generate into (and keep) this folder")
+    args = ap.parse_args(argv)
+
+    import duckdb
+
+    from pipelines.ingest import ingest_paths
+
+    tmp = args.keep or Path(tempfile.mkdtemp(prefix="stormlane-bench-"))
+    tmp.mkdir(parents=True, exist_ok=True)
+    csv_path = tmp / "dma_bench.csv"
+    nmea_path = tmp / "dma_bench.nmea"
+    print(f"cores: {os.cpu_count()} (shared machine: timings are noisy; best of {args.repeat})")
+    if not csv_path.exists():
+        t = time.perf_counter()
+        injected = generate_dma_csv(csv_path, args.rows)
+        print(f"generated {args.rows:,} DMA rows ({csv_path.stat().st_size / 1e6:.0f} MB) in "
+              f"{time.perf_counter() - t:.1f} s; dirty rows {injected}")
+
+    def raw_baseline():
+        out = tmp / "raw.parquet"
+        con = duckdb.connect()
+        t = time.perf_counter()
+        n = con.execute("COPY (SELECT * FROM read_csv(?)) TO '" + str(out).replace("'", "''") + "' (FORMAT parquet)",
+                        [str(csv_path)]).fetchone()[0]
+        dt = time.perf_counter() - t
+        con.close()
+        out.unlink()
+        return n, dt
+
+    def cleaned():
+        db = tmp / "bench.duckdb"
+        for suffix in ("", ".wal"):
+            Path(str(db) + suffix).unlink(missing_ok=True)
+        t = time.perf_counter()
+        s = ingest_paths([csv_path], db)
+        dt = time.perf_counter() - t
+        assert s["read"] == s["loaded"] + s["quarantined"] + s["duplicates"]
+        return s, dt
+
+    n_raw, t_raw = best(raw_baseline, args.repeat)
+    s_csv, t_csv = best(cleaned, args.repeat)
+    raw_rate = n_raw / t_raw
+    csv_rate = s_csv["read"] / t_csv
+    print(f"CSV raw baseline  (DuckDB read_csv -> Parquet, no cleaning): {n_raw:,} rows in {t_raw:.2f} s = "
+          f"{raw_rate / 1e6:.2f} M rows/s")
+    print(f"CSV cleaned ingest (ingest_paths -> DuckDB workspace):         {s_csv['read']:,} rows in {t_csv:.2f} s = "
+          f"{csv_rate / 1e6:.2f} M rows/s  ({csv_rate / raw_rate:.2f} x baseline; targets >= 1.5 M rows/s, "
+          f">= 0.5 x)")
+    print(f"   loaded {s_csv['loaded']:,}, quarantined {s_csv['quarantined']:,}, duplicates {s_csv['duplicates']:,}, "
+          f"reasons {s_csv['reasons']}")
+
+    if not nmea_path.exists():
+        t = time.perf_counter()
+        generate_nmea(nmea_path, args.messages)
+        print(f"generated {args.messages:,} NMEA messages ({nmea_path.stat().st_size / 1e6:.0f} MB) in "
+              f"{time.perf_counter() - t:.1f} s")
+
+    def nmea_ingest():
+        db = tmp / "bench_nmea.duckdb"
+        for suffix in ("", ".wal"):
+            Path(str(db) + suffix).unlink(missing_ok=True)
+        t = time.perf_counter()
+        s = ingest_paths([nmea_path], db)
+        return s, time.perf_counter() - t
+
+    n_py, t_py = best(lambda: pyais_loop(nmea_path), args.repeat)
+    s_nm, t_nm = best(nmea_ingest, args.repeat)
+    n_ours = s_nm["read"] + s_nm["static"]
+    print(f"NMEA pyais loop (FileReaderStream + decode):                  {n_py:,} messages in {t_py:.2f} s = "
+          f"{n_py / t_py / 1e3:.0f} k messages/s")
+    print(f"NMEA ingest (ingest_paths -> DuckDB workspace):               {n_ours:,} messages in {t_nm:.2f} s = "
+          f"{n_ours / t_nm / 1e3:.0f} k messages/s  ({(n_ours / t_nm) / (n_py / t_py):.2f} x pyais; target >= 1 x)")
+    print(f"   loaded {s_nm['loaded']:,}, quarantined {s_nm['quarantined']:,}, duplicates {s_nm['duplicates']:,}, "
+          f"static {s_nm['static']:,}, reasons {s_nm['reasons']}")
+    if args.keep is None:
+        import shutil
+
+        shutil.rmtree(tmp, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
