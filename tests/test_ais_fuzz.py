@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from ais_fixtures import DMA_HEADER, dma_row
 from lanes.clean import clean_positions
 from lanes.io.csv_formats import read_csv_stage
-from lanes.io.nmea import parse_lines
+from lanes.io.nmea import parse_fast, parse_lines
 from pipelines.ingest import ingest_file
 from pipelines.storage import Workspace
 from pipelines.storage import ais as store
@@ -129,6 +129,8 @@ def test_random_bytes_after_a_valid_header(tmp_path_factory, junk):
 @given(lines=st.lists(mutated(BASE_NMEA), min_size=1, max_size=15))
 def test_mutated_nmea_lines(lines):
     stage, meta = parse_lines(lines)
+    fast, meta_fast = parse_fast(lines)
+    assert fast.equals(stage) and meta_fast == meta
     with memory_ws() as ws:
         store.stage_frame(ws, stage)
         meta_db = {"fingerprint": "sha256:" + hashlib.sha256("\n".join(lines).encode("utf-8", "surrogatepass"))
@@ -148,6 +150,8 @@ def test_mutated_nmea_lines(lines):
 def test_random_text_as_nmea(text):
     lines = text.split("\r")
     stage, meta = parse_lines(lines)
+    fast, meta_fast = parse_fast(lines)
+    assert fast.equals(stage) and meta_fast == meta
     pure = clean_positions(stage)
     c = pure.counts
     assert c["read"] == c["loaded"] + c["quarantined"] + c["duplicates"]

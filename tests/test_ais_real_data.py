@@ -11,7 +11,7 @@ import pytest
 
 from conftest import shared_file
 from lanes.errors import AisFormatError
-from lanes.io.nmea import POSITION_TYPES, decode_positions_168, read_nmea
+from lanes.io.nmea import POSITION_TYPES, decode_positions_168, iter_lines, parse_fast, parse_lines, read_nmea
 from pipelines.ingest import ingest_paths
 from pipelines.storage import open_workspace
 from pipelines.storage.ais import read_positions, read_quarantine, read_vessels
@@ -204,3 +204,12 @@ def test_whole_nmea_directory(shared_data, tmp_path):
     _adds_up(s)
     for f in s["per_file"]:
         _adds_up(f)
+
+
+@pytest.mark.parametrize("rel", [DMA_NMEA, AISLIB_NMEA, PYAIS_NMEA])
+def test_fast_nmea_parser_equals_the_reference_loop(shared_data, rel):
+    lines = iter_lines(shared_file(shared_data, rel))
+    ref, meta_ref = parse_lines(lines)
+    fast, meta_fast = parse_fast(lines)
+    assert fast.equals(ref)
+    assert meta_fast == meta_ref

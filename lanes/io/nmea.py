@@ -19,6 +19,17 @@ Time of a message: the ``c:`` field of its tag block (UNIX seconds), else the ``
 or stand-alone tag block just before its first sentence; such context applies to the next AIS
 sentence only. Messages without time are quarantined as ``bad_time`` by the cleaning.
 
+Two parsers give the same stage: :func:`parse_lines` (a plain loop over the lines, the
+reference) and :func:`parse_fast` (used by the ingest): the regular lines (time stamps, tag
+blocks, single-sentence messages) are classified with pyarrow compute kernels and only the
+irregular ones (fragments of multipart messages, junk) go through the loop's rules; the time
+context is propagated with cumulative maxima instead of a loop. Tests compare both on the real
+samples and on fuzzed lines.
+
+Every line is first trimmed of ASCII white space. A payload identical to the previous
+occurrence of the same position payload in the file, received within 60 s of it (or with an
+unknown time), is ``duplicate_payload`` (the same transmission heard twice).
+
 Speed: position messages of the common fixed length (types 1-3 and 18, 168 bits) are decoded
 vectorised with numpy straight from the 6-bit payload characters (ITU-R M.1371-5, Annex 2,
 Tables 45 and 49); rarer types and odd lengths go through :func:`pyais.decode`. Message types
@@ -59,6 +70,8 @@ POSITION_TYPES = frozenset({1, 2, 3, 18, 19, 27})
 STATIC_TYPES = frozenset({5, 24})
 #: Identical payloads received again within this many seconds are one transmission.
 DUPLICATE_WINDOW_S = 60.0
+#: White space trimmed around every line.
+WS = " \t\n\r\x0b\x0c"
 
 _EPOCH = _dt.datetime(1970, 1, 1)
 
@@ -109,16 +122,23 @@ _LAYOUT_18 = {"mmsi": (8, 30, False), "sog": (46, 10, False), "lon": (57, 28, Tr
               "cog": (112, 12, False), "hdg": (124, 9, False)}
 
 
-def _field(bits: np.ndarray, start: int, width: int, signed: bool) -> np.ndarray:
-    weights = (1 << np.arange(width - 1, -1, -1, dtype=np.int64))
-    v = bits[:, start:start + width].astype(np.int64) @ weights
+def _field(six: np.ndarray, start: int, width: int, signed: bool) -> np.ndarray:
+    """Bits [start, start+width) of rows of 6-bit values (MSB first), as int64."""
+    k0 = start // 6
+    k1 = (start + width - 1) // 6 + 1
+    acc = np.zeros(six.shape[0], dtype=np.int64)
+    for k in range(k0, k1):
+        acc = (acc << 6) | six[:, k].astype(np.int64)
+    acc >>= (6 * (k1 - k0) - (start - 6 * k0) - width)
+    v = acc & ((1 << width) - 1)
     if signed:
         v = np.where(v >= (1 << (width - 1)), v - (1 << width), v)
     return v
 
 
-def decode_positions_168(payloads: list[str], types: np.ndarray) -> dict[str, np.ndarray]:
-    """Decode 28-character payloads of types 1/2/3/18 at once.
+def decode_positions_168(payloads, types: np.ndarray) -> dict[str, np.ndarray]:
+    """Decode 28-character payloads of types 1/2/3/18 at once (a list of str, or a uint8 array
+    of shape (n, 28)).
 
     Returns arrays ``mmsi``, ``nav_status`` (NaN for type 18), ``sog_kn``, ``lon_deg``,
     ``lat_deg``, ``cog_deg``, ``heading_deg`` as the raw scaled values (sentinels kept; the
@@ -128,11 +148,13 @@ def decode_positions_168(payloads: list[str], types: np.ndarray) -> dict[str, np
     n = len(payloads)
     if n == 0:
         return {k: np.empty(0) for k in ("mmsi", "nav_status", "sog_kn", "lon_deg", "lat_deg", "cog_deg", "heading_deg", "ok")}
-    chars = np.frombuffer("".join(payloads).encode("latin-1"), dtype=np.uint8).reshape(n, 28)
+    if isinstance(payloads, np.ndarray):
+        chars = payloads
+    else:
+        chars = np.frombuffer("".join(payloads).encode("latin-1", errors="replace"), dtype=np.uint8).reshape(n, 28)
     ok = np.all(((chars >= 48) & (chars <= 87)) | ((chars >= 96) & (chars <= 119)), axis=1)
     v = chars.astype(np.int16) - 48
-    v = np.where(v > 40, v - 8, v).astype(np.uint8) & 0x3F
-    bits = np.unpackbits(v[:, :, None], axis=2)[:, :, 2:].reshape(n, 168)
+    bits = (np.where(v > 40, v - 8, v) & 0x3F).astype(np.uint8)  # the 28 six-bit values
     out = {k: np.full(n, np.nan) for k in ("nav_status", "sog_kn", "lon_deg", "lat_deg", "cog_deg", "heading_deg")}
     out["mmsi"] = np.zeros(n, dtype=np.int64)
     for is18, layout in ((False, _LAYOUT_123), (True, _LAYOUT_18)):
@@ -217,6 +239,10 @@ def _static_from_pyais(msg) -> dict:
     return out
 
 
+
+# ---------------------------------------------------------------------------------------------
+# Items: the columns every parser fills, sorted by line before decoding
+# ---------------------------------------------------------------------------------------------
 class _Items:
     """Column buffers of the stage being built (plain lists: appending is the hot path)."""
 
@@ -224,7 +250,7 @@ class _Items:
         self.line: list[int] = []
         self.raw: list[str] = []
         self.perr: list = []
-        self.t: list = []          # seconds since the epoch, a $PGHP field list, or None
+        self.t: list = []          # datetime64 (numpy) or None
         self.payload: list[str] = []
         self.sentences: list = []  # None for single-sentence messages
         self.single: list[bool] = []  # a single sentence whose checksum is still to be checked
@@ -239,65 +265,144 @@ class _Items:
         self.single.append(single)
 
 
+_NAT = np.datetime64("NaT", "ns")
+
+
+def pghp_times(lines: list[str]) -> np.ndarray:
+    """UTC times (``datetime64[ns]``, NaT when invalid) of ``$PGHP,1,y,m,d,h,m,s,ms,...`` lines."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    n = len(lines)
+    out = np.full(n, _NAT, dtype="datetime64[ns]")
+    if n == 0:
+        return out
+    parts = pc.split_pattern(pa.array(lines, pa.string()), ",")
+    ok = (pc.list_value_length(parts).to_numpy(zero_copy_only=False) >= 9)
+    if not ok.any():
+        return out
+    parts = parts.filter(pa.array(ok))
+    names = ["year", "month", "day", "hour", "minute", "second", "ms"]
+    cols = {}
+    for k, name in enumerate(names, start=2):
+        txt = pc.list_element(parts, k)
+        try:
+            cols[name] = pc.cast(txt, pa.int64()).to_numpy(zero_copy_only=False)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+            cols[name] = pd.to_numeric(pd.Series(txt.to_pylist(), dtype=object), errors="coerce").to_numpy()
+    ts = pd.to_datetime(pd.DataFrame(cols), errors="coerce")
+    out[np.flatnonzero(ok)] = ts.to_numpy(dtype="datetime64[ns]")
+    return out
+
+
+def _tag_dt(tag: str):
+    """The ``c:`` time of a tag block body as ``datetime64[ns]``, or None."""
+    v = _tag_time(tag) if "c:" in tag else None
+    if v is None or not np.isfinite(v) or abs(v) >= 4e9:
+        return None
+    return np.datetime64(int(round(v * 1000.0)), "ms").astype("datetime64[ns]")
+
+
+def _other_bang_ignored(s: str, f: list[str]) -> bool:
+    """A valid non-AIS ``!`` sentence (e.g. ``!AIABK``): ignored rather than quarantined."""
+    return len(f) >= 2 and len(f[0]) == 6 and f[0][3:6].isalpha() and _checksum_ok(s)
+
+
+class _Multipart:
+    """The fragment rules shared by both parsers (for sentences that are not 1-of-1)."""
+
+    def __init__(self, items: _Items):
+        self.items = items
+        self.buffers: dict = {}
+
+    def _flush(self, key):
+        first, t, sents, _ = self.buffers.pop(key)
+        self.items.add(first, "\n".join(sents), INCOMPLETE_MULTIPART, t)
+
+    def add(self, lineno: int, s: str, f: list[str], t) -> None:
+        add = self.items.add
+        if not _checksum_ok(s):
+            add(lineno, s, BAD_CHECKSUM, t)
+            return
+        try:
+            cnt, num = int(f[1]), int(f[2])
+        except ValueError:
+            add(lineno, s, BAD_SENTENCE, t)
+            return
+        if not (1 <= num <= cnt <= 9):
+            add(lineno, s, BAD_SENTENCE, t)
+            return
+        if cnt == 1:  # "01,1" and the like: a single sentence written unusually
+            add(lineno, s, None, t, f[5], None, True)
+            return
+        key = (f[3], f[4], f[0][1:6], cnt)
+        if num == 1:
+            if key in self.buffers:
+                self._flush(key)
+            self.buffers[key] = (lineno, t, [s], [f[5]])
+            return
+        buf = self.buffers.get(key)
+        if buf is None or len(buf[2]) != num - 1:
+            add(lineno, s, INCOMPLETE_MULTIPART, t)
+            return
+        buf[2].append(s)
+        buf[3].append(f[5])
+        if len(buf[2]) == cnt:
+            first, t0, sents, pays = self.buffers.pop(key)
+            add(first, "\n".join(sents), None, t0, "".join(pays), sents)
+
+    def finish(self) -> None:
+        for key in list(self.buffers):
+            self._flush(key)
+
+
 def parse_lines(lines, progress=None) -> tuple[pd.DataFrame, dict]:
-    """Parse NMEA text lines (without line ends) into a typed stage. See the module docstring."""
+    """Reference parser: NMEA text lines (without line ends) into a typed stage, one line at a
+    time. See the module docstring; :func:`parse_fast` gives the same result faster."""
     items = _Items()
+    multi = _Multipart(items)
     blank = ignored = 0
-    pending_t = None
-    # Multipart buffers: key -> (first line, time, [sentences], [payloads])
-    buffers: dict = {}
+    pending_t = None  # a $PGHP line (parsed at the end, all at once) or a datetime64
     step = 50000
     add = items.add
-
-    def flush_incomplete(key):
-        first, t, sents, _ = buffers.pop(key)
-        add(first, "\n".join(sents), INCOMPLETE_MULTIPART, t)
 
     for lineno, s in enumerate(lines, start=1):
         if progress is not None and lineno % step == 0:
             progress(step)
-        if not s or s.isspace():
+        s = s.strip(WS)
+        if not s:
             blank += 1
             continue
         t_here = None
-        c0 = s[0]
-        if c0 in " \t":
-            s = s.strip()
-            c0 = s[0]
-        if c0 == "\\":
+        if s[0] == "\\":
             end = s.find("\\", 1)
             if end < 0:
-                add(lineno, s.strip(), BAD_SENTENCE)
+                add(lineno, s, BAD_SENTENCE)
                 pending_t = None
                 continue
             tag = s[1:end]
-            t_tag = _tag_time(tag) if "c:" in tag else None
-            s = s[end + 1:].strip()
+            t_tag = _tag_dt(tag)
+            s = s[end + 1:].strip(WS)
             if not s:
                 if t_tag is not None:
                     pending_t = t_tag
                 continue
             t_here = t_tag
-            c0 = s[0]
+        c0 = s[0]
         if c0 == "$":
             if s.startswith("$PGHP,1,"):
                 pending_t = s
-                continue
-            ignored += 1
+            else:
+                ignored += 1
             continue
         if c0 != "!":
-            s = s.strip()
-            if not s:
-                blank += 1
-                continue
             add(lineno, s, BAD_SENTENCE)
             pending_t = None
             continue
         f = s.split(",")
         if len(f) < 7 or f[0][3:6] not in ("VDM", "VDO"):
-            s = s.strip()
-            if len(f) >= 2 and len(f[0]) == 6 and f[0][3:6].isalpha() and _checksum_ok(s):
-                ignored += 1  # a valid non-AIS "!" sentence (e.g. !AIABK)
+            if _other_bang_ignored(s, f):
+                ignored += 1
             else:
                 add(lineno, s, BAD_SENTENCE)
             pending_t = None
@@ -305,118 +410,197 @@ def parse_lines(lines, progress=None) -> tuple[pd.DataFrame, dict]:
         t = t_here if t_here is not None else pending_t
         pending_t = None
         if f[1] == "1" and f[2] == "1":
-            add(lineno, s.rstrip(), None, t, f[5], None, True)
+            add(lineno, s, None, t, f[5], None, True)
             continue
-        s = s.rstrip()
-        if not _checksum_ok(s):
-            add(lineno, s, BAD_CHECKSUM, t)
-            continue
-        try:
-            cnt, num = int(f[1]), int(f[2])
-        except ValueError:
-            add(lineno, s, BAD_SENTENCE, t)
-            continue
-        payload = f[5]
-        if not (1 <= num <= cnt <= 9):
-            add(lineno, s, BAD_SENTENCE, t)
-            continue
-        key = (f[3], f[4], f[0][1:6], cnt)
-        if num == 1:
-            if key in buffers:
-                flush_incomplete(key)
-            buffers[key] = (lineno, t, [s], [payload])
-            continue
-        buf = buffers.get(key)
-        if buf is None or len(buf[2]) != num - 1:
-            add(lineno, s, INCOMPLETE_MULTIPART, t)
-            continue
-        buf[2].append(s)
-        buf[3].append(payload)
-        if len(buf[2]) == cnt:
-            first, t0, sents, pays = buffers.pop(key)
-            add(first, "\n".join(sents), None, t0, "".join(pays), sents)
-    for key in list(buffers):
-        flush_incomplete(key)
-
+        multi.add(lineno, s, f, t)
+    multi.finish()
+    texts = [i for i, x in enumerate(items.t) if isinstance(x, str)]
+    if texts:
+        parsed = pghp_times([items.t[i] for i in texts])
+        for i, v in zip(texts, parsed):
+            items.t[i] = None if np.isnat(v) else v
+    order = np.argsort(np.asarray(items.line, dtype=np.int64), kind="stable")
+    for name in ("line", "raw", "perr", "t", "payload", "sentences", "single"):
+        col = getattr(items, name)
+        setattr(items, name, [col[i] for i in order])
     stage, counts = _decode_items(items)
     meta = {"ignored": ignored + blank, "blank_lines": blank, "other_sentences": ignored, **counts}
     return stage, meta
 
 
+def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
+    """Vectorised parser with the same result as :func:`parse_lines` (see the module docstring)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    n = len(lines)
+    items = _Items()
+    if n == 0:
+        stage, counts = _decode_items(items)
+        return stage, {"ignored": 0, "blank_lines": 0, "other_sentences": 0, **counts}
+    s = pc.utf8_trim(pa.array(lines, pa.string()), characters=WS)
+    blank = pc.equal(pc.utf8_length(s), 0).to_numpy(zero_copy_only=False)
+    is_tag = pc.starts_with(s, "\\").to_numpy(zero_copy_only=False)
+    m = pc.extract_regex(s, r"^\\(?P<tag>[^\\]*)\\(?P<rest>.*)$")
+    matched = m.is_valid().to_numpy(zero_copy_only=False) & is_tag
+    rest = pc.utf8_trim(pc.struct_field(m, "rest"), characters=WS)
+    body = pc.if_else(pa.array(matched), rest, s)
+    bad_tag = is_tag & ~matched
+    standalone = matched & pc.equal(pc.utf8_length(body), 0).to_numpy(zero_copy_only=False)
+
+    # Tag times (c:), only where a tag carries one.
+    tag_t = np.full(n, _NAT, dtype="datetime64[ns]")
+    tags = pc.struct_field(m, "tag")
+    has_c = matched & pc.fill_null(pc.match_substring(tags, "c:"), False).to_numpy(zero_copy_only=False)
+    idx_c = np.flatnonzero(has_c)
+    if len(idx_c):
+        tag_list = tags.take(pa.array(idx_c)).to_pylist()
+        for i, tg in zip(idx_c, tag_list):
+            v = _tag_dt(tg)
+            if v is not None:
+                tag_t[i] = v
+    has_tag_t = ~np.isnat(tag_t)
+
+    first = pc.utf8_slice_codeunits(body, 0, 1)
+    dollar = pc.equal(first, "$").to_numpy(zero_copy_only=False) & ~bad_tag
+    bang = pc.equal(first, "!").to_numpy(zero_copy_only=False) & ~bad_tag
+    pghp = dollar & pc.starts_with(body, "$PGHP,1,").to_numpy(zero_copy_only=False)
+    junk = ~blank & ~standalone & ~dollar & ~bang  # includes unterminated tags
+    ais = bang & pc.match_substring_regex(body, r"^!..VD[MO][^,]*,").to_numpy(zero_copy_only=False) & (
+        pc.count_substring(body, ",").to_numpy(zero_copy_only=False) >= 6)
+    other_bang = bang & ~ais
+
+    # Time context: the latest context line after the latest resetting line.
+    ctx = pghp | (standalone & has_tag_t)
+    reset = bang | junk
+    pos = np.arange(n)
+    last_ctx = np.maximum.accumulate(np.where(ctx, pos, -1))
+    last_reset = np.maximum.accumulate(np.where(reset, pos, -1))
+    prev_ctx = np.concatenate([[-1], last_ctx[:-1]])
+    prev_reset = np.concatenate([[-1], last_reset[:-1]])
+    ctx_t = tag_t.copy()
+    idx_p = np.flatnonzero(pghp)
+    if len(idx_p):
+        ctx_t[idx_p] = pghp_times(body.take(pa.array(idx_p)).to_pylist())
+    use = (prev_ctx >= 0) & (prev_ctx > prev_reset)
+    t_line = np.full(n, _NAT, dtype="datetime64[ns]")
+    t_line[use] = ctx_t[prev_ctx[use]]
+    inline = matched & ~standalone & has_tag_t
+    t_line[inline] = tag_t[inline]
+
+    # Single-sentence AIS messages: vectorised. Everything else in line order with the loop's rules.
+    idx_a = np.flatnonzero(ais)
+    single = np.zeros(n, dtype=bool)
+    payload_all = None
+    if len(idx_a):
+        parts = pc.split_pattern(body.take(pa.array(idx_a)), ",")
+        f1 = pc.list_element(parts, 1).to_numpy(zero_copy_only=False)
+        f2 = pc.list_element(parts, 2).to_numpy(zero_copy_only=False)
+        sing = (f1 == "1") & (f2 == "1")
+        single[idx_a[sing]] = True
+        payload_all = pc.list_element(parts, 5)
+        payload_single = payload_all.filter(pa.array(sing))
+    idx_s = np.flatnonzero(single)
+    irregular = np.flatnonzero(junk | other_bang | (ais & ~single))
+    if len(irregular):
+        multi = _Multipart(items)
+        bodies = body.take(pa.array(irregular)).to_pylist()
+        for i, b in zip(irregular, bodies):
+            lineno = int(i) + 1
+            if junk[i]:
+                items.add(lineno, b if not bad_tag[i] else b, BAD_SENTENCE)
+                continue
+            f = b.split(",")
+            if other_bang[i]:
+                if not _other_bang_ignored(b, f):
+                    items.add(lineno, b, BAD_SENTENCE)
+                continue
+            multi.add(lineno, b, f, None if np.isnat(t_line[i]) else t_line[i])
+        multi.finish()
+    ignored_other = int(np.sum(dollar & ~pghp)) + sum(
+        1 for i in np.flatnonzero(other_bang) if _other_bang_ignored(*_split_once(body, i)))
+    n_blank = int(blank.sum())
+
+    # Merge the vectorised singles with the loop's items, in line order.
+    k = len(idx_s)
+    line = np.concatenate([idx_s + 1, np.asarray(items.line, dtype=np.int64)])
+    raw = body.take(pa.array(idx_s)).to_pylist() + items.raw if k else list(items.raw)
+    perr = [None] * k + items.perr
+    t = np.concatenate([t_line[idx_s], np.array([_NAT if x is None else x for x in items.t], dtype="datetime64[ns]")])
+    payload = (payload_single.to_pylist() if k else []) + items.payload
+    sentences = [None] * k + items.sentences
+    single_flag = np.concatenate([np.ones(k, dtype=bool), np.asarray(items.single, dtype=bool)])
+    order = np.argsort(line, kind="stable")
+    if k and len(order) and not np.all(order == np.arange(len(order))):
+        raw = [raw[i] for i in order]
+        perr = [perr[i] for i in order]
+        payload = [payload[i] for i in order]
+        sentences = [sentences[i] for i in order]
+    stage, counts = _decode_columns(line[order], raw, perr, t[order], payload, sentences, single_flag[order])
+    meta = {"ignored": ignored_other + n_blank, "blank_lines": n_blank, "other_sentences": ignored_other, **counts}
+    return stage, meta
+
+
+def _split_once(body, i):
+    b = body[int(i)].as_py()
+    return b, b.split(",")
+
+
+_HEX = np.full(256, -1, dtype=np.int64)
+for _i, _c in enumerate("0123456789ABCDEF"):
+    _HEX[ord(_c)] = _i
+    _HEX[ord(_c.lower())] = _i
+
+
 def _checksums_ok(sentences: list[str]) -> np.ndarray:
-    """Vectorised NMEA checksum test: XOR of the bytes between the delimiter and ``*``."""
+    """Vectorised NMEA checksum test: XOR of the bytes between the delimiter and the last ``*``
+    equals the two hex digits after it (same rule as :func:`_checksum_ok`)."""
     n = len(sentences)
     if n == 0:
         return np.zeros(0, dtype=bool)
-    stars = np.fromiter((x.rfind("*") for x in sentences), dtype=np.int64, count=n)
-    lens = np.fromiter((len(x) for x in sentences), dtype=np.int64, count=n)
-    ok = (stars > 1) & (lens >= stars + 3)
-    bodies = [x[1:k] if good else "" for x, k, good in zip(sentences, stars, ok)]
-    blob = np.frombuffer(("".join(bodies)).encode("latin-1", errors="replace"), dtype=np.uint8)
-    blens = np.fromiter((len(b) for b in bodies), dtype=np.int64, count=n)
-    starts = np.concatenate([[0], np.cumsum(blens)[:-1]])
+    enc = [x.encode("latin-1", errors="replace") for x in sentences]
+    lens = np.fromiter((len(x) for x in enc), dtype=np.int64, count=n)
+    blob = np.frombuffer(b"".join(enc), dtype=np.uint8)
+    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
+    ends = starts + lens
+    stars_all = np.flatnonzero(blob == ord("*"))
+    # the last '*' of each sentence: the last star position < end
+    k = np.searchsorted(stars_all, ends, side="left") - 1
+    star = np.where(k >= 0, stars_all[np.clip(k, 0, None)] if len(stars_all) else -1, -1)
+    ok = (star - starts > 1) & (ends >= star + 3)
     got = np.zeros(n, dtype=np.int64)
-    nz = blens > 0
-    if nz.any():
-        got[nz] = np.bitwise_xor.reduceat(blob, starts[nz]) if len(blob) else 0
-    hexes = [x[k + 1:k + 3] if good else "" for x, k, good in zip(sentences, stars, ok)]
-    want = np.full(n, -1, dtype=np.int64)
-    for i, h in enumerate(hexes):
-        try:
-            want[i] = int(h, 16) if len(h) == 2 else -1
-        except ValueError:
-            want[i] = -1
+    xor_all = np.concatenate([np.zeros(1, np.uint8), np.bitwise_xor.accumulate(blob)]) if len(blob) else np.zeros(1, np.uint8)
+    sel = np.flatnonzero(ok)
+    # XOR over blob[start+1 : star] = prefix[star] ^ prefix[start+1]
+    got[sel] = (xor_all[star[sel]] ^ xor_all[starts[sel] + 1]).astype(np.int64)
+    hi = np.full(n, -1, dtype=np.int64)
+    lo = np.full(n, -1, dtype=np.int64)
+    hi[sel] = _HEX[blob[star[sel] + 1]]
+    lo[sel] = _HEX[blob[star[sel] + 2]]
+    want = np.where((hi >= 0) & (lo >= 0), hi * 16 + lo, -1)
     return ok & (got == want)
-
-
-def _times(raw_t: list) -> np.ndarray:
-    """UTC times (``datetime64[ns]``, NaT when unknown) from tag-block seconds, ``$PGHP`` lines
-    (parsed vectorised) or None."""
-    n = len(raw_t)
-    out = np.full(n, np.datetime64("NaT"), dtype="datetime64[ns]")
-    pghp_idx, pghp_fields, sec_idx, secs = [], [], [], []
-    for i, v in enumerate(raw_t):
-        if v is None:
-            continue
-        if isinstance(v, str):
-            f = v.split(",")
-            if len(f) >= 9:
-                pghp_idx.append(i)
-                pghp_fields.append(f[2:9])
-        else:
-            sec_idx.append(i)
-            secs.append(v)
-    if pghp_idx:
-        try:
-            arr = np.array(pghp_fields, dtype=np.int64)
-            parts = pd.DataFrame(arr, columns=["year", "month", "day", "hour", "minute", "second", "ms"])
-        except (ValueError, OverflowError):
-            parts = pd.DataFrame(pghp_fields, columns=["year", "month", "day", "hour", "minute", "second", "ms"])
-            parts = parts.apply(pd.to_numeric, errors="coerce")
-        ts = pd.to_datetime(parts, errors="coerce")
-        out[np.asarray(pghp_idx)] = ts.to_numpy(dtype="datetime64[ns]")
-    if sec_idx:
-        ms = np.round(np.asarray(secs, dtype=float) * 1000.0)
-        valid = np.isfinite(ms) & (np.abs(ms) < 4e12)
-        vals = np.full(len(ms), np.datetime64("NaT"), dtype="datetime64[ns]")
-        vals[valid] = ms[valid].astype(np.int64).astype("datetime64[ms]").astype("datetime64[ns]")
-        out[np.asarray(sec_idx)] = vals
-    return out
 
 
 def _decode_items(items: _Items) -> tuple[pd.DataFrame, dict]:
     n = len(items.line)
-    perr = np.asarray(items.perr, dtype=object)
-    single = np.asarray(items.single, dtype=bool)
+    t = np.array([_NAT if x is None else x for x in items.t], dtype="datetime64[ns]") if n else np.empty(0, "datetime64[ns]")
+    return _decode_columns(np.asarray(items.line, dtype=np.int64), items.raw, items.perr, t, items.payload,
+                           items.sentences, np.asarray(items.single, dtype=bool))
+
+
+def _decode_columns(line, raw, perr, t, payloads, sentences, single) -> tuple[pd.DataFrame, dict]:
+    """Checksums of single sentences, message types, duplicates, decoding; the typed stage."""
+    n = len(line)
+    perr = np.asarray(perr, dtype=object) if n else np.empty(0, dtype=object)
     if single.any():
         idx = np.flatnonzero(single)
-        bad = ~_checksums_ok([items.raw[i] for i in idx])
+        bad = ~_checksums_ok([raw[i] for i in idx]) if len(idx) < n else ~_checksums_ok(raw)
         perr[idx[bad]] = BAD_CHECKSUM
-    payloads = items.payload
-    mtype = np.array([_msg_type(p) if e is None else -1 for p, e in zip(payloads, perr)], dtype=np.int64)
+    first = np.frombuffer("".join([p[:1] or "\x00" for p in payloads]).encode("latin-1", errors="replace"),
+                          dtype=np.uint8).astype(np.int64) - 48
+    mtype = np.where(first > 40, first - 8, first)
+    mtype = np.where(np.equal(perr, None), mtype, -1)
     kind = np.full(n, KIND_POSITION, dtype=object)
-    t = _times(items.t)
-    last_seen: dict = {}
 
     cols = {k: np.full(n, np.nan) for k in ("lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg", "nav_status",
                                             "length_m", "beam_m", "draught_m")}
@@ -425,29 +609,34 @@ def _decode_items(items: _Items) -> tuple[pd.DataFrame, dict]:
 
     perr0 = perr.copy()
     open_ = np.equal(perr, None)
-    empty = open_ & np.array([len(p) == 0 for p in payloads], dtype=bool)
+    lens = np.fromiter(map(len, payloads), dtype=np.int64, count=n)
+    empty = open_ & (lens == 0)
     perr[empty] = BAD_PAYLOAD
     open_ &= ~empty
 
-    # Identical position payloads re-received within the window: one transmission (keep the first).
-    for i in np.flatnonzero(open_ & np.isin(mtype, list(POSITION_TYPES))):
-        p = payloads[i]
-        prev = last_seen.get(p, "unseen")
-        ti = None if np.isnat(t[i]) else t[i]
-        if prev != "unseen" and (prev is None or ti is None
-                                 or abs((ti - prev) / np.timedelta64(1, "s")) <= DUPLICATE_WINDOW_S):
-            perr[i] = DUPLICATE_PAYLOAD
-            open_[i] = False
-        else:
-            last_seen[p] = ti
+    # A position payload identical to its previous occurrence, heard within the window (or with
+    # an unknown time): the same transmission received twice.
+    cand = np.flatnonzero(open_ & np.isin(mtype, list(POSITION_TYPES)))
+    if len(cand):
+        codes, _ = pd.factorize(np.asarray([payloads[i] for i in cand], dtype=object))
+        order = np.lexsort((np.arange(len(cand)), codes))
+        same = np.zeros(len(cand), dtype=bool)
+        same[1:] = codes[order][1:] == codes[order][:-1]
+        tc = t[cand][order]
+        prev = np.concatenate([[_NAT], tc[:-1]])
+        gap = np.abs((tc - prev) / np.timedelta64(1, "s"))
+        dup_sorted = same & (np.isnat(tc) | np.isnat(prev) | (gap <= DUPLICATE_WINDOW_S))
+        dup = np.zeros(len(cand), dtype=bool)
+        dup[order] = dup_sorted
+        perr[cand[dup]] = DUPLICATE_PAYLOAD
+        open_[cand[dup]] = False
 
     other = open_ & ~np.isin(mtype, list(POSITION_TYPES | STATIC_TYPES))
     perr[other] = OTHER_MSG_TYPE
     open_ &= ~other
 
-    lens = np.array([len(p) for p in payloads], dtype=np.int64)
-    fast = open_ & np.isin(mtype, [1, 2, 3, 18]) & (lens == 28) & np.array(
-        [items.sentences[i] is None for i in range(n)], dtype=bool)
+    no_parts = np.fromiter((x is None for x in sentences), dtype=bool, count=n)
+    fast = open_ & np.isin(mtype, [1, 2, 3, 18]) & (lens == 28) & no_parts
     idx = np.flatnonzero(fast)
     if len(idx):
         dec = decode_positions_168([payloads[i] for i in idx], mtype[idx])
@@ -459,7 +648,7 @@ def _decode_items(items: _Items) -> tuple[pd.DataFrame, dict]:
             cols[k][gi] = dec[k][good]
     n_static = 0
     for i in np.flatnonzero(open_ & ~fast):
-        sents = items.sentences[i] if items.sentences[i] is not None else [items.raw[i]]
+        sents = sentences[i] if sentences[i] is not None else [raw[i]]
         msg = _decode_with_pyais(sents)
         if msg is None:
             perr[i] = BAD_PAYLOAD
@@ -484,14 +673,13 @@ def _decode_items(items: _Items) -> tuple[pd.DataFrame, dict]:
                 cols[k][i] = v
 
     # Static messages whose payload failed to decode stay position-kind items (quarantined).
-    time_utc = pd.DatetimeIndex(t).tz_localize("UTC")
     df = pd.DataFrame({
-        "line": np.asarray(items.line, dtype=np.int64),
-        "raw": np.asarray(items.raw, dtype=object),
+        "line": np.asarray(line, dtype=np.int64),
+        "raw": np.asarray(raw, dtype=object),
         "kind": kind,
         "parse_error": perr,
         "mmsi": pd.array(np.where(mmsi >= 0, mmsi, 0), dtype="Int64"),
-        "time_utc": time_utc,
+        "time_utc": pd.DatetimeIndex(t).tz_localize("UTC"),
         **cols,
         **statics,
     })
@@ -506,24 +694,27 @@ def _decode_items(items: _Items) -> tuple[pd.DataFrame, dict]:
 
 
 def iter_lines(path) -> list[str]:
-    """Physical lines of a (possibly gzipped) text file: split on ``\\n``, one trailing ``\\r``
-    removed, non-ASCII bytes replaced (NMEA is ASCII)."""
+    """Physical lines of a (possibly gzipped) text file: split on ``\\n``, non-ASCII bytes
+    replaced (NMEA is ASCII). A final newline does not add a line."""
     with open_binary(path) as fh:
         data = fh.read()
     lines = data.decode("ascii", errors="replace").split("\n")
     if lines and lines[-1] == "":
         lines.pop()
-    return [x[:-1] if x.endswith("\r") else x for x in lines]
+    return lines
 
 
-def read_nmea(path, progress=None) -> tuple[pd.DataFrame, dict]:
+def read_nmea(path, progress=None, fast: bool = True) -> tuple[pd.DataFrame, dict]:
     """Read an NMEA AIS file (gzip transparent) into a typed stage.
 
     Returns
     -------
     (pandas.DataFrame, dict)
         The typed stage and metadata: ``format``, ``path``, ``ignored`` (blank lines and
-        non-AIS sentences), ``messages``, ``static``.
+        non-AIS sentences), ``messages``, ``position_messages``, ``msg_types``, ``static``.
     """
-    stage, meta = parse_lines(iter_lines(path), progress=progress)
+    lines = iter_lines(path)
+    stage, meta = parse_fast(lines) if fast else parse_lines(lines, progress=progress)
+    if progress is not None and fast:
+        progress(len(lines))
     return stage, {"format": "nmea", "path": str(Path(path)), **meta}

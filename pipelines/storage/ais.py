@@ -392,11 +392,12 @@ def stage_frame(ws, stage: pd.DataFrame) -> dict:
     """Put a typed stage built in Python (NMEA, or any reader) into ``ais_stage``."""
     _prepare(ws.con)
     _empty_lines(ws.con)
-    df = C.conform_stage(stage).copy()
-    for col in ("mmsi", "imo", "ship_type"):
-        df[col] = df[col].astype("float64")  # NA -> NaN -> NULL on the DuckDB side
-    df["time_utc"] = df["time_utc"].dt.tz_convert(None)
-    ws.con.register("ais_stage_df", df)
+    import pyarrow as pa
+
+    df = C.conform_stage(stage) if list(stage.dtypes.astype(str)) != list(C.STAGE_COLUMNS.values()) else stage
+    # Arrow keeps NULLs as NULLs (nullable ints, NaT, None) and scans faster than object columns.
+    tbl = pa.Table.from_pandas(df.assign(time_utc=df["time_utc"].dt.tz_convert(None)), preserve_index=False)
+    ws.con.register("ais_stage_df", tbl)
     try:
         typed = f"""SELECT
                 CAST(line AS BIGINT) AS line, CAST(raw AS VARCHAR) AS raw, CAST(kind AS VARCHAR) AS kind,
