@@ -200,6 +200,7 @@ def main(argv=None) -> int:
     ap.add_argument("--messages", type=int, default=300_000)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--keep", type=Path, default=None, help="generate into (and keep) this folder")
+    ap.add_argument("--only", choices=["csv", "nmea"], default=None, help="run one half of the benchmark")
     args = ap.parse_args(argv)
 
     import duckdb
@@ -238,6 +239,8 @@ def main(argv=None) -> int:
         assert s["read"] == s["loaded"] + s["quarantined"] + s["duplicates"]
         return s, dt
 
+    if args.only == "nmea":
+        return run_nmea(args, tmp, nmea_path)
     n_raw, t_raw = best(raw_baseline, args.repeat)
     s_csv, t_csv = best(cleaned, args.repeat)
     raw_rate = n_raw / t_raw
@@ -249,6 +252,14 @@ def main(argv=None) -> int:
           f">= 0.5 x)")
     print(f"   loaded {s_csv['loaded']:,}, quarantined {s_csv['quarantined']:,}, duplicates {s_csv['duplicates']:,}, "
           f"reasons {s_csv['reasons']}")
+
+    if args.only == "csv":
+        return 0
+    return run_nmea(args, tmp, nmea_path)
+
+
+def run_nmea(args, tmp, nmea_path) -> int:
+    from pipelines.ingest import ingest_paths
 
     if not nmea_path.exists():
         t = time.perf_counter()

@@ -81,9 +81,24 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     """Load one AIS file into an open workspace; returns its counts (see module docstring)."""
     from pipelines.storage import ais as store
 
-    f = inspect(path, fmt)
-    done = store.file_record(ws, f.fingerprint)
+    from concurrent.futures import ThreadPoolExecutor
+
+    from lanes.io.files import fingerprint, quick_key
+
+    f = inspect(path, fmt, with_fingerprint=False)
+    quick = quick_key(f.path)
+    pool = ThreadPoolExecutor(max_workers=1)
+    # The SHA-256 of the whole file runs in a thread (hashlib releases the GIL) while DuckDB
+    # stages the file. Only when a loaded file has the same quick key (size + first and last
+    # MiB) is the full hash awaited before staging, to skip an already loaded file.
+    full = pool.submit(fingerprint, f.path)
+    try:
+        done = store.file_record(ws, full.result()) if store.quick_key_known(ws, quick) else None
+    except BaseException:
+        pool.shutdown(wait=True)
+        raise
     if done is not None:
+        pool.shutdown(wait=True)
         log.info("%s: already loaded as file %s (%s), skipped", f.path, done["file_id"], done["path"])
         if progress is not None:
             progress(f.size_bytes)
@@ -91,12 +106,17 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
                 "static": 0, "ignored": 0, "reasons": {}, "already_loaded": True, "file_id": done["file_id"]}
     try:
         info = stage_file(ws, f, progress)
-        meta = {"fingerprint": f.fingerprint, "path": str(f.path), "format": f.format,
+        fp = full.result()
+        if store.file_record(ws, fp) is not None:  # same bytes, different quick key: impossible
+            raise RuntimeError(f"{f.path}: fingerprint already loaded")
+        meta = {"fingerprint": fp, "quick_key": quick, "path": str(f.path), "format": f.format,
                 "size_bytes": f.size_bytes, "ignored": info["ignored"]}
         counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit)
     except BaseException:
         store.discard_stage(ws)
         raise
+    finally:
+        pool.shutdown(wait=True)
     if progress is not None:
         progress(f.size_bytes - f.size_bytes // 2)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", f.path, f.format, counts["read"],

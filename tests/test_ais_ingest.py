@@ -197,3 +197,19 @@ def read_positions_sorted_keys(db):
     with open_workspace(db) as ws:
         p = read_positions(ws)
     return (p.mmsi.to_numpy() * 10**10 + p.time_utc.astype("int64").to_numpy() // 10**9)
+
+
+def test_same_head_and_tail_but_different_middle_is_a_new_file(tmp_path, workspace_path):
+    from lanes.io.files import quick_key
+
+    rows = [dma_row((pd.Timestamp("2025-01-03") + pd.Timedelta(seconds=10 * i)).strftime("%d/%m/%Y %H:%M:%S"),
+                    "219000077", f"{55 + i * 1e-5:.6f}", "11.000000") for i in range(16000)]
+    a = write_dma(tmp_path / "a.csv", [DMA_LINES[0]] + rows)
+    changed = list(rows)
+    changed[8000] = changed[8000].replace("OXAB1", "OXAB9")  # same length, middle of the file
+    b = write_dma(tmp_path / "b.csv", [DMA_LINES[0]] + changed)
+    assert a.stat().st_size > 2 * 2**20 and quick_key(a) == quick_key(b)
+    first = ingest_paths([a], workspace_path)
+    second = ingest_paths([b], workspace_path)
+    assert first["loaded"] == 16000
+    assert second["already_loaded"] == 0 and second["reasons"] == {"duplicate": 16000}

@@ -53,6 +53,19 @@ def fingerprint(path: str | Path, chunk: int = 1 << 22) -> str:
     return "sha256:" + h.hexdigest()
 
 
+def quick_key(path: str | Path, n: int = 1 << 20) -> str:
+    """A cheap identity of the bytes: size plus SHA-256 of the first and last ``n`` bytes. Files
+    with different quick keys differ; equal keys need the full :func:`fingerprint`."""
+    size = Path(path).stat().st_size
+    h = hashlib.sha256(str(size).encode())
+    with open(path, "rb") as fh:
+        h.update(fh.read(n))
+        if size > n:
+            fh.seek(max(n, size - n))
+            h.update(fh.read(n))
+    return "quick:" + h.hexdigest()
+
+
 def head_text(path: str | Path, n_bytes: int = 65536) -> str:
     """The first ``n_bytes`` of the (decompressed) content as text (undecodable bytes replaced)."""
     try:

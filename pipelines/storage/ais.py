@@ -4,6 +4,7 @@ Tables (component ``ais``):
 
 ``ais_files``
     one row per loaded file: ``file_id``, ``fingerprint`` (SHA-256 of the bytes, unique),
+    (``ais_file_keys``: ``quick_key`` = size + SHA-256 of the first and last MiB),
     ``path``, ``format``, ``size_bytes``, the counts (``n_read`` = ``n_loaded`` +
     ``n_quarantined`` + ``n_duplicates``; ``n_static``, ``n_ignored``), ``reasons`` (JSON),
     ``max_speed_kn``, ``loaded_at``.
@@ -98,6 +99,16 @@ MIGRATIONS = [
             time_utc TIMESTAMPTZ
         )""",
     ],
+    # v2: a cheap identity (size + first/last MiB) so that new files are staged while their
+    # full SHA-256 is still being computed.
+    # (A separate table, not ALTER TABLE ais_files: DuckDB 1.5.6 cannot replay that ALTER from
+    # its WAL after a crash - "GetDefaultDatabase with no default database set".)
+    [
+        """CREATE TABLE ais_file_keys (
+            file_id   INTEGER PRIMARY KEY,
+            quick_key VARCHAR NOT NULL
+        )""",
+    ],
 ]
 
 _NUM_FIELDS = ("lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg")
@@ -113,6 +124,8 @@ def _q(name: str) -> str:
 def _prepare(con: duckdb.DuckDBPyConnection) -> None:
     """Session settings and helpers of the ingest SQL (idempotent per connection)."""
     con.execute("SET TimeZone = 'UTC'")
+    # DuckDB's own progress bar would print to stdout (and break --json); ours is on stderr.
+    con.execute("SET enable_progress_bar = false")
     con.execute("CREATE OR REPLACE TEMP MACRO ais_num(x) AS nullif(TRY_CAST(x AS DOUBLE), 'nan'::DOUBLE)")
     try:
         con.create_function("ais_csv_split", split_csv_line, ["VARCHAR"], "VARCHAR[]", side_effects=False)
@@ -157,6 +170,13 @@ def file_record(ws, fingerprint: str) -> dict | None:
     rec = dict(zip(keys, row))
     rec["reasons"] = json.loads(rec["reasons"])
     return rec
+
+
+def quick_key_known(ws, quick: str) -> bool:
+    """Whether a loaded file has this quick key (then the full fingerprint decides)."""
+    return ws.con.execute(
+        "SELECT count(*) FROM ais_files f LEFT JOIN ais_file_keys k USING (file_id) "
+        "WHERE k.quick_key = ? OR k.quick_key IS NULL", [quick]).fetchone()[0] > 0
 
 
 def read_files(ws) -> pd.DataFrame:
@@ -303,6 +323,7 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
         )
     """
     _create_stage(con, typed, {"mmsi_re": MMSI_RE, "time_formats": list(spec.time_formats)})
+    _set_stage_kind(con, "text")
     ignored = con.execute("SELECT count(*) FROM ais_lines WHERE rowid >= 1 AND (raw IS NULL OR raw = '')").fetchone()[0]
     return {"ignored": int(ignored), "python_fallback": fallback}
 
@@ -385,6 +406,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
     FROM read_parquet($path, file_row_number = true)
     """
     _create_stage(ws.con, typed, {"path": str(path), "mmsi_re": MMSI_RE})
+    _set_stage_kind(ws.con, "text")
     return {"ignored": 0, "python_fallback": False}
 
 
@@ -410,13 +432,40 @@ def stage_frame(ws, stage: pd.DataFrame) -> dict:
                 {", ".join(f"CAST(NULL AS VARCHAR) AS {c}" for c in _TEXT_STATIC)}
             FROM ais_stage_df"""
         _create_stage(ws.con, typed)
+        _set_stage_kind(ws.con, "typed")
     finally:
         ws.con.unregister("ais_stage_df")
     return {"ignored": 0, "python_fallback": False}
 
 
-def _typed_static_select() -> str:
-    return ", ".join(f"coalesce({c}, {_static_typing(c)}) AS {c}" for c in C.STATIC_COLUMNS)
+def _typed_static_select(available=None) -> str:
+    """Typed static columns: the typed column, else the typed text column ``s_<name>``."""
+    out = []
+    for c in C.STATIC_COLUMNS:
+        have_typed = available is None or c in available
+        have_text = available is None or f"s_{c}" in available
+        if have_typed and have_text:
+            out.append(f"coalesce({c}, {_static_typing(c)}) AS {c}")
+        elif have_text:
+            out.append(f"{_static_typing(c)} AS {c}")
+        elif have_typed:
+            out.append(f"{c} AS {c}")
+        else:
+            out.append(f"CAST(NULL AS {_STATIC_TYPES[c]}) AS {c}")
+    return ", ".join(out)
+
+
+#: Which static columns a stage fills: text (CSV, Parquet) or typed (NMEA and other frames).
+_STAGE_STATIC_COLUMNS = {"text": _TEXT_STATIC, "typed": tuple(C.STATIC_COLUMNS)}
+
+
+def _stage_kind(con) -> str:
+    row = con.execute("SELECT value FROM ais_stage_info WHERE key = 'statics'").fetchone()
+    return row[0] if row else "typed"
+
+
+def _set_stage_kind(con, kind: str) -> None:
+    con.execute("CREATE OR REPLACE TEMP TABLE ais_stage_info AS SELECT 'statics' AS key, ? AS value", [kind])
 
 
 def read_stage(ws) -> pd.DataFrame:
@@ -604,6 +653,8 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
              counts["loaded"], counts["quarantined"], dups, counts["static"], counts["ignored"],
              json.dumps(counts["reasons"], sort_keys=True), float(max_speed_kn)],
         )
+        if meta.get("quick_key"):
+            con.execute("INSERT INTO ais_file_keys VALUES (?, ?)", [file_id, meta["quick_key"]])
         if before_commit is not None:
             before_commit()
     _drop_temp(con)
@@ -617,7 +668,11 @@ def _upsert_vessels(con, file_id: int) -> None:
     latest (time, line); typing the text values on those few rows gives the same result as
     typing every row.
     """
-    statics = list(C.STATIC_COLUMNS) + list(_TEXT_STATIC)
+    # Group by the columns that can hold values (CSV/Parquet: text; NMEA: typed) - the others
+    # are NULL for the whole stage.
+    populated = [c for c in list(C.STATIC_COLUMNS) + list(_TEXT_STATIC)
+                 if c in _STAGE_STATIC_COLUMNS.get(_stage_kind(con), ())]
+    statics = populated or list(C.STATIC_COLUMNS)
     key = "{'t': coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'), 'l': line}"
     aggs = ",\n".join(f"arg_max({c}, k) FILTER (WHERE {c} IS NOT NULL) AS {c}" for c in C.STATIC_COLUMNS)
     any_set = " OR ".join(f"{c} IS NOT NULL" for c in C.STATIC_COLUMNS)
@@ -632,7 +687,7 @@ def _upsert_vessels(con, file_id: int) -> None:
             FROM ais_stage WHERE mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'
             GROUP BY mmsi, {", ".join(statics)}
         ),
-        typed AS (SELECT mmsi, k, tmax, {_typed_static_select()} FROM combos),
+        typed AS (SELECT mmsi, k, tmax, {_typed_static_select(statics)} FROM combos),
         agg AS (SELECT mmsi, CAST(max(tmax) AS TIMESTAMPTZ) AS updated_utc, {aggs} FROM typed GROUP BY mmsi)
         SELECT mmsi, {", ".join(C.STATIC_COLUMNS)}, updated_utc, $file_id AS file_id FROM agg WHERE {any_set}
         ON CONFLICT (mmsi) DO UPDATE SET {merge},
@@ -642,7 +697,7 @@ def _upsert_vessels(con, file_id: int) -> None:
 
 
 def _drop_temp(con) -> None:
-    for t in ("ais_lines", "ais_stage", "ais_dup", "ais_out"):
+    for t in ("ais_lines", "ais_stage", "ais_dup", "ais_out", "ais_stage_info"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
 
 
