@@ -200,9 +200,18 @@ def _grid(step_deg):
     return lat0 + step_deg * np.arange(n_lat), lon0 + step_deg * np.arange(n_lon)
 
 
-def _times(step_h):
-    t = pd.date_range(START_UTC, END_UTC, freq=f"{step_h}h")
-    return t.tz_localize(None).values.astype("datetime64[ns]")
+def _utc(t) -> pd.Timestamp:
+    ts = pd.Timestamp(t)
+    return ts.tz_localize("UTC") if ts.tz is None else ts.tz_convert("UTC")
+
+
+def _times(step_h, start=None, end=None):
+    """Times every ``step_h`` hours on the UTC clock (multiples of the step) within [start, end]."""
+    t0 = _utc(START_UTC if start is None else start).ceil(f"{step_h}h")
+    t1 = _utc(END_UTC if end is None else end)
+    if t1 < t0:
+        raise ValueError(f"weather window {t0} -> {t1} holds no {step_h}-hourly time")
+    return pd.date_range(t0, t1, freq=f"{step_h}h").tz_localize(None).values.astype("datetime64[ns]")
 
 
 def sea_state_from_wind(u, v, swell_hs, swell_from):
@@ -226,7 +235,7 @@ def sea_state_from_wind(u, v, swell_hs, swell_from):
     return hs, wave_from, tp, 0.87 * tp
 
 
-def generate_weather(seed: int = 0, *, land_mask=None) -> ScenarioWeather:
+def generate_weather(seed: int = 0, *, land_mask=None, start=None, end=None) -> ScenarioWeather:
     """Generate the demo's waves (1/12°, 3-hourly) and wind (0.25°, hourly) with the two storms.
 
     Parameters
@@ -235,6 +244,10 @@ def generate_weather(seed: int = 0, *, land_mask=None) -> ScenarioWeather:
         Deterministic: the same seed gives identical arrays.
     land_mask : callable(lat2d, lon2d) -> bool array, optional
         Land test for the wave grid (default ``global_land_mask.globe.is_land``).
+    start, end : datetime-like (UTC), optional
+        Window to generate (default the demo's 2025-01-01T00Z -> 2025-02-02T06Z). The fields are
+        functions of absolute time, so a window equals the same slice of a longer run; outside the
+        storms' dates only the background weather remains.
 
     Returns
     -------
@@ -247,7 +260,7 @@ def generate_weather(seed: int = 0, *, land_mask=None) -> ScenarioWeather:
     storms = make_storms(seed)
 
     wlat, wlon = _grid(WIND_STEP_DEG)
-    wt = _times(WIND_STEP_H)
+    wt = _times(WIND_STEP_H, start, end)
     u, v, _, _ = _wind_field(storms, wt, wlat, wlon, seed)
     wind = xr.Dataset(
         {"wind_u_ms": (("time_utc", "lat", "lon"), u.astype(np.float32), {"units": "m s-1"}),
@@ -257,7 +270,7 @@ def generate_weather(seed: int = 0, *, land_mask=None) -> ScenarioWeather:
     )
 
     lat, lon = _grid(WAVE_STEP_DEG)
-    t = _times(WAVE_STEP_H)
+    t = _times(WAVE_STEP_H, start, end)
     LAT, LON = np.meshgrid(lat, lon, indexing="ij")
     land = np.asarray(land_mask(LAT, LON), dtype=bool)
     out = {k: np.empty((t.size, lat.size, lon.size), dtype=np.float32) for k in ("hs_m", "wave_from_deg", "tp_s", "tm_s")}

@@ -128,7 +128,8 @@ def write_era5(ds: xr.Dataset, path: str | Path, *, layout: str = "time", synthe
                                "units": units, "long_name": long_name})
                 packed = np.round((values - offset) / scale)
                 var[:] = np.where(np.isfinite(packed), np.clip(packed, -32766, 32767), FILL_INT16).astype(np.int16)
-            hist = f"{pd.Timestamp.now(tz='UTC'):%Y-%m-%d %H:%M:%S} GMT by grib_to_netcdf-2.20.0 layout"
+            # no wall-clock time in the file: the same data give byte-identical files
+            hist = "grib_to_netcdf-2.20.0 layout (written by stormlane)"
             nc.setncatts({"Conventions": "CF-1.6", "history": f"{hist}; {note}" if note else hist,
                           "stormlane_synthetic": "true" if synthetic else "false"})
         return path

@@ -41,6 +41,8 @@ def write_scenario_weather(out_dir: str | Path, seed: int = 0, weather: Scenario
     sw = weather if weather is not None else generate_weather(seed)
     folder = Path(out_dir) / "weather"
     folder.mkdir(parents=True, exist_ok=True)
+    for old in list(folder.glob(f"{GLOBAL_WAVE_DATASET}_*.nc")) + list(folder.glob("era5_reanalysis-era5-single-levels_*.nc")):
+        old.unlink()  # files of an earlier run with another window would be merged in otherwise
     t0 = pd.Timestamp(sw.waves.time_utc.values[0])
     t1 = pd.Timestamp(sw.waves.time_utc.values[-1])
     wave_name = f"{GLOBAL_WAVE_DATASET}_VHM0-VMDR-VTM10-VTPK_{_bbox_tag()}_{t0:%Y-%m-%d}-{t1:%Y-%m-%d}.nc"

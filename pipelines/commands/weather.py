@@ -1,0 +1,238 @@
+"""`stormlane weather ...`: fetch, inspect and load weather; join paths with it; exceedance shares.
+
+Commands
+--------
+``weather fetch``       download a CMEMS / ERA5 subset into the cache (no download when cached)
+``weather info``        read local files (CMEMS / ERA5 / GRIB / zarr) and describe the merged grid
+``weather load``        read local files, merge onto one grid and store it in the workspace
+``weather join``        weather at every point of a set of paths for a set of departures
+``weather exceedance``  share of sea cells breaking a vessel's limits, per time step
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from pipelines.commands._common import DbOption, JsonOption, emit_json, progress
+
+weather_app = typer.Typer(help="Weather: fetch (CMEMS/ERA5), inspect, load into the workspace, join with paths.",
+                          no_args_is_help=True)
+
+
+def _bbox(text: str) -> tuple[float, float, float, float]:
+    from weather.errors import WeatherError
+
+    try:
+        parts = [float(x) for x in text.split(",")]
+    except ValueError:
+        parts = []
+    if len(parts) != 4:
+        raise WeatherError(f"--bbox must be LON_MIN,LAT_MIN,LON_MAX,LAT_MAX (got {text!r})")
+    return tuple(parts)  # type: ignore[return-value]
+
+
+def _summary(meta: dict) -> dict:
+    keep = ("product", "base", "variables", "ignored", "start_utc", "end_utc", "bbox", "shape", "grid_step_deg", "source_files")
+    return {k: meta[k] for k in keep if k in meta}
+
+
+@weather_app.command("fetch")
+def fetch(
+    product: str = typer.Option("cmems-wave", "--product",
+                                help="cmems-wave, cmems-wave-med, cmems-current, cmems-current-daily or era5-wind."),
+    bbox: str = typer.Option(..., "--bbox", help="LON_MIN,LAT_MIN,LON_MAX,LAT_MAX in degrees."),
+    start: str = typer.Option(..., "--start", help="Start time, ISO 8601 (UTC if no offset)."),
+    end: str = typer.Option(..., "--end", help="End time, ISO 8601 (UTC if no offset)."),
+    dataset_id: str = typer.Option(None, "--dataset-id", help="Override the CMEMS dataset id."),
+    cache: Path = typer.Option(None, "--cache", help="Download cache folder (default $STORMLANE_CACHE or ~/.cache/stormlane/weather)."),
+    load: bool = typer.Option(False, "--load", help="Also load the downloaded files into the workspace."),
+    db: Path = DbOption,
+    json_out: bool = JsonOption,
+) -> None:
+    """Download a weather subset with the official client (copernicusmarine or cdsapi), cached.
+
+    Credentials come from the clients' own configuration (`copernicusmarine login`, ~/.cdsapirc).
+    """
+    from weather.io.cache import DownloadCache
+
+    box = _bbox(bbox)
+    store = DownloadCache(cache) if cache else DownloadCache()
+    if product.startswith("era5"):
+        from weather.io.era5 import get_era5
+
+        paths, info = get_era5(box, start, end, cache=store)
+        cached = info["cached"]
+    else:
+        from weather.io.cmems import get_cmems
+
+        path, info = get_cmems(box, start, end, product=product, dataset_id=dataset_id, cache=store)
+        paths, cached = [path], [info["cached"]]
+    out = {"product": product, "files": [str(p) for p in paths], "cached": cached}
+    if load:
+        out["grid"] = _load(paths, db, None)
+    if json_out:
+        emit_json(out)
+        return
+    for p, c in zip(paths, cached):
+        typer.echo(f"{p}  ({'cached' if c else 'downloaded'})")
+    if load:
+        typer.echo(f"loaded into {db}: grid {out['grid']['grid_id']} {out['grid']['name']!r}")
+
+
+@weather_app.command("info")
+def info(
+    paths: list[Path] = typer.Argument(..., help="Weather files or folders (CMEMS/ERA5 NetCDF, GRIB, zarr)."),
+    json_out: bool = JsonOption,
+) -> None:
+    """Read local weather files, merge them onto one grid and describe the result (nothing stored)."""
+    from weather.io import read_local
+
+    _, meta = read_local(paths)
+    summary = _summary(meta)
+    summary["inputs"] = [{k: m[k] for k in ("path", "product", "start_utc", "end_utc", "shape") if k in m} for m in meta["inputs"]]
+    if json_out:
+        emit_json(summary)
+        return
+    typer.echo(f"{summary['product']}")
+    typer.echo(f"  time   {summary['start_utc']} -> {summary['end_utc']}  ({summary['shape'][0]} steps)")
+    typer.echo(f"  grid   {summary['shape'][1]} x {summary['shape'][2]}, bbox {summary['bbox']}")
+    for var, prod in summary["variables"].items():
+        typer.echo(f"  {var:<14} from {prod}")
+    for ign in summary.get("ignored", []):
+        typer.echo(f"  ignored: {ign}")
+
+
+def _load(paths, db: Path, name: str | None) -> dict:
+    from pipelines.storage import open_workspace
+    from pipelines.storage.weather import get_grid, load_weather
+    from weather.io import read_local
+
+    with progress("reading weather", total=None) as _:
+        ds, meta = read_local(paths)
+    with open_workspace(db) as ws:
+        gid = load_weather(ws, ds, name=name, metadata=_summary(meta))
+        g = get_grid(ws, gid)
+    return {"grid_id": int(g["grid_id"]), "name": g["name"], "product": g["product"], "n_cells": int(g["n_cells"]),
+            "start_utc": str(g["start_utc"]), "end_utc": str(g["end_utc"]), "variables": g["variables"].split(",")}
+
+
+@weather_app.command("load")
+def load(
+    paths: list[Path] = typer.Argument(..., help="Weather files or folders (CMEMS/ERA5 NetCDF, GRIB, zarr)."),
+    db: Path = DbOption,
+    name: str = typer.Option(None, "--name", help="Grid name in the workspace (default: the product label); replaces a grid of that name."),
+    json_out: bool = JsonOption,
+) -> None:
+    """Read weather files, merge them onto one grid and store it in the workspace (tables weather_grids, weather_cells)."""
+    grid = _load(paths, db, name)
+    if json_out:
+        emit_json(grid)
+        return
+    typer.echo(f"grid {grid['grid_id']} {grid['name']!r}: {grid['n_cells']:,} sea cells, "
+               f"{grid['start_utc']} -> {grid['end_utc']}, variables {', '.join(grid['variables'])}")
+
+
+def _departures(depart: list[str], every_h: float | None, count: int):
+    import pandas as pd
+
+    from weather.errors import WeatherError
+
+    if not depart:
+        raise WeatherError("give at least one --depart time")
+    times = list(pd.to_datetime(depart, utc=True))
+    if every_h is not None:
+        if len(times) != 1:
+            raise WeatherError("--every needs exactly one --depart (the first departure)")
+        times = list(pd.date_range(times[0], periods=count, freq=pd.Timedelta(hours=every_h)))
+    return times
+
+
+@weather_app.command("join")
+def join(
+    points: Path = typer.Option(None, "--points", help="CSV with path_id,seq,lat_deg,lon_deg,speed_kn (default: the workspace's lane centroids)."),
+    depart: list[str] = typer.Option([], "--depart", help="Departure time (repeatable), ISO 8601."),
+    every_h: float = typer.Option(None, "--every", help="Hours between departures, starting at the single --depart."),
+    count: int = typer.Option(1, "--count", help="Number of departures with --every."),
+    grid: str = typer.Option(None, "--grid", help="Grid id or name (default: the latest loaded)."),
+    out: Path = typer.Option(None, "--out", help="Write every joined point to this CSV or Parquet file."),
+    flag_missing: bool = typer.Option(False, "--flag-missing", help="Mark points outside the data instead of failing."),
+    db: Path = DbOption,
+    json_out: bool = JsonOption,
+) -> None:
+    """Weather at every point of every path for each departure (ETA -> grid cell -> nearest time)."""
+    import pandas as pd
+
+    from pipelines.storage import open_workspace
+    from pipelines.storage.weather import join_points_weather
+    from pipelines.weather import lane_points
+    from weather.errors import WeatherError
+
+    deps = _departures(depart, every_h, count)
+    with open_workspace(db) as ws:
+        if points is not None:
+            try:
+                pts = pd.read_csv(points)
+            except (OSError, ValueError) as err:
+                raise WeatherError(f"{points}: cannot read points CSV ({err})") from None
+        else:
+            pts = lane_points(ws)
+        g = None if grid is None else (int(grid) if grid.isdigit() else grid)
+        res = join_points_weather(ws, pts, deps, grid=g, on_missing="flag" if flag_missing else "raise")
+    if out is not None:
+        if out.suffix == ".parquet":
+            res.to_parquet(out, index=False)
+        else:
+            res.to_csv(out, index=False)
+    per_path = res.groupby("path_id").agg(n=("seq", "size"), max_hs_m=("hs_m", "max"))
+    summary = {"n_points": int(len(res)), "n_paths": int(res.path_id.nunique()), "n_departures": len(deps),
+               "status": {k: int(v) for k, v in res.status.value_counts().items()},
+               "max_hs_m": per_path["max_hs_m"].round(3).to_dict(), "out": None if out is None else str(out)}
+    if json_out:
+        emit_json(summary)
+        return
+    typer.echo(f"{summary['n_points']:,} points ({summary['n_paths']} paths x {len(deps)} departures); status {summary['status']}")
+    for pid, row in per_path.iterrows():
+        typer.echo(f"  {pid:<20} max Hs {row.max_hs_m:.2f} m")
+
+
+@weather_app.command("exceedance")
+def exceedance(
+    paths: list[Path] = typer.Argument(..., help="Weather files or folders."),
+    vessel: str = typer.Option("container-large", "--vessel", help="Vessel profile name or TOML file."),
+    profile: str = typer.Option(None, "--profile", help="Operator profile name or TOML file (default: the file's default)."),
+    headings: int = typer.Option(0, "--headings", help="Evaluate N equally spaced headings (0 = heading-free rules only)."),
+    json_out: bool = JsonOption,
+) -> None:
+    """Per time step: share of sea cells breaking the vessel's operator limits and IMO rules."""
+    import numpy as np
+
+    from pipelines.config import load_operator_profile, load_vessel
+    from weather.exposure import exceedance_by_time
+    from weather.io import read_local
+
+    ds, meta = read_local(paths)
+    v = load_vessel(vessel)
+    prof = load_operator_profile(profile)
+    hdg = None if headings <= 0 else np.arange(headings) * 360.0 / headings
+    table, skipped = exceedance_by_time(ds, v, prof, headings_deg=hdg)
+    limits = prof.limits_for(v.vessel_class, v.lpp_m)
+    if json_out:
+        rows = [{"time_utc": t.strftime("%Y-%m-%dT%H:%MZ"), **{k: (float(x) if k == "unsafe_frac" else int(x)) for k, x in r.items()}}
+                for t, r in table.iterrows()]
+        emit_json({"product": meta["product"], "vessel": v.name, "profile": prof.name, "limits": limits.name,
+                   "skipped": list(skipped), "mean_unsafe_frac": float(table.unsafe_frac.mean()), "steps": rows})
+        return
+    typer.echo(f"{meta['product']} | vessel {v.name} | profile {prof.name}: {limits.name}")
+    for s in skipped:
+        typer.echo(f"  not evaluated: {s}")
+    rule_cols = [c for c in table.columns if c.startswith("n_") and c not in ("n_sea", "n_unsafe")]
+    typer.echo("time_utc            sea    unsafe  share  " + "  ".join(c[2:] for c in rule_cols))
+    for t, r in table.iterrows():
+        typer.echo(f"{t:%Y-%m-%dT%H:%MZ}  {int(r.n_sea):6d} {int(r.n_unsafe):6d}  {r.unsafe_frac:6.1%}  "
+                   + "  ".join(f"{int(r[c]):{len(c) - 2}d}" for c in rule_cols))
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(weather_app, name="weather")
