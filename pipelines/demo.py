@@ -124,11 +124,19 @@ def step_lanes(ctx: DemoContext) -> dict:
             "pairs_sailed": len(sailed), "pairs_with_lane": len(covered), "pairs_without_lane": missing}
 
 
+def step_weather(ctx: DemoContext) -> dict:
+    """Load the scenario's weather files (CMEMS waves + ERA5 wind) into the workspace."""
+    from pipelines.weather import step_weather as run
+
+    return run(ctx)
+
+
 #: The demo's steps, in order; each component appends its own.
 STEPS: list[tuple[str, Callable[[DemoContext], dict]]] = [
     ("scenario", step_scenario),
     ("ingest", step_ingest),
     ("lanes", step_lanes),
+    ("weather", step_weather),
 ]
 
 

@@ -234,8 +234,15 @@ def write_ais(ctx: ScenarioContext) -> dict:
     }
 
 
+def write_weather(ctx: ScenarioContext) -> dict:
+    """Storm weather under ``DIR/weather/`` (CMEMS + ERA5 schemas), see :mod:`pipelines.weather`."""
+    from pipelines.weather import write_scenario_weather_files
+
+    return write_scenario_weather_files(ctx)
+
+
 #: Writers run in order by :func:`build_scenario`; append ``(name, writer)`` to add files.
-SCENARIO_WRITERS: list[tuple[str, ScenarioWriter]] = [("ais", write_ais)]
+SCENARIO_WRITERS: list[tuple[str, ScenarioWriter]] = [("ais", write_ais), ("weather", write_weather)]
 
 
 def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | None = None,

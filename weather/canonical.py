@@ -161,7 +161,7 @@ def normalise_weather(
         values = np.asarray(da.values, dtype=np.float32)
         if factor != 1.0:
             values = values * np.float32(factor)
-        if dst in DIRECTION_VARS:
+        if dst in DIRECTION_VARS and (np.nanmin(values) < 0.0 or np.nanmax(values) >= 360.0):
             values = np.mod(values, np.float32(360.0))
         out_vars[dst] = (values, {"units": CANONICAL_VARS[dst][0], "long_name": CANONICAL_VARS[dst][1], "source_name": src,
                                   "source_units": "" if units is None else str(units)})
@@ -177,9 +177,18 @@ def normalise_weather(
     if np.any(np.diff(lon_sorted) == 0) or np.any(np.diff(lat[lat_order]) == 0):
         raise WeatherFileError(f"{source}: duplicate latitude or longitude values")
 
+    def reorder(arr, order, axis):
+        """Apply an axis permutation, as a view when it is the identity or a reversal."""
+        n = arr.shape[axis]
+        if np.array_equal(order, np.arange(n)):
+            return arr
+        index = [slice(None)] * arr.ndim
+        index[axis] = slice(None, None, -1) if np.array_equal(order, np.arange(n)[::-1]) else order
+        return arr[tuple(index)]
+
     data_vars = {}
     for dst, (values, vattrs) in out_vars.items():
-        arr = values[t_idx][:, lat_order][:, :, lon_order]
+        arr = reorder(reorder(reorder(values, t_idx, 0), lat_order, 1), lon_order, 2)
         data_vars[dst] = (("time_utc", "lat", "lon"), np.ascontiguousarray(arr), vattrs)
     out = xr.Dataset(
         data_vars,

@@ -75,6 +75,13 @@ def bilinear_2d(values: np.ndarray, src_lat, src_lon, dst_lat, dst_lon) -> np.nd
     j0, wx, vx = _axis_weights(src_lon, dst_lon)
     i1 = np.minimum(i0 + 1, v.shape[-2] - 1)
     j1 = np.minimum(j0 + 1, v.shape[-1] - 1)
+    inside = vy[:, None] & vx[None, :]
+    if not np.isnan(v).any():
+        # No missing source values: bilinear = linear along lon, then along lat (separable, same
+        # result, far fewer gathers on a fine target grid).
+        along = v[..., j0] * (1.0 - wx) + v[..., j1] * wx
+        out = along[..., i0, :] * (1.0 - wy)[:, None] + along[..., i1, :] * wy[:, None]
+        return np.where(inside, out, np.nan)
     wy = wy[:, None]
     wx = wx[None, :]
     corners = (
@@ -92,7 +99,6 @@ def bilinear_2d(values: np.ndarray, src_lat, src_lon, dst_lat, dst_lon) -> np.nd
         den += wk
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(den > 1e-12, num / den, np.nan)
-    inside = vy[:, None] & vx[None, :]
     return np.where(inside, out, np.nan)
 
 

@@ -127,16 +127,18 @@ def load_weather(ws, ds, name: str | None = None, metadata: dict | None = None) 
         raise WeatherError(f"{name}: no canonical variables to load")
     times = ds.time_utc.values.astype("datetime64[ns]")
     nt = times.size
-    stack = np.stack([np.asarray(ds[c].values, dtype=np.float32) for c in present])  # (var, t, lat, lon)
-    valid = ~np.isnan(stack).all(axis=0)  # (t, lat, lon)
+    arrays = [np.asarray(ds[c].values, dtype=np.float32) for c in present]  # each (t, lat, lon)
+    valid = ~np.isnan(arrays[0])
+    for a in arrays[1:]:
+        valid |= ~np.isnan(a)
     ti, yi, xi = np.nonzero(valid)
     columns = {
-        "time_utc": pa.array(times[ti], type=pa.timestamp("ns", tz="UTC")),
+        "time_utc": pa.array(times.astype("datetime64[us]")[ti], type=pa.timestamp("us", tz="UTC")),
         "lat_idx": pa.array(yi.astype(np.int32)),
         "lon_idx": pa.array(xi.astype(np.int32)),
     }
-    for k, c in enumerate(present):
-        vals = stack[k][ti, yi, xi]
+    for c, a in zip(present, arrays):
+        vals = a[valid]  # boolean selection, same C order as nonzero()
         columns[c] = pa.array(vals, mask=np.isnan(vals), type=pa.float32())
     table = pa.table(columns)
     step_s = float(np.median(np.diff(times)).astype("timedelta64[ns]").astype(np.int64) / 1e9) if nt > 1 else None
