@@ -181,3 +181,21 @@ def test_join_equals_xarray_on_demo_lanes(ws, demo_week):
     assert has_interp.mean() > 0.8
     assert np.all(diff[has_interp] <= spread[has_interp] + 1e-6)
     assert np.median(diff[has_interp]) < 0.1  # m: the grid is fine (1/12 deg, 3 h)
+
+
+def test_join_irregular_time_axis_uses_both_sides(ws):
+    """Daily files concatenated with a gap: times 00, 03, 06, 12 h. Nearest time on both sides."""
+    ds = tiny_grid().isel(time_utc=[0, 1, 2, 4])  # 00:00, 03:00, 06:00, 12:00
+    load_weather(ws, ds, name="gappy")
+    assert get_grid(ws, "gappy")["step_s"] is None or pd.isna(get_grid(ws, "gappy")["step_s"])
+    pts = pd.DataFrame({"path_id": ["a"], "seq": [0], "lat_deg": [40.5], "lon_deg": [2.5], "speed_kn": [10.0]})
+    out = join_points_weather(ws, pts, pd.to_datetime(["2025-01-01T08:59Z", "2025-01-01T09:01Z", "2025-01-01T09:00Z"]),
+                              grid="gappy")
+    got = dict(zip(out.departure_utc, out.weather_time_utc))
+    assert got[pd.Timestamp("2025-01-01T08:59Z")] == pd.Timestamp("2025-01-01T06:00Z")
+    assert got[pd.Timestamp("2025-01-01T09:01Z")] == pd.Timestamp("2025-01-01T12:00Z")
+    assert got[pd.Timestamp("2025-01-01T09:00Z")] == pd.Timestamp("2025-01-01T06:00Z")  # tie -> earlier
+    # the regular grid breaks ties the same way: 01:30 is midway between 00:00 and 03:00
+    load_weather(ws, tiny_grid(), name="regular")
+    out = join_points_weather(ws, pts, ["2025-01-01T01:30Z", "2025-01-01T01:31Z"], grid="regular")
+    assert out.weather_time_utc.tolist() == [pd.Timestamp("2025-01-01T00:00Z"), pd.Timestamp("2025-01-01T03:00Z")]

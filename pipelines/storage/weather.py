@@ -19,8 +19,9 @@ centroids, a route, a generated test set) given as ``path_id``, ``seq``, ``lat_d
    added to each departure time.
 2. Grid cell by index arithmetic: ``lat_idx = round((lat − lat0)/dlat)``, the nearest grid point
    (grid points are cell centres).
-3. Nearest time by two ``ASOF JOIN`` s on the cell (the last time ≤ ETA and the first time ≥ ETA),
-   keeping the closer one (ties go to the earlier time). ETAs more than half a time step outside
+3. Nearest time by ``ASOF JOIN`` on the cell: on a regular time axis one join on ETA + half a
+   step; otherwise two (the last time ≤ ETA and the first time ≥ ETA), keeping the closer one
+   (ties go to the earlier time either way). ETAs more than half a time step outside
    the grid's span get no weather (status ``outside_time``): never silent extrapolation.
 """
 
@@ -141,7 +142,9 @@ def load_weather(ws, ds, name: str | None = None, metadata: dict | None = None) 
         vals = a[valid]  # boolean selection, same C order as nonzero()
         columns[c] = pa.array(vals, mask=np.isnan(vals), type=pa.float32())
     table = pa.table(columns)
-    step_s = float(np.median(np.diff(times)).astype("timedelta64[ns]").astype(np.int64) / 1e9) if nt > 1 else None
+    # step_s is stored only for a regular time axis (the join then needs one ASOF join, not two)
+    steps_ns = np.diff(times).astype("timedelta64[ns]").astype(np.int64)
+    step_s = float(steps_ns[0] / 1e9) if nt > 1 and np.all(steps_ns == steps_ns[0]) else None
     select_cols = ", ".join(f"cells.{c}" if c in present else f"NULL AS {c}" for c in CANONICAL_COLUMNS)
     with ws.transaction() as con:
         old = con.execute("SELECT grid_id FROM weather_grids WHERE name = ?", [name]).fetchall()
@@ -157,6 +160,9 @@ def load_weather(ws, ds, name: str | None = None, metadata: dict | None = None) 
              ",".join(present), int(table.num_rows), json.dumps(metadata or {}, default=str)],
         ).fetchone()[0]
         con.register("_weather_cells_in", table)
+        # Row order inside weather_cells carries no meaning (every read orders or joins), and
+        # letting DuckDB drop it halves the insert time of a month of cells.
+        con.execute("SET preserve_insertion_order = false")
         try:
             con.execute(
                 f"INSERT INTO weather_cells SELECT ? AS grid_id, cells.time_utc, cells.lat_idx, cells.lon_idx, {select_cols} "
@@ -164,6 +170,7 @@ def load_weather(ws, ds, name: str | None = None, metadata: dict | None = None) 
                 [grid_id],
             )
         finally:
+            con.execute("RESET preserve_insertion_order")
             con.unregister("_weather_cells_in")
     return int(grid_id)
 
@@ -334,7 +341,8 @@ def join_points_weather(ws, points: pd.DataFrame, departures, grid: int | str | 
     g = get_grid(ws, grid)
     p = _validate_points(points)
     d = _departures_frame(departures, p)
-    half_step_us = int(round((g["step_s"] or 0.0) * 1e6 / 2.0))
+    regular = g["step_s"] is not None and not pd.isna(g["step_s"])  # NULL step = irregular time axis
+    half_step_us = int(round(float(g["step_s"]) * 1e6 / 2.0)) if regular else 0
     pick = ", ".join(
         f"CASE WHEN status = 'ok' THEN (CASE WHEN use_next THEN next_{c} ELSE prev_{c} END) END AS {c}" for c in CANONICAL_COLUMNS
     )
@@ -345,6 +353,29 @@ def join_points_weather(ws, points: pd.DataFrame, departures, grid: int | str | 
                CAST(round((lon_deg - $lon0) / $dlon) AS INTEGER) AS lon_idx
         FROM ({path_etas_sql(ws.con, "_wx_points", "_wx_departures")}) AS etas
     """
+    prev_cols = ", ".join(f"w.{c} AS prev_{c}" for c in CANONICAL_COLUMNS)
+    next_cols = ", ".join(f"w.{c} AS next_{c}" for c in CANONICAL_COLUMNS)
+    if regular:
+        # Regular time axis: ONE ASOF join on ETA + half a step finds the nearest time (the last
+        # time strictly before ETA + step/2; an ETA exactly midway takes the earlier time).
+        time_join = f"""both_sides AS (
+            SELECT p.*, w.time_utc AS prev_time, {prev_cols},
+                   CAST(NULL AS TIMESTAMPTZ) AS next_time, {", ".join(f"NULL AS next_{c}" for c in CANONICAL_COLUMNS)}
+            FROM _wx_pts p ASOF LEFT JOIN cells w
+              ON p.lat_idx = w.lat_idx AND p.lon_idx = w.lon_idx AND p.eta_utc + to_microseconds($half) > w.time_utc
+        ),"""
+    else:
+        # Irregular times: the last time <= ETA and the first time >= ETA, keep the closer one.
+        time_join = f"""prev AS (
+            SELECT p.*, w.time_utc AS prev_time, {prev_cols}
+            FROM _wx_pts p ASOF LEFT JOIN cells w
+              ON p.lat_idx = w.lat_idx AND p.lon_idx = w.lon_idx AND p.eta_utc >= w.time_utc
+        ),
+        both_sides AS (
+            SELECT prev.*, w.time_utc AS next_time, {next_cols}
+            FROM prev ASOF LEFT JOIN cells w
+              ON prev.lat_idx = w.lat_idx AND prev.lon_idx = w.lon_idx AND prev.eta_utc <= w.time_utc
+        ),"""
     sql = f"""
         WITH keys AS (SELECT DISTINCT lat_idx, lon_idx FROM _wx_pts),
         span AS (SELECT min(eta_utc) AS t0, max(eta_utc) AS t1 FROM _wx_pts),
@@ -354,16 +385,7 @@ def join_points_weather(ws, points: pd.DataFrame, departures, grid: int | str | 
               AND w.time_utc >= (SELECT t0 FROM span) - to_microseconds($pad)
               AND w.time_utc <= (SELECT t1 FROM span) + to_microseconds($pad)
         ),
-        prev AS (
-            SELECT p.*, w.time_utc AS prev_time, {", ".join(f"w.{c} AS prev_{c}" for c in CANONICAL_COLUMNS)}
-            FROM _wx_pts p ASOF LEFT JOIN cells w
-              ON p.lat_idx = w.lat_idx AND p.lon_idx = w.lon_idx AND p.eta_utc >= w.time_utc
-        ),
-        both_sides AS (
-            SELECT prev.*, w.time_utc AS next_time, {", ".join(f"w.{c} AS next_{c}" for c in CANONICAL_COLUMNS)}
-            FROM prev ASOF LEFT JOIN cells w
-              ON prev.lat_idx = w.lat_idx AND prev.lon_idx = w.lon_idx AND prev.eta_utc <= w.time_utc
-        ),
+        {time_join}
         chosen AS (
             SELECT *,
                    (prev_time IS NULL) OR (next_time IS NOT NULL AND (next_time - eta_utc) < (eta_utc - prev_time)) AS use_next,
@@ -386,7 +408,7 @@ def join_points_weather(ws, points: pd.DataFrame, departures, grid: int | str | 
     # Cells are read two time steps beyond the ETA window on each side (the whole span when the
     # grid's times are irregular), so the nearest time on both sides is always among them.
     span_us = int((pd.Timestamp(g["end_utc"]) - pd.Timestamp(g["start_utc"])) / pd.Timedelta(microseconds=1))
-    pad_us = 4 * half_step_us if g["step_s"] else span_us + 1
+    pad_us = 4 * half_step_us if regular else span_us + 1
     params = {
         **grid_params, "grid_id": int(g["grid_id"]), "nlat": int(g["nlat"]), "nlon": int(g["nlon"]),
         "start": pd.Timestamp(g["start_utc"]), "end": pd.Timestamp(g["end_utc"]), "half": half_step_us, "pad": pad_us,
