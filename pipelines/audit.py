@@ -440,3 +440,72 @@ if __name__ == "__main__":
     import sys
 
     print(audit_flow(db=sys.argv[1], voyage_id=sys.argv[2])["findings"])
+
+
+def storm_voyage(db, storm: dict, kind: str = "port_to_port") -> dict | None:
+    """The voyage of the workspace that sailed closest to a storm's centre at its peak.
+
+    ``storm`` is an entry of the demo scenario's ``weather.storms`` (``peak_utc``, ``track_utc``,
+    ``track_lat``, ``track_lon``). Only voyages at sea at the peak count; distance is measured
+    from the ship's fix nearest to the peak time. Returns ``{"voyage_id", "mmsi", "dist_nmi"}``.
+    """
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import read_positions
+    from pipelines.storage.lanes import read_voyages
+    from thresholds.geodesy import haversine_nmi
+
+    peak = _utc(storm["peak_utc"])
+    tt = pd.DatetimeIndex(pd.to_datetime(storm["track_utc"], utc=True)).asi8
+    c_lat = float(np.interp(peak.value, tt, storm["track_lat"]))
+    c_lon = float(np.interp(peak.value, tt, storm["track_lon"]))
+    best = None
+    with open_workspace(db) as ws:
+        voyages = read_voyages(ws, kind=kind)
+        at_sea = voyages[(voyages["depart_utc"] <= peak) & (voyages["arrive_utc"] >= peak)]
+        for row in at_sea.itertuples(index=False):
+            pos = read_positions(ws, mmsi=int(row.mmsi), start=peak - pd.Timedelta(hours=1), end=peak + pd.Timedelta(hours=1))
+            if pos.empty:
+                continue
+            i = int(np.argmin(np.abs((pd.DatetimeIndex(pos["time_utc"]) - peak).total_seconds())))
+            d = float(haversine_nmi(c_lat, c_lon, pos["lat_deg"].iloc[i], pos["lon_deg"].iloc[i]))
+            if best is None or d < best["dist_nmi"]:
+                best = {"voyage_id": str(row.voyage_id), "mmsi": int(row.mmsi), "dist_nmi": d}
+    return best
+
+
+def demo_step(ctx) -> dict:
+    """Demo step: audit the voyage that sailed closest to the scenario's historical storm (A),
+    in the scenario's hindcast files (else the workspace's weather), and write ``DIR/audit.html``."""
+    import json
+
+    truth = json.loads(ctx.scenario_json.read_text(encoding="utf-8"))
+    weather = truth.get("weather", {})
+    storms = [s for s in weather.get("storms", []) if "historical" in s.get("purpose", "")] or weather.get("storms", [])[:1]
+    files = [str(ctx.workdir / f) for f in weather.get("files", [])]  # none: the workspace's weather tables
+    if not storms:
+        ctx.echo("  no storm in the scenario: no audit")
+        return {"skipped": "no storm"}
+    if files:
+        try:
+            import weather.io.local  # noqa: F401
+        except ImportError:
+            ctx.echo("  the weather readers are not installed: no audit")
+            return {"skipped": "no weather readers"}
+    pick = storm_voyage(ctx.db, storms[0])
+    if pick is None:
+        ctx.echo(f"  no voyage at sea at storm {storms[0].get('name')}'s peak ({storms[0]['peak_utc']}): no audit")
+        return {"skipped": "no voyage in the storm"}
+    report = ctx.workdir / "audit.html"
+    out = run_audit(ctx.db, voyage_id=pick["voyage_id"], weather=files, report=report)
+    v = out["voyage"]
+    ctx.echo(f"  voyage {v['voyage_id']} (MMSI {v['mmsi']}, {v.get('origin', '?')} -> {v.get('destination', '?')}) passed "
+             f"{pick['dist_nmi']:.0f} nmi from storm {storms[0].get('name', '')}'s centre at its peak")
+    for role, row in out["comparison"].items():
+        ctx.echo(f"  {role:<13} {row['time_h']:5.1f} h {row['dist_nmi']:6.1f} nmi  max Hs {row['max_hs_m']:4.1f} m  "
+                 f"{row['exposure_h']:4.1f} h over limits  {int(row['n_safety_events'])} IMO event(s)  fuel {row['fuel_t']:6.2f} t")
+    for line in out["findings"][1:3] + out["findings"][-1:]:
+        ctx.echo(f"  {line}")
+    ctx.echo(f"  audit report: {report}")
+    return {"voyage_id": v["voyage_id"], "proposed": out["proposed"], "report": str(report),
+            "historical": {k: out["historical"][k] for k in ("max_hs_m", "exposure_h", "n_safety_events", "time_h", "fuel_t")},
+            "n_imo_events": out["historical"]["n_imo_events"]}

@@ -131,12 +131,20 @@ def step_weather(ctx: DemoContext) -> dict:
     return run(ctx)
 
 
+def step_audit(ctx: DemoContext) -> dict:
+    """Audit the voyage that sailed through the scenario's historical storm (``DIR/audit.html``)."""
+    from pipelines.audit import demo_step
+
+    return demo_step(ctx)
+
+
 #: The demo's steps, in order; each component appends its own.
 STEPS: list[tuple[str, Callable[[DemoContext], dict]]] = [
     ("scenario", step_scenario),
     ("ingest", step_ingest),
     ("lanes", step_lanes),
     ("weather", step_weather),
+    ("audit", step_audit),
 ]
 
 

@@ -146,7 +146,10 @@ def findings(evaluations: dict, proposed: str | None, reference: str = "historic
         a = ev.summary
         m = comparison_metrics(ref, ev)
         dec = m["hs_decrease_pct"]
-        dec_txt = f", {dec:.0f} % lower mean Hs over the track's adverse portion" if np.isfinite(dec) else ""
+        if not np.isfinite(dec):
+            dec_txt = ""
+        else:
+            dec_txt = f", {abs(dec):.0f} % {'lower' if dec >= 0 else 'higher'} mean Hs over the track's adverse portion"
         out.append(
             f"{role.replace('_', '-')}: {a['time_h'] - s['time_h']:+.1f} h, {a['dist_nmi'] - s['dist_nmi']:+.1f} nmi, "
             f"max Hs {a['max_hs_m']:.1f} m, {_hours(a['adverse_h'])} adverse, {a['n_safety_events']} IMO event(s), "

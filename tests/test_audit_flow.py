@@ -195,3 +195,26 @@ def test_audit_flow_under_prefect(workspace, prefect_harness):
     out = audit_flow(db=str(workspace), voyage_id="v1")
     assert out["audit_id"] == "voyage:v1" and out["historical"]["max_hs_m"] > 6.0
     assert math.isfinite(out["optimal"]["fuel_t"])
+
+
+def test_demo_audit_step_finds_the_storm_voyage(workspace, tmp_path):
+    """The demo step picks the voyage at sea nearest the storm's centre at its peak and audits it."""
+    from pipelines.audit import storm_voyage
+    from pipelines.demo import DemoContext, step_audit
+
+    storm = {"name": "T", "purpose": "historical storm crossed by the AIS voyages (audits)", "peak_utc": "2025-01-15T02:30:00Z",
+             "track_utc": ["2025-01-15T00:00:00Z", "2025-01-15T05:00:00Z"], "track_lat": [STORM_LAT, STORM_LAT],
+             "track_lon": [STORM_LON, STORM_LON]}
+    pick = storm_voyage(workspace, storm)
+    assert pick["voyage_id"] == "v1" and pick["dist_nmi"] < 5.0
+    workdir = tmp_path / "demo"
+    workdir.mkdir()
+    (workdir / "scenario.json").write_text(json.dumps({"weather": {"files": [], "storms": [storm]}}))
+    import shutil
+
+    shutil.copy(workspace, workdir / "stormlane.duckdb")
+    lines = []
+    out = step_audit(DemoContext(workdir=workdir, echo=lines.append))
+    assert out["voyage_id"] == "v1" and out["proposed"] is not None
+    assert out["historical"]["exposure_h"] > 0.5 and (workdir / "audit.html").is_file()
+    assert any("passed" in line and "storm T" in line for line in lines)
