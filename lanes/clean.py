@@ -138,6 +138,8 @@ REASONS = {
 #: joined to ``vessels``, counted as ``static``), or anything else counted in ``read``.
 KIND_POSITION = "P"
 KIND_STATIC = "S"
+#: A line that is no record (a header, an empty line); only the bulk CSV staging keeps them.
+KIND_IGNORED = "X"
 
 #: Position columns of the canonical AIS table, in order.
 POSITION_COLUMNS = ["mmsi", "time_utc", "lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg", "nav_status"]

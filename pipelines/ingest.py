@@ -59,7 +59,7 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
         first = head_text(f.path, 1 << 16).split("\n", 1)[0].rstrip("\r")
         header = split_csv_line(first)
         index = resolve_columns(spec, header, f.path)
-        info = store.stage_csv(ws, f.path, f.gzip, spec, index, len(header))
+        info = store.stage_csv(ws, f.path, f.gzip, spec, index, len(header), header=first)
     elif f.format == "parquet":
         from lanes.io.parquet import column_mapping
 

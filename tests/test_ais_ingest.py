@@ -213,3 +213,17 @@ def test_same_head_and_tail_but_different_middle_is_a_new_file(tmp_path, workspa
     second = ingest_paths([b], workspace_path)
     assert first["loaded"] == 16000
     assert second["already_loaded"] == 0 and second["reasons"] == {"duplicate": 16000}
+
+
+def test_bom_and_repeated_header_are_not_records(tmp_path, workspace_path):
+    from lanes.clean import clean_positions
+    from lanes.io.csv_formats import read_csv_stage
+
+    extra = dma_row("01/01/2025 00:30:00", "219000008", "55.0", "11.0")
+    p = tmp_path / "concat.csv"
+    p.write_bytes(("\ufeff" + "\n".join(list(DMA_LINES) + [DMA_LINES[0], extra]) + "\n").encode("utf-8"))
+    s = ingest_paths([p], workspace_path)
+    _adds_up(s)
+    assert s["read"] == 21 and s["loaded"] == len(DMA_LOADED_LINES) + 1
+    pure = clean_positions(read_csv_stage(p)[0])
+    assert pure.counts["read"] == 21 and pure.counts["reasons"] == s["reasons"]

@@ -77,7 +77,7 @@ def test_csv_typing_same_in_sql_and_pandas(tmp_path):
     pure, _ = read_csv_stage(src)
     header = split_csv_line(DMA_LINES[0])
     with open_workspace(tmp_path / "ws.duckdb") as ws:
-        store.stage_csv(ws, src, False, DMA_SPEC, resolve_columns(DMA_SPEC, header, src), len(header))
+        store.stage_csv(ws, src, False, DMA_SPEC, resolve_columns(DMA_SPEC, header, src), len(header), DMA_LINES[0])
         sql = store.read_stage(ws)
     assert_frames_equal(sql, conform_stage(pure))
     # A few of the edge cases, spelled out.

@@ -9,7 +9,8 @@ trailing ``\\r`` removed):
 
 * A line is split on commas; a line containing a double quote is parsed as one RFC 4180 record
   (Python's :mod:`csv`). A line with another number of fields than the header is ``bad_line``.
-  Empty lines are skipped and counted as ``ignored``.
+  Empty lines are skipped and counted as ``ignored``; lines equal to the header (files
+  concatenated with their headers) are skipped.
 * Every field is trimmed of ASCII white space (:data:`WS`, as DuckDB's casts do). An empty
   field is missing.
 * MMSI: exactly 9 ASCII digits, else missing (quarantined as ``bad_mmsi``).
@@ -367,7 +368,8 @@ def read_csv_stage(path, spec: CsvSpec | None = None) -> tuple[pd.DataFrame, dic
         spec = SPECS[fmt]
     if not lines:
         raise AisFormatError(path, "empty file: no header line")
-    header = split_csv_line(lines[0])
+    header_text = lines[0].lstrip("\ufeff")
+    header = split_csv_line(header_text)
     index = resolve_columns(spec, header, path)
     rows, nums, oks = [], [], []
     blank = 0
@@ -375,6 +377,8 @@ def read_csv_stage(path, spec: CsvSpec | None = None) -> tuple[pd.DataFrame, dic
         if line == "":
             blank += 1
             continue
+        if line == header_text or line == "\ufeff" + header_text:
+            continue  # the header repeated (concatenated files): not a record
         f = split_csv_line(line)
         ok = len(f) == len(header)
         rows.append([f[j] if ok else "" for j in index.values()])

@@ -188,10 +188,21 @@ def read_files(ws) -> pd.DataFrame:
 # Staging: every reader fills ``ais_stage`` (typed values + the rule 1-6 reason ``reason0``)
 # ---------------------------------------------------------------------------------------------
 def _reason_case() -> str:
-    """Rules 1-6 of lanes.clean as one CASE over the typed columns (first match wins)."""
+    """Rules 1-6 of lanes.clean as one CASE over the typed columns (first match wins).
+
+    The common case (a clean row) is tested first as one conjunction, which DuckDB evaluates
+    much faster than walking the WHEN branches for every row."""
     rec = ", ".join(f"'{c}'" for c in C.RECORD_CODES)
+    clean_row = f"""kind = '{C.KIND_POSITION}' AND parse_error IS NULL
+        AND mmsi >= {C.MMSI_MIN} AND mmsi <= {C.MMSI_MAX} AND time_utc >= $tmin AND time_utc < $tmax
+        AND lat_deg >= -90.0 AND lat_deg <= 90.0 AND lon_deg >= -180.0 AND lon_deg <= 180.0
+        AND coalesce(sog_kn >= 0.0 AND sog_kn <= {C.SOG_NA_KN + _TOL}, true)
+        AND coalesce(cog_deg >= 0.0 AND cog_deg <= {C.COG_NA_DEG + _TOL}, true)
+        AND coalesce((heading_deg >= 0.0 AND heading_deg < 360.0) OR abs(heading_deg - {C.HEADING_NA_DEG}) <= {_TOL}, true)
+        AND coalesce(nav_status >= 0 AND nav_status <= {C.NAV_STATUS_MAX} AND nav_status = floor(nav_status), true)"""
     return f"""CASE
-        WHEN kind = '{C.KIND_STATIC}' THEN NULL
+        WHEN {clean_row} THEN NULL
+        WHEN kind <> '{C.KIND_POSITION}' THEN NULL
         WHEN parse_error IN ({rec}) THEN parse_error
         WHEN mmsi IS NULL OR mmsi < {C.MMSI_MIN} OR mmsi > {C.MMSI_MAX} THEN '{C.BAD_MMSI}'
         WHEN time_utc IS NULL OR time_utc < $tmin OR time_utc >= $tmax THEN '{C.BAD_TIME}'
@@ -232,55 +243,36 @@ def _norm(alias: str = "") -> str:
     return ", ".join(out)
 
 
-def _create_stage(con, typed_sql: str, extra_params: dict | None = None) -> None:
-    """``ais_stage`` = the reader's typed SELECT plus ``reason0`` (rules 1-6)."""
-    sql = f"CREATE OR REPLACE TEMP TABLE ais_stage AS WITH typed AS ({typed_sql}) SELECT *, {_reason_case()} AS reason0 FROM typed"
+def _create_stage(con, typed_sql: str, extra_params: dict | None = None, line_from_rowid: bool = False) -> None:
+    """``ais_stage`` = the reader's typed SELECT plus ``reason0`` (rules 1-6).
+
+    Stored as ``ais_stage_t``; ``ais_stage`` is a view adding ``line`` = rowid + 1 when the
+    reader keeps one row per physical line in file order (CSV: insertion order is preserved)."""
+    sql = (f"CREATE OR REPLACE TEMP TABLE ais_stage_t AS WITH typed AS ({typed_sql}) "
+           f"SELECT *, {_reason_case()} AS reason0 FROM typed")
     params = {**_params(), **(extra_params or {})}
     con.execute(sql, _used(sql, params))
+    line = "rowid + 1 AS line, " if line_from_rowid else ""
+    con.execute(f"CREATE OR REPLACE TEMP VIEW ais_stage AS SELECT {line}* FROM ais_stage_t")
 
 
-def _empty_lines(con) -> None:
-    con.execute("CREATE OR REPLACE TEMP TABLE ais_lines (raw VARCHAR)")
+_CSV_LINES = ("read_csv(?, columns={'raw': 'VARCHAR'}, header=false, delim=?, quote='', escape='', "
+              "auto_detect=false, compression=?, max_line_size=?)")
 
 
-def _lines_table(ws, path: Path, gz: bool) -> bool:
-    """Fill ``ais_lines`` with the file's physical lines in order (``rowid`` = line - 1).
-
-    DuckDB's CSV scanner reads the lines in parallel; files it refuses (stray ``\r``, invalid
-    UTF-8, control characters) are split by Python with the same rules instead. Returns True when
-    the Python fallback was used.
-    """
-    con = ws.con
-    try:
-        con.execute(
-            "CREATE OR REPLACE TEMP TABLE ais_lines AS SELECT line AS raw FROM read_csv(?, columns={'line': 'VARCHAR'}, "
-            "header=false, delim=?, quote='', escape='', auto_detect=false, compression=?, max_line_size=?)",
-            [str(path), "\x01", "gzip" if gz else "none", 1 << 24],
-        )
-        return False
-    except duckdb.Error:
-        from lanes.io.csv_formats import read_lines
-        import pyarrow as pa
-
-        lines = read_lines(path)
-        tbl = pa.table({"raw": pa.array([x if x != "" else None for x in lines], type=pa.string())})
-        con.register("ais_lines_py", tbl)
-        try:
-            con.execute("CREATE OR REPLACE TEMP TABLE ais_lines AS SELECT raw FROM ais_lines_py")
-        finally:
-            con.unregister("ais_lines_py")
-        return True
-
-
-def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_fields: int) -> dict:
+def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str) -> dict:
     """Type a DMA/NOAA CSV file into ``ais_stage`` (rules in :mod:`lanes.io.csv_formats`).
 
-    ``index`` maps stage fields to 0-based columns of the header (``n_fields`` columns).
-    Static fields stay text here (``s_*``); they are typed per distinct value when merged into
-    ``vessels``. Returns ``{"ignored": empty lines, "python_fallback": bool}``.
+    One stage row per physical line, in file order (``line`` = rowid + 1): DuckDB's parallel
+    CSV scanner reads the raw lines (one VARCHAR column, no quoting) and the same statement
+    splits and types them. Files the scanner refuses (a stray ``\r``, invalid UTF-8, control
+    characters) are split by Python with the same rules (``read_lines``) and staged from Arrow.
+    The header line, lines equal to it (concatenated files) and empty lines are kind "X"
+    (not data; empty ones count as ``ignored``). ``index`` maps stage fields to 0-based columns
+    of the header line ``header`` (``n_fields`` columns). Static fields stay text (``s_*``); they are typed per
+    distinct value when merged into ``vessels``.
     """
     _prepare(ws.con)
-    fallback = _lines_table(ws, path, gz)
     con = ws.con
 
     def fld(name):
@@ -300,31 +292,66 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
     nav = "CAST(NULL AS DOUBLE)"
     if "nav_status" in index:
         x = fld("nav_status")
-        nav = f"coalesce(ais_num({x}), MAP($nav_k::VARCHAR[], $nav_v::INTEGER[])[lower(trim({x}, $ws))])"
-    typed = f"""
-        SELECT line, CAST(NULL AS VARCHAR) AS raw, '{C.KIND_POSITION}' AS kind,
-            CASE WHEN NOT nf_ok THEN '{C.BAD_LINE}' {perr} END AS parse_error,
+        # The status words exactly as written first (a CASE on bound constants is cheap), then a
+        # number, then the words after trimming white space (trim with a character set is not).
+        words = " ".join(f"WHEN $navw{i} THEN $navc{i}" for i in range(len(NAV_STATUS_WORDS)))
+        nav = (f"CASE lower({x}) {words} ELSE coalesce(ais_num({x}), "
+               f"MAP($nav_k::VARCHAR[], $nav_v::INTEGER[])[lower(trim({x}, $ws))]) END")
+    # Fast path of the parse-error CASE: a row of the right length whose fields all typed.
+    all_typed = " AND ".join(["nf_ok"] + [f"{n} IS NOT NULL" for n in ("lat_deg", "lon_deg", "sog_kn", "cog_deg",
+                                                                      "heading_deg", "nav_status") if n in index])
+
+    def typed(source: str) -> str:
+        return f"""
+        SELECT raw, CASE WHEN is_data THEN '{C.KIND_POSITION}' ELSE '{C.KIND_IGNORED}' END AS kind,
+            CASE WHEN NOT is_data OR {all_typed} THEN NULL WHEN NOT nf_ok THEN '{C.BAD_LINE}' {perr} END AS parse_error,
             mmsi, time_utc, lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, nav_status,
             {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
-            {", ".join(f"{c}" for c in _TEXT_STATIC)}
+            {", ".join(_TEXT_STATIC)}
         FROM (
-            SELECT line, nf_ok, f,
+            SELECT raw, is_data, nf_ok, f,
                 CASE WHEN regexp_full_match({fld('mmsi')}, $mmsi_re) THEN CAST({fld('mmsi')} AS BIGINT) END AS mmsi,
                 try_strptime({fld('time_utc')}, $time_formats::VARCHAR[]) AS time_utc,
                 {", ".join(f"ais_num({fld(n)}) AS {n}" for n in _NUM_FIELDS)},
                 CAST({nav} AS DOUBLE) AS nav_status,
                 {", ".join(f"{fld(c[2:])} AS {c}" for c in _TEXT_STATIC)}
             FROM (
-                SELECT rowid + 1 AS line, f, len(f) = {int(n_fields)} AS nf_ok FROM (
-                    SELECT rowid, CASE WHEN contains(raw, '"') THEN ais_csv_split(raw) ELSE string_split(raw, ',') END AS f
-                    FROM ais_lines WHERE rowid >= 1 AND raw IS NOT NULL AND raw <> ''
+                SELECT raw, f, len(f) = {int(n_fields)} AS nf_ok, is_data FROM (
+                    SELECT raw,
+                        raw IS NOT NULL AND raw <> '' AND raw <> $header AND raw <> $bom_header AS is_data,
+                        CASE WHEN contains(raw, '"') THEN ais_csv_split(raw) ELSE string_split(raw, ',') END AS f
+                    FROM {source}
                 )
             )
         )
-    """
-    _create_stage(con, typed, {"mmsi_re": MMSI_RE, "time_formats": list(spec.time_formats)})
+        """
+
+    params = {"mmsi_re": MMSI_RE, "time_formats": list(spec.time_formats), "header": header,
+              "bom_header": "\ufeff" + header}
+    for i, (word, code) in enumerate(NAV_STATUS_WORDS.items()):
+        params[f"navw{i}"], params[f"navc{i}"] = word, float(code)
+    fallback = False
+    try:
+        sql = typed(_CSV_LINES.replace("?", "$p_path", 1).replace("?", "$p_delim", 1).replace("?", "$p_comp", 1)
+                    .replace("?", "$p_max", 1))
+        _create_stage(con, sql, {**params, "p_path": str(path), "p_delim": "\x01",
+                                 "p_comp": "gzip" if gz else "none", "p_max": 1 << 24}, line_from_rowid=True)
+    except (duckdb.InvalidInputException, duckdb.ConversionException, duckdb.IOException):
+        from lanes.io.csv_formats import read_lines
+        import pyarrow as pa
+
+        fallback = True
+        lines = read_lines(path)
+        tbl = pa.table({"raw": pa.array([x if x != "" else None for x in lines], type=pa.string())})
+        con.register("ais_lines_py", tbl)
+        try:
+            _create_stage(con, typed("ais_lines_py"), params, line_from_rowid=True)
+        finally:
+            con.unregister("ais_lines_py")
     _set_stage_kind(con, "text")
-    ignored = con.execute("SELECT count(*) FROM ais_lines WHERE rowid >= 1 AND (raw IS NULL OR raw = '')").fetchone()[0]
+    ignored = con.execute(
+        f"SELECT count(*) FROM ais_stage_t WHERE kind = '{C.KIND_IGNORED}' AND (raw IS NULL OR raw = '')"
+    ).fetchone()[0]
     return {"ignored": int(ignored), "python_fallback": fallback}
 
 
@@ -361,7 +388,6 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
     joined by commas; ``line`` is the 1-based row number.
     """
     _prepare(ws.con)
-    _empty_lines(ws.con)
     cols = dict(parquet_columns(ws, path))
 
     def src(fld):
@@ -413,7 +439,6 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
 def stage_frame(ws, stage: pd.DataFrame) -> dict:
     """Put a typed stage built in Python (NMEA, or any reader) into ``ais_stage``."""
     _prepare(ws.con)
-    _empty_lines(ws.con)
     import pyarrow as pa
 
     df = C.conform_stage(stage) if list(stage.dtypes.astype(str)) != list(C.STAGE_COLUMNS.values()) else stage
@@ -472,10 +497,10 @@ def read_stage(ws) -> pd.DataFrame:
     """The current typed stage as a DataFrame, statics typed (tests compare it with pandas)."""
     cols = ["mmsi", "timezone('UTC', time_utc) AS time_utc", *_NUM_FIELDS, "nav_status", _typed_static_select()]
     # A bad line keeps no typed field (the bulk path leaves whatever its fields typed to).
-    sql = (f"SELECT line, coalesce(s.raw, l.raw) AS raw, kind, parse_error, "
+    sql = (f"SELECT line, raw, kind, parse_error, "
            f"COLUMNS(c -> c NOT IN ('line', 'raw', 'kind', 'parse_error')) FROM ("
            f"  SELECT line, raw, kind, parse_error, {', '.join(cols)} FROM ais_stage) s "
-           f"LEFT JOIN (SELECT rowid + 1 AS line, raw FROM ais_lines) l USING (line) ORDER BY line")
+           f"WHERE kind <> '{C.KIND_IGNORED}' ORDER BY line")
     df = ws.con.execute(sql, _used(sql, _params())).fetchdf()
     bad = df["parse_error"] == C.BAD_LINE
     keep = {"line", "raw", "kind", "parse_error"}
@@ -486,7 +511,7 @@ def read_stage(ws) -> pd.DataFrame:
 # ---------------------------------------------------------------------------------------------
 # Cleaning (rules 7-8 of lanes.clean as SQL + the numpy jump kernel) and the one-transaction commit
 # ---------------------------------------------------------------------------------------------
-_OK = f"kind <> '{C.KIND_STATIC}' AND reason0 IS NULL"
+_OK = f"kind = '{C.KIND_POSITION}' AND reason0 IS NULL"
 
 
 def _dedupe_sql(has_old: bool) -> str:
@@ -517,7 +542,7 @@ def _dedupe_sql(has_old: bool) -> str:
     ),
     cand AS (
         SELECT s.line, s.mmsi, s.time_utc, {_norm('s')} FROM ais_stage s SEMI JOIN keys USING (mmsi, time_utc)
-        WHERE s.kind <> '{C.KIND_STATIC}' AND s.reason0 IS NULL
+        WHERE s.kind = '{C.KIND_POSITION}' AND s.reason0 IS NULL
     ),
     ranked AS (
         SELECT cand.*, {in_db} first_value(line) OVER w AS first_line, {firsts}
@@ -538,7 +563,7 @@ def _track_sql(has_old: bool) -> str:
     r = float(EARTH_RADIUS_NMI)
     lon = _NORM["lon_deg"]
     new = (f"SELECT s.line, s.mmsi, s.time_utc, s.lat_deg, {lon.replace('lon_deg', 's.lon_deg')} AS lon_deg "
-           f"FROM ais_stage s ANTI JOIN ais_dup d USING (line) WHERE s.kind <> '{C.KIND_STATIC}' AND s.reason0 IS NULL")
+           f"FROM ais_stage s ANTI JOIN ais_dup d USING (line) WHERE s.kind = '{C.KIND_POSITION}' AND s.reason0 IS NULL")
     ctx = ""
     if has_old:
         ctx = f"""
@@ -616,20 +641,19 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         ).fetchone()[0]
         con.execute(
             """INSERT INTO ais_quarantine
-            SELECT ?, s.line, coalesce(s.reason0, o.reason), coalesce(s.raw, l.raw),
+            SELECT ?, s.line, coalesce(s.reason0, o.reason), s.raw,
                    CASE WHEN s.reason0 IS DISTINCT FROM ? THEN s.mmsi END,
                    CASE WHEN s.reason0 IS DISTINCT FROM ? THEN CAST(s.time_utc AS TIMESTAMPTZ) END
             FROM ais_stage s LEFT JOIN ais_out o USING (line)
-            LEFT JOIN (SELECT rowid + 1 AS line, raw FROM ais_lines) l USING (line)
-            WHERE s.kind <> ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
-            [file_id, C.BAD_LINE, C.BAD_LINE, C.KIND_STATIC],
+            WHERE s.kind = ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
+            [file_id, C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
         )
         reasons = dict(con.execute(
             "SELECT reason, count(*) FROM ais_quarantine WHERE file_id = ? GROUP BY reason ORDER BY reason", [file_id]
         ).fetchall())
         read, static = con.execute(
-            "SELECT count(*) FILTER (WHERE kind <> ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
-            [C.KIND_STATIC, C.KIND_STATIC],
+            "SELECT count(*) FILTER (WHERE kind = ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
+            [C.KIND_POSITION, C.KIND_STATIC],
         ).fetchone()
         _upsert_vessels(con, file_id)
         dups = int(sum(v for k, v in reasons.items() if k in C.DUPLICATE_CODES))
@@ -684,7 +708,8 @@ def _upsert_vessels(con, file_id: int) -> None:
     sql = f"""INSERT INTO vessels
         WITH combos AS (
             SELECT mmsi, {", ".join(statics)}, max({key}) AS k, max(time_utc) AS tmax
-            FROM ais_stage WHERE mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'
+            FROM ais_stage WHERE kind <> '{C.KIND_IGNORED}' AND mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX}
+                AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'
             GROUP BY mmsi, {", ".join(statics)}
         ),
         typed AS (SELECT mmsi, k, tmax, {_typed_static_select(statics)} FROM combos),
@@ -697,7 +722,8 @@ def _upsert_vessels(con, file_id: int) -> None:
 
 
 def _drop_temp(con) -> None:
-    for t in ("ais_lines", "ais_stage", "ais_dup", "ais_out", "ais_stage_info"):
+    con.execute("DROP VIEW IF EXISTS temp.ais_stage")
+    for t in ("ais_stage_t", "ais_dup", "ais_out", "ais_stage_info"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
 
 
