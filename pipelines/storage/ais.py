@@ -220,6 +220,10 @@ def _reason_case() -> str:
     END"""
 
 
+# Time stamps: the stage holds TIMESTAMP (UTC); the tables TIMESTAMPTZ. Both are microseconds
+# since the epoch, so make_timestamp(tz)(epoch_us(..)) converts exactly and far cheaper than
+# CAST, which goes through ICU's calendar for every value.
+
 # Normalised values (rule 6: sentinels of the motion fields to NULL, lon 180 -> -180).
 _NORM = {
     "lat_deg": "lat_deg",
@@ -521,7 +525,7 @@ def _dedupe_sql(has_old: bool) -> str:
     if has_old:
         same = " AND ".join(f"(CASE WHEN in_db THEN p_{v} ELSE f_{v} END) IS NOT DISTINCT FROM {v}" for v in _VALUES)
         old = f"""old AS (
-            SELECT p.mmsi, CAST(p.time_utc AS TIMESTAMP) AS time_utc, {", ".join(f"p.{v} AS p_{v}" for v in _VALUES)}
+            SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS time_utc, {", ".join(f"p.{v} AS p_{v}" for v in _VALUES)}
             FROM ais_positions p SEMI JOIN (SELECT DISTINCT mmsi FROM ais_stage WHERE {_OK}) USING (mmsi)
             WHERE p.time_utc BETWEEN (SELECT min(time_utc) FROM ais_stage WHERE {_OK})
                                  AND (SELECT max(time_utc) FROM ais_stage WHERE {_OK})
@@ -574,7 +578,7 @@ def _track_sql(has_old: bool) -> str:
             WHERE time_utc > t1 GROUP BY mmsi"""
         pre = f"""new AS ({new}),
         span AS (SELECT mmsi, min(time_utc) AS t0, max(time_utc) AS t1 FROM new GROUP BY mmsi),
-        ex AS (SELECT p.mmsi, CAST(p.time_utc AS TIMESTAMP) AS time_utc, p.lat_deg, p.lon_deg, s.t0, s.t1
+        ex AS (SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS time_utc, p.lat_deg, p.lon_deg, s.t0, s.t1
                FROM ais_positions p JOIN span s USING (mmsi)),
         t AS (SELECT * FROM new {ctx}),"""
     else:
@@ -585,7 +589,7 @@ def _track_sql(has_old: bool) -> str:
         SELECT *, lag(time_utc) OVER w AS t0_, lag(lat_deg) OVER w AS lat0, lag(lon_deg) OVER w AS lon0
         FROM t WINDOW w AS (PARTITION BY mmsi ORDER BY time_utc)
     ),
-    b AS (
+    b AS MATERIALIZED (
         SELECT *, coalesce(
             2.0 * {r} * asin(sqrt(least(1.0,
                 pow(sin(radians(lat_deg - lat0) / 2.0), 2)
@@ -593,8 +597,9 @@ def _track_sql(has_old: bool) -> str:
             > 0.999 * $vmax * (epoch_us(time_utc) - epoch_us(t0_)) / 3.6e9, false) AS brk
         FROM l
     ),
-    c AS (SELECT *, bool_or(brk) OVER (PARTITION BY mmsi) AS any_brk FROM b)
-    SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg FROM c WHERE any_brk ORDER BY mmsi, time_utc
+    cm AS (SELECT DISTINCT mmsi FROM b WHERE brk)
+    SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg FROM b SEMI JOIN cm USING (mmsi)
+    ORDER BY mmsi, time_utc
     """
 
 
@@ -635,7 +640,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
 
         loaded = con.execute(
             f"""INSERT INTO ais_positions
-            SELECT mmsi, CAST(time_utc AS TIMESTAMPTZ), {_norm()}, ?, line
+            SELECT mmsi, make_timestamptz(epoch_us(time_utc)), {_norm()}, ?, line
             FROM ais_stage ANTI JOIN ais_out USING (line) WHERE {_OK}""",
             [file_id],
         ).fetchone()[0]
@@ -643,7 +648,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             """INSERT INTO ais_quarantine
             SELECT ?, s.line, coalesce(s.reason0, o.reason), s.raw,
                    CASE WHEN s.reason0 IS DISTINCT FROM ? THEN s.mmsi END,
-                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN CAST(s.time_utc AS TIMESTAMPTZ) END
+                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN make_timestamptz(epoch_us(s.time_utc)) END
             FROM ais_stage s LEFT JOIN ais_out o USING (line)
             WHERE s.kind = ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
             [file_id, C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
@@ -713,7 +718,7 @@ def _upsert_vessels(con, file_id: int) -> None:
             GROUP BY mmsi, {", ".join(statics)}
         ),
         typed AS (SELECT mmsi, k, tmax, {_typed_static_select(statics)} FROM combos),
-        agg AS (SELECT mmsi, CAST(max(tmax) AS TIMESTAMPTZ) AS updated_utc, {aggs} FROM typed GROUP BY mmsi)
+        agg AS (SELECT mmsi, make_timestamptz(epoch_us(max(tmax))) AS updated_utc, {aggs} FROM typed GROUP BY mmsi)
         SELECT mmsi, {", ".join(C.STATIC_COLUMNS)}, updated_utc, $file_id AS file_id FROM agg WHERE {any_set}
         ON CONFLICT (mmsi) DO UPDATE SET {merge},
             updated_utc = greatest(vessels.updated_utc, EXCLUDED.updated_utc),
