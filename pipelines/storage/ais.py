@@ -311,14 +311,15 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
             CASE WHEN NOT is_data OR {all_typed} THEN NULL WHEN NOT nf_ok THEN '{C.BAD_LINE}' {perr} END AS parse_error,
             mmsi, time_utc, lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, nav_status,
             {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
-            {", ".join(_TEXT_STATIC)}
+            {", ".join(f"CAST(NULL AS VARCHAR) AS {c}" for c in _TEXT_STATIC)},
+            s_hash
         FROM (
             SELECT raw, is_data, nf_ok, f,
                 CASE WHEN regexp_full_match({fld('mmsi')}, $mmsi_re) THEN CAST({fld('mmsi')} AS BIGINT) END AS mmsi,
                 try_strptime({fld('time_utc')}, $time_formats::VARCHAR[]) AS time_utc,
                 {", ".join(f"ais_num({fld(n)}) AS {n}" for n in _NUM_FIELDS)},
                 CAST({nav} AS DOUBLE) AS nav_status,
-                {", ".join(f"{fld(c[2:])} AS {c}" for c in _TEXT_STATIC)}
+                hash({", ".join(fld(c[2:]) for c in _TEXT_STATIC)}) AS s_hash
             FROM (
                 SELECT raw, f, len(f) = {int(n_fields)} AS nf_ok, is_data FROM (
                     SELECT raw,
@@ -352,7 +353,7 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
             _create_stage(con, typed("ais_lines_py"), params, line_from_rowid=True)
         finally:
             con.unregister("ais_lines_py")
-    _set_stage_kind(con, "text")
+    _set_stage_kind(con, "csvhash", {"index": {c: index[c[2:]] + 1 for c in _TEXT_STATIC if c[2:] in index}})
     ignored = con.execute(
         f"SELECT count(*) FROM ais_stage_t WHERE kind = '{C.KIND_IGNORED}' AND (raw IS NULL OR raw = '')"
     ).fetchone()[0]
@@ -432,7 +433,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
         {mmsi_expr} AS mmsi, {time_expr} AS time_utc,
         {", ".join(f"{num(fld)} AS {fld}" for fld in (*_NUM_FIELDS, "nav_status"))},
         {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
-        {statics}
+        {statics}, CAST(NULL AS UBIGINT) AS s_hash
     FROM read_parquet($path, file_row_number = true)
     """
     _create_stage(ws.con, typed, {"path": str(path), "mmsi_re": MMSI_RE})
@@ -458,7 +459,8 @@ def stage_frame(ws, stage: pd.DataFrame) -> dict:
                 CAST(imo AS BIGINT) AS imo, CAST(name AS VARCHAR) AS name, CAST(callsign AS VARCHAR) AS callsign,
                 CAST(ship_type AS INTEGER) AS ship_type, length_m, beam_m, draught_m,
                 CAST(destination AS VARCHAR) AS destination,
-                {", ".join(f"CAST(NULL AS VARCHAR) AS {c}" for c in _TEXT_STATIC)}
+                {", ".join(f"CAST(NULL AS VARCHAR) AS {c}" for c in _TEXT_STATIC)},
+                CAST(NULL AS UBIGINT) AS s_hash
             FROM ais_stage_df"""
         _create_stage(ws.con, typed)
         _set_stage_kind(ws.con, "typed")
@@ -488,22 +490,35 @@ def _typed_static_select(available=None) -> str:
 _STAGE_STATIC_COLUMNS = {"text": _TEXT_STATIC, "typed": tuple(C.STATIC_COLUMNS)}
 
 
-def _stage_kind(con) -> str:
-    row = con.execute("SELECT value FROM ais_stage_info WHERE key = 'statics'").fetchone()
-    return row[0] if row else "typed"
+def _stage_kind(con) -> tuple[str, dict]:
+    row = con.execute("SELECT value, extra FROM ais_stage_info WHERE key = 'statics'").fetchone()
+    return (row[0], json.loads(row[1])) if row else ("typed", {})
 
 
-def _set_stage_kind(con, kind: str) -> None:
-    con.execute("CREATE OR REPLACE TEMP TABLE ais_stage_info AS SELECT 'statics' AS key, ? AS value", [kind])
+def _set_stage_kind(con, kind: str, extra: dict | None = None) -> None:
+    """How the stage holds static data: "text" (``s_*``), "typed" (typed columns) or "csvhash"
+    (a hash of the static fields per row; the text is re-split from ``raw`` for the few rows
+    that are the latest of their (MMSI, hash) group)."""
+    con.execute("CREATE OR REPLACE TEMP TABLE ais_stage_info AS SELECT 'statics' AS key, ? AS value, ? AS extra",
+                [kind, json.dumps(extra or {})])
 
 
 def read_stage(ws) -> pd.DataFrame:
     """The current typed stage as a DataFrame, statics typed (tests compare it with pandas)."""
     cols = ["mmsi", "timezone('UTC', time_utc) AS time_utc", *_NUM_FIELDS, "nav_status", _typed_static_select()]
+    source = "ais_stage"
+    kind, extra = _stage_kind(ws.con)
+    if kind == "csvhash":  # the static texts, re-split from the raw lines
+        index = extra["index"]
+        texts = ", ".join(f"f[{index[c]}] AS {c}" if c in index else f"CAST(NULL AS VARCHAR) AS {c}"
+                          for c in _TEXT_STATIC)
+        source = (f"(SELECT * EXCLUDE (f, {', '.join(_TEXT_STATIC)}), {texts} FROM (SELECT *, "
+                  f"CASE WHEN contains(raw, '\"') THEN ais_csv_split(raw) ELSE string_split(raw, ',') END AS f "
+                  f"FROM ais_stage))")
     # A bad line keeps no typed field (the bulk path leaves whatever its fields typed to).
     sql = (f"SELECT line, raw, kind, parse_error, "
            f"COLUMNS(c -> c NOT IN ('line', 'raw', 'kind', 'parse_error')) FROM ("
-           f"  SELECT line, raw, kind, parse_error, {', '.join(cols)} FROM ais_stage) s "
+           f"  SELECT line, raw, kind, parse_error, {', '.join(cols)} FROM {source}) s "
            f"WHERE kind <> '{C.KIND_IGNORED}' ORDER BY line")
     df = ws.con.execute(sql, _used(sql, _params())).fetchdf()
     bad = df["parse_error"] == C.BAD_LINE
@@ -603,6 +618,55 @@ def _track_sql(has_old: bool) -> str:
     """
 
 
+def _track_merged_sql() -> str:
+    """Without stored positions: every clean row of the tracks that hold a repeated (mmsi, time)
+    or a candidate jump (> 0.999 x the limit), sorted by (mmsi, time, line), with the
+    normalised values needed to tell exact from conflicting duplicates."""
+    r = float(EARTH_RADIUS_NMI)
+    return f"""
+    WITH t AS (SELECT line, mmsi, time_utc, {_norm()} FROM ais_stage WHERE {_OK}),
+    l AS (
+        SELECT *, lag(time_utc) OVER w AS t0_, lag(lat_deg) OVER w AS lat0, lag(lon_deg) OVER w AS lon0
+        FROM t WINDOW w AS (PARTITION BY mmsi ORDER BY time_utc, line)
+    ),
+    b AS MATERIALIZED (
+        SELECT *, coalesce(time_utc = t0_ OR
+            2.0 * {r} * asin(sqrt(least(1.0,
+                pow(sin(radians(lat_deg - lat0) / 2.0), 2)
+                + cos(radians(lat0)) * cos(radians(lat_deg)) * pow(sin(radians(lon_deg - lon0) / 2.0), 2))))
+            > 0.999 * $vmax * (epoch_us(time_utc) - epoch_us(t0_)) / 3.6e9, false) AS brk
+        FROM l
+    ),
+    cm AS (SELECT DISTINCT mmsi FROM b WHERE brk)
+    SELECT line, mmsi, epoch_us(time_utc) AS t_us, {", ".join(_VALUES)} FROM b SEMI JOIN cm USING (mmsi)
+    ORDER BY mmsi, time_utc, line
+    """
+
+
+def _split_duplicates(tr: dict) -> tuple[np.ndarray, np.ndarray, list]:
+    """Rows sorted by (mmsi, time, line): a row with the (mmsi, time) of the row before it is a
+    duplicate of the first row of its run - ``duplicate`` when every normalised value equals
+    that row's (NULL = NULL), else ``duplicate_time``. Returns (keep mask, lines, reasons)."""
+    mmsi = np.asarray(tr["mmsi"])
+    t = np.asarray(tr["t_us"])
+    n = len(mmsi)
+    same = np.zeros(n, dtype=bool)
+    same[1:] = (mmsi[1:] == mmsi[:-1]) & (t[1:] == t[:-1])
+    if not same.any():
+        return np.ones(n, dtype=bool), np.empty(0, dtype=np.int64), []
+    first = np.maximum.accumulate(np.where(~same, np.arange(n), 0))
+    equal = np.ones(n, dtype=bool)
+    for v in _VALUES:
+        col = tr[v]
+        x = np.asarray(col.filled(np.nan) if np.ma.isMaskedArray(col) else col, dtype=float)
+        a, b = x, x[first]
+        equal &= (a == b) | (np.isnan(a) & np.isnan(b))
+    idx = np.flatnonzero(same)
+    lines = np.asarray(tr["line"], dtype=np.int64)[idx]
+    reasons = [C.DUPLICATE if e else C.DUPLICATE_TIME for e in equal[idx]]
+    return ~same, lines, reasons
+
+
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
@@ -619,24 +683,40 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             raise RuntimeError(f"{meta['path']}: loaded concurrently by another ingest")
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
         has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
-        con.execute(_dedupe_sql(has_old))
-        tr = con.execute(_track_sql(has_old), {"vmax": float(max_speed_kn)}).fetchnumpy()
-        jumped = np.empty(0, dtype=np.int64)
+        out_lines, out_reasons = [], []
+        if has_old:
+            # Duplicates against stored rows need the stored values: a SQL pass, then the jump
+            # kernel with the stored fixes as context.
+            con.execute(_dedupe_sql(True))
+            tr = con.execute(_track_sql(True), {"vmax": float(max_speed_kn)}).fetchnumpy()
+        else:
+            # First load of these positions: one window pass finds both the repeated (mmsi, time)
+            # keys and the tracks with a candidate jump; numpy classifies the duplicates.
+            con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
+            tr = con.execute(_track_merged_sql(), {"vmax": float(max_speed_kn)}).fetchnumpy()
+            if len(tr["line"]):
+                keep, dup_lines, dup_reasons = _split_duplicates(tr)
+                out_lines.append(dup_lines)
+                out_reasons += dup_reasons
+                tr = {k: np.asarray(v)[keep] for k, v in tr.items()}
         if len(tr["line"]):
             lines = np.asarray(tr["line"], dtype=np.int64)
             t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
             mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"], dtype=float),
                                      np.asarray(tr["lon_deg"], dtype=float), max_speed_kn, fixed=lines < 0)
-            jumped = lines[mask]
-        con.register("ais_jump_df", pd.DataFrame({"line": jumped}))
+            out_lines.append(lines[mask])
+            out_reasons += [C.SPEED_JUMP] * int(mask.sum())
+        all_lines = np.concatenate(out_lines) if out_lines else np.empty(0, dtype=np.int64)
+        con.register("ais_out_df", pd.DataFrame({"line": all_lines.astype(np.int64),
+                                                 "reason": pd.Series(out_reasons, dtype=object)}))
         try:
             con.execute(
-                f"""CREATE OR REPLACE TEMP TABLE ais_out AS
+                """CREATE OR REPLACE TEMP TABLE ais_out AS
                 SELECT line, reason FROM ais_dup
-                UNION ALL SELECT CAST(line AS BIGINT), '{C.SPEED_JUMP}' FROM ais_jump_df"""
+                UNION ALL SELECT CAST(line AS BIGINT), CAST(reason AS VARCHAR) FROM ais_out_df"""
             )
         finally:
-            con.unregister("ais_jump_df")
+            con.unregister("ais_out_df")
 
         loaded = con.execute(
             f"""INSERT INTO ais_positions
@@ -697,12 +777,34 @@ def _upsert_vessels(con, file_id: int) -> None:
     latest (time, line); typing the text values on those few rows gives the same result as
     typing every row.
     """
-    # Group by the columns that can hold values (CSV/Parquet: text; NMEA: typed) - the others
-    # are NULL for the whole stage.
-    populated = [c for c in list(C.STATIC_COLUMNS) + list(_TEXT_STATIC)
-                 if c in _STAGE_STATIC_COLUMNS.get(_stage_kind(con), ())]
-    statics = populated or list(C.STATIC_COLUMNS)
+    kind, extra = _stage_kind(con)
     key = "{'t': coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'), 'l': line}"
+    rows = (f"FROM ais_stage WHERE kind <> '{C.KIND_IGNORED}' AND mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} "
+            f"AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'")
+    if kind == "csvhash":
+        # Distinct static field tuples by hash (a 64-bit collision inside one MMSI would merge two
+        # tuples: odds ~1e-19 per pair); their texts come from re-splitting the latest raw line.
+        index = extra["index"]
+        texts = ", ".join(f"f[{index[c]}] AS {c}" if c in index else f"CAST(NULL AS VARCHAR) AS {c}"
+                          for c in _TEXT_STATIC)
+        combos = f"""
+            latest AS (SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax, arg_max(line, {key}) AS l
+                       {rows} GROUP BY mmsi, s_hash),
+            split AS (
+                SELECT latest.mmsi, latest.k, latest.tmax,
+                       CASE WHEN contains(s.raw, '"') THEN ais_csv_split(s.raw) ELSE string_split(s.raw, ',') END AS f
+                FROM latest JOIN ais_stage s ON s.line = latest.l
+            ),
+            combos AS (SELECT mmsi, k, tmax, {texts} FROM split),"""
+        statics = list(_TEXT_STATIC)
+    else:
+        # Group by the columns that can hold values (Parquet: text; NMEA: typed).
+        statics = list(_STAGE_STATIC_COLUMNS.get(kind, C.STATIC_COLUMNS))
+        combos = f"""
+            combos AS (
+                SELECT mmsi, {", ".join(statics)}, max({key}) AS k, max(time_utc) AS tmax
+                {rows} GROUP BY mmsi, {", ".join(statics)}
+            ),"""
     aggs = ",\n".join(f"arg_max({c}, k) FILTER (WHERE {c} IS NOT NULL) AS {c}" for c in C.STATIC_COLUMNS)
     any_set = " OR ".join(f"{c} IS NOT NULL" for c in C.STATIC_COLUMNS)
     merge = ",\n".join(
@@ -711,12 +813,7 @@ def _upsert_vessels(con, file_id: int) -> None:
         for c in C.STATIC_COLUMNS
     )
     sql = f"""INSERT INTO vessels
-        WITH combos AS (
-            SELECT mmsi, {", ".join(statics)}, max({key}) AS k, max(time_utc) AS tmax
-            FROM ais_stage WHERE kind <> '{C.KIND_IGNORED}' AND mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX}
-                AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'
-            GROUP BY mmsi, {", ".join(statics)}
-        ),
+        WITH {combos}
         typed AS (SELECT mmsi, k, tmax, {_typed_static_select(statics)} FROM combos),
         agg AS (SELECT mmsi, make_timestamptz(epoch_us(max(tmax))) AS updated_utc, {aggs} FROM typed GROUP BY mmsi)
         SELECT mmsi, {", ".join(C.STATIC_COLUMNS)}, updated_utc, $file_id AS file_id FROM agg WHERE {any_set}
