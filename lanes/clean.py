@@ -188,22 +188,29 @@ def empty_stage(n: int = 0) -> pd.DataFrame:
 
 
 def conform_stage(df: pd.DataFrame) -> pd.DataFrame:
-    """Give ``df`` exactly the stage columns and dtypes (missing columns are added empty)."""
+    """Give ``df`` exactly the stage columns and dtypes (missing columns are added empty).
+
+    Columns that already have the right dtype are taken as they are (no copy)."""
     out = {}
     n = len(df)
+    plain_index = isinstance(df.index, pd.RangeIndex) and df.index.start == 0 and df.index.step == 1
+    empty = None
     for name, dtype in STAGE_COLUMNS.items():
         if name in df.columns:
             col = df[name]
-            if dtype.startswith("datetime64"):
-                col = pd.to_datetime(col, utc=True)
-                if str(col.dtype) != dtype:
+            if str(col.dtype) != dtype:
+                if dtype.startswith("datetime64"):
+                    col = pd.to_datetime(col, utc=True)
+                    if str(col.dtype) != dtype:
+                        col = col.astype(dtype)
+                else:
                     col = col.astype(dtype)
-            elif str(col.dtype) != dtype:
-                col = col.astype(dtype)
-            out[name] = col.reset_index(drop=True)
+            out[name] = col if plain_index else col.reset_index(drop=True)
         else:
-            out[name] = empty_stage(n)[name]
-    return pd.DataFrame(out)
+            if empty is None:
+                empty = empty_stage(n)
+            out[name] = empty[name]
+    return pd.DataFrame(out, copy=False)
 
 
 # ---------------------------------------------------------------------------------------------
