@@ -311,6 +311,7 @@ def test_scenario_files_read_back_through_the_readers(tmp_path):
     # the forecast window (storm B), which spans the January/February ERA5 files
     scenario_weather = generate_weather(seed=0, start="2025-01-31T00:00Z", end="2025-02-02T06:00Z")
     info = write_scenario_weather(tmp_path, weather=scenario_weather)
+    assert (info["start_utc"], info["end_utc"]) == ("2025-01-31T00:00:00Z", "2025-02-02T06:00:00Z")  # the window written
     names = [p.split("/")[-1] for p in info["files"]]
     assert names[0] == "cmems_mod_glo_wav_anfc_0.083deg_PT3H-i_VHM0-VMDR-VTM10-VTPK_1.50W-11.50E_35.50N-45.00N_2025-01-31-2025-02-02.nc"
     assert names[1:] == ["era5_reanalysis-era5-single-levels_10m_wind_2025-01.nc",

@@ -97,8 +97,8 @@ class ScenarioWeather:
         return {
             "seed": self.seed,
             "bbox": list(BBOX),
-            "start_utc": START_UTC.isoformat().replace("+00:00", "Z"),
-            "end_utc": END_UTC.isoformat().replace("+00:00", "Z"),
+            "start_utc": _iso(pd.Timestamp(self.waves.time_utc.values[0]).tz_localize("UTC")),
+            "end_utc": _iso(pd.Timestamp(self.waves.time_utc.values[-1]).tz_localize("UTC")),
             "waves": {"grid_step_deg": WAVE_STEP_DEG, "step_h": WAVE_STEP_H, "shape": list(self.waves.hs_m.shape),
                       "max_hs_m": float(np.nanmax(self.waves.hs_m.values))},
             "wind": {"grid_step_deg": WIND_STEP_DEG, "step_h": WIND_STEP_H, "shape": list(self.wind.wind_u_ms.shape),

@@ -188,7 +188,7 @@ def join(
     per_path = res.groupby("path_id").agg(n=("seq", "size"), max_hs_m=("hs_m", "max"))
     summary = {"n_points": int(len(res)), "n_paths": int(res.path_id.nunique()), "n_departures": len(deps),
                "status": {k: int(v) for k, v in res.status.value_counts().items()},
-               "max_hs_m": per_path["max_hs_m"].round(3).to_dict(), "out": None if out is None else str(out)}
+               "max_hs_m": per_path["max_hs_m"].astype(float).round(3).to_dict(), "out": None if out is None else str(out)}
     if json_out:
         emit_json(summary)
         return
