@@ -339,3 +339,34 @@ def test_safe_cell_mask_shapes_and_headings():
     # cell 1 (Hs 7 m): Hs limit on every heading; cell 2 (land): no data on every heading
     assert not safe[:, 0, 0, 1].any() and all(r & REASON_BITS["hs"] for r in reason[:, 0, 0, 1])
     assert (reason[:, 0, 0, 2] == REASON_BITS["no_data"]).all()
+
+
+# ---------------------------------------------------------------- properties
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+angles = st.floats(0.0, 359.999, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(speed=st.floats(0.0, 40.0), alpha=angles, length=st.floats(20.0, 400.0))
+def test_surf_riding_properties(speed, alpha, length):
+    r = surf_riding(speed, alpha, length)
+    mirrored = surf_riding(speed, (360.0 - alpha) % 360.0, length)  # port and starboard quartering seas
+    assert bool(r.fired) == bool(mirrored.fired)
+    if r.fired:
+        assert 135.0 < alpha < 225.0 and speed > 1.8 * math.sqrt(length) and r.margin > 0
+    else:
+        assert r.margin <= 0 or np.isneginf(r.margin)
+
+
+@settings(max_examples=200, deadline=None)
+@given(hs=st.floats(0.0, 15.0), tp=st.floats(2.0, 20.0), wind=st.floats(0.0, 40.0), heading=angles, wave_from=angles)
+def test_reason_code_zero_iff_no_rule_fired(hs, tp, wind, heading, wave_from):
+    a = evaluate_operator(TABLE1, hs_m=hs, tp_s=tp, wind_ms=wind, wave_from_deg=wave_from, heading_deg=heading)
+    fired = [name for name, rule in a.rules.items() if bool(rule.fired)]
+    assert (int(a.reason_code) == 0) == (not fired)
+    assert reason_names(a.reason_code) == [n for n in REASON_BITS if n in fired]
+    for name in fired:
+        assert a.rules[name].margin >= 0
