@@ -32,10 +32,11 @@ from dashboards.errors import ReportError
 from routing.route import Route
 
 #: Route roles in display order, with their legend labels.
-ROUTE_ROLES = ("historical", "deviation", "optimal", "min_distance")
+ROUTE_ROLES = ("historical", "deviation", "safe_optimal", "optimal", "min_distance")
 ROLE_LABELS = {
     "historical": "historical (lane / AIS track)",
     "deviation": "cargo-safe deviation",
+    "safe_optimal": "safe time-optimal A* (vessel limits)",
     "optimal": "time-optimal A*",
     "min_distance": "minimum-distance A*",
 }

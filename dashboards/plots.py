@@ -22,6 +22,7 @@ ROLE_STYLE = {
     "historical": {"color": "#000000", "linestyle": (0, (5, 3)), "linewidth": 2.0},
     "deviation": {"color": "#009E73", "linestyle": "-", "linewidth": 2.4},
     "optimal": {"color": "#0072B2", "linestyle": "-", "linewidth": 2.4},
+    "safe_optimal": {"color": "#56B4E9", "linestyle": (0, (8, 2)), "linewidth": 2.6},
     "min_distance": {"color": "#CC79A7", "linestyle": (0, (6, 2, 1, 2)), "linewidth": 2.0},
 }
 OTHER_STYLE = {"color": "#7f7f7f", "linestyle": ":", "linewidth": 1.8}

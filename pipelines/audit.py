@@ -2,9 +2,10 @@
 
 ``stormlane audit (--voyage ID | --mmsi N --start ISO --end ISO) [--weather FILE...]`` takes the
 sailed AIS track from the workspace, evaluates it in the hindcast weather, computes the
-time-optimal and minimum-distance routes for the same departure and vessel (and the cargo-safe
-deviation of the voyage's lane when the workspace has one) and compares them
-(:func:`routing.audit.audit_routes`).
+time-optimal and minimum-distance routes for the same departure and vessel, the time-optimal route
+under the vessel's limits (``safe_optimal``, :mod:`routing.safety`: hard constraints, soft
+penalties when no route keeps within them) and the cargo-safe deviation of the voyage's lane when
+the workspace has one, and compares them (:func:`routing.audit.audit_routes`).
 
 Flow: ``load_audit_inputs`` (I/O task: workspace + weather files) -> :func:`audit_voyage` (plain)
 -> ``store_audit`` (I/O task: results tables, optional HTML report).
@@ -216,8 +217,11 @@ def _check_coverage(sampler, start_utc: pd.Timestamp, end_utc: pd.Timestamp, wha
         )
 
 
-def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alternatives: bool = True) -> dict:
+def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alternatives: bool = True, safety: str = "hard") -> dict:
     """The audit itself (plain function): track, alternatives, evaluations, comparison.
+
+    ``safety`` (``"hard"``, ``"soft"`` or ``"none"``) is the mode of the ``safe_optimal`` A*
+    alternative (none: no such alternative); the plain time-optimal route is kept next to it.
 
     Returns
     -------
@@ -248,13 +252,19 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
             depart_utc=track.time_utc[0], ship=ship, vessel_name=inputs.vessel_profile,
         )
         try:
-            plan = plan_routes(req, field_)
+            plan = plan_routes(req, field_, safety=safety, vessel=inputs.vessel, limits=inputs.limits)
         except StormlaneError as err:
             notes.append(f"time-optimal and minimum-distance routes not computed: {err}")
             plan = None
         if plan is not None:
             plan_stats = dict(plan.stats)
             alts["optimal"] = _renamed(plan.routes["optimal_smoothed"], "optimal")
+            if "safe_optimal_smoothed" in plan.routes:
+                alts["safe_optimal"] = _renamed(plan.routes["safe_optimal_smoothed"], "safe_optimal")
+                sf = plan.stats["safety"]
+                if sf["fallback"]:
+                    notes.append("no A* route keeps within the vessel's limits for this departure; the safe-optimal route "
+                                 f"minimises time plus {sf['penalty_per_h']:g} h per hour over them (soft limits)")
             alts["min_distance"] = _renamed(plan.routes["min_distance"], "min_distance")
         if inputs.lane is not None and len(inputs.lane) >= 2:
             deviation = _deviation(inputs, sampler, track.time_utc[0], plan.mesh if plan is not None else None, notes)
@@ -363,6 +373,8 @@ def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str = "bowd
             "Weather met: bilinear over sea points, linear in time, sampled every <= 15 min of sailing.",
             "Fuel and emissions: STEAM2 with the wave power increase (routing/emissions.py).",
             "Alternatives: time-optimal (smoothed) and minimum-distance A* routes for the same departure and vessel; "
+            "the time-optimal A* route under the vessel's operator and IMO limits (safe-optimal: cells over the limits "
+            "forbidden, or penalised when no route avoids them); "
             "cargo-safe deviation of the voyage's lane (Spyrou-Sioula et al. 2022, Alg. 1, with sea legs and recomputed ETAs).",
         ] + [f"Note: {n}" for n in result.get("notes", [])],
     )

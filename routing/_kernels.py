@@ -3,6 +3,9 @@
 * :func:`astar` — time-dependent A* / Dijkstra on a regular lat/lon mesh with a binary heap.
 * :func:`eval_path` — times along any polyline through the same weather (re-timing).
 * :func:`smooth_path` — any-angle smoothing that keeps the time-dependent cost.
+* :func:`astar_safe`, :func:`smooth_path_safe`, :func:`walk_path_safety` — the same under the
+  vessel's limits (per-cell, per-slice, per-heading-sector flags precomputed by
+  :mod:`routing.safety`).
 * :func:`segment_is_sea` — every mesh cell a segment crosses is sea.
 * :func:`gather_bilinear_time` — weather grid -> mesh nodes.
 
@@ -257,6 +260,255 @@ def _heap_pop(keys, vals, size):
     return top_k, top_v, size
 
 
+# --------------------------------------------------------------------------- safety-constrained search
+#
+# ``unsafe`` is a (n_slices, n_sea) uint16 array: bit s of unsafe[k, row] is set when the vessel's
+# limits are broken at that sea node in weather slice k for a course in heading sector s (sector s
+# is centred on s * 360 / sectors degrees; see routing.safety). A cell is judged over every slice
+# from the one at or before the time the ship enters the edge (piece) to the one at or after the
+# time it leaves it, so a linear-in-time value between two passing slices passes too (Hs, wind).
+
+
+@njit(inline="always")
+def _sector_bit(ch, sh, sectors):
+    """Bit of the heading sector of the course with cosine ``ch`` and sine ``sh``."""
+    w = 360.0 / sectors
+    theta = math.degrees(math.atan2(sh, ch))
+    s = int(math.floor(((theta + 0.5 * w) % 360.0) / w))
+    if s >= sectors:
+        s = sectors - 1
+    elif s < 0:
+        s = 0
+    return np.uint16(1 << s)
+
+
+@njit(inline="always")
+def _slice_range(ta, tb, dt_h, n_times):
+    """Weather slices bracketing the time interval [ta, tb] (hours since slice 0), clamped."""
+    if n_times == 1:
+        return 0, 0
+    lo = int(math.floor(ta / dt_h))
+    hi = int(math.ceil(tb / dt_h))
+    if lo < 0:
+        lo = 0
+    if lo > n_times - 1:
+        lo = n_times - 1
+    if hi > n_times - 1:
+        hi = n_times - 1
+    if hi < lo:
+        hi = lo
+    return lo, hi
+
+
+@njit(inline="always")
+def _row_unsafe(s, unsafe, k_lo, k_hi, bit):
+    for kk in range(k_lo, k_hi + 1):
+        if unsafe[kk, s] & bit:
+            return True
+    return False
+
+
+@njit(inline="always")
+def _stencil_cells_unsafe(iu, ju, k, cells, counts, ny, nx, sea_index, unsafe, k_lo, k_hi, bit, exempt_a, exempt_b):
+    """True when a cell touched by stencil edge k from node (ju, iu) is unsafe (exempt nodes and
+    cells without a weather row are skipped)."""
+    for q in range(counts[k]):
+        c = iu + cells[k, q, 0]
+        r = ju + cells[k, q, 1]
+        if r < 0 or r >= ny or c < 0 or c >= nx:
+            continue
+        node = r * nx + c
+        if node == exempt_a or node == exempt_b:
+            continue
+        s = sea_index[node]
+        if s < 0:
+            continue
+        if _row_unsafe(s, unsafe, k_lo, k_hi, bit):
+            return True
+    return False
+
+
+@njit
+def _segment_cells_unsafe(x0, y0, x1, y1, ny, nx, sea_index, unsafe, k_lo, k_hi, bit, exempt_a, exempt_b):
+    """:func:`_stencil_cells_unsafe` for any index-space segment (closed squares, as :func:`_cells_ok`)."""
+    xmin = min(x0, x1)
+    xmax = max(x0, x1)
+    eps = 1e-9
+    c_lo = int(math.ceil(xmin - 0.5 - eps))
+    c_hi = int(math.floor(xmax + 0.5 + eps))
+    for c in range(c_lo, c_hi + 1):
+        if c < 0 or c >= nx:
+            continue
+        if x1 == x0:
+            ya, yb = y0, y1
+        else:
+            xa = max(xmin, c - 0.5)
+            xb = min(xmax, c + 0.5)
+            ya = y0 + (y1 - y0) * (xa - x0) / (x1 - x0)
+            yb = y0 + (y1 - y0) * (xb - x0) / (x1 - x0)
+        ylo = min(ya, yb)
+        yhi = max(ya, yb)
+        r_lo = int(math.ceil(ylo - 0.5 - eps))
+        r_hi = int(math.floor(yhi + 0.5 + eps))
+        for r in range(r_lo, r_hi + 1):
+            if r < 0 or r >= ny:
+                continue
+            node = r * nx + c
+            if node == exempt_a or node == exempt_b:
+                continue
+            s = sea_index[node]
+            if s < 0:
+                continue
+            if _row_unsafe(s, unsafe, k_lo, k_hi, bit):
+                return True
+    return False
+
+
+@njit(cache=True)
+def astar_safe(
+    nx,
+    allowed,
+    di,
+    dj,
+    elen,
+    ecos,
+    esin,
+    ebit,
+    cells,
+    counts,
+    lat_rad,
+    lon_rad,
+    sea_index,
+    wave,
+    cur,
+    has_cur,
+    dt_h,
+    n_times,
+    p,
+    start,
+    goal,
+    t_start_h,
+    heuristic_speed,
+    radius,
+    unsafe,
+    hard,
+    penalty,
+):
+    """Time-dependent A* that respects the vessel's limits; returns
+    ``(g, t, exposure, parent, expanded, scanned, reached, horizon_hit)``.
+
+    Edge time as in :func:`astar`. An edge is *unsafe* when a cell it touches (``cells[k]``,
+    ``counts[k]``: the stencil's closed-square cells, both end nodes included; the start and goal
+    nodes are exempt, the ship must leave and reach them) is flagged in ``unsafe`` for the edge's
+    heading sector (``ebit[row, k]``) in a weather slice bracketing the edge's time interval.
+    ``hard``: unsafe edges are not taken. Otherwise (soft) an unsafe edge costs its time times
+    ``1 + penalty``. The label of a node is its cost ``g`` (hours plus penalties); the weather is
+    read at the node's arrival time ``t``, kept apart. Penalties only add cost, so the heuristic
+    (great-circle distance / highest speed) stays admissible and consistent; with ``penalty`` 0
+    the search is exactly :func:`astar`. ``horizon_hit``: an edge needed a slice beyond
+    ``unsafe.shape[0]`` (the caller extends the flags and searches again).
+    """
+    model = int(p[P_MODEL])
+    v0 = p[P_V0]
+    floor = p[P_FLOOR]
+    lpp = p[P_LPP]
+    dwt = p[P_DWT]
+    printed = p[P_PRINTED] > 0.5
+    min_sog = p[P_MIN_SOG]
+    step = p[P_TIME_STEP] > 0.5
+    n = allowed.size
+    K = di.size
+    ny = n // nx
+    n_safe = unsafe.shape[0]
+    g = np.full(n, np.inf)
+    tarr = np.full(n, np.inf)
+    expo = np.zeros(n)
+    parent = np.full(n, -1, dtype=np.int64)
+    closed = np.zeros(n, dtype=np.bool_)
+    hcache = np.full(n, -1.0)
+    keys = np.empty(1024, dtype=np.float64)
+    vals = np.empty(1024, dtype=np.int64)
+    size = 0
+    glat = lat_rad[goal // nx]
+    glon = lon_rad[goal % nx]
+    use_h = heuristic_speed > 0.0
+    srow = np.empty(ny)
+    crow = np.empty(ny)
+    for j in range(ny):
+        srow[j] = math.sin(0.5 * (lat_rad[j] - glat)) ** 2
+        crow[j] = math.cos(lat_rad[j]) * math.cos(glat)
+    scol = np.empty(nx)
+    for i in range(nx):
+        scol[i] = math.sin(0.5 * (lon_rad[i] - glon)) ** 2
+    h_scale = 2.0 * radius / heuristic_speed if use_h else 0.0
+    g[start] = t_start_h
+    tarr[start] = t_start_h
+    h0 = 0.0
+    if use_h:
+        h0 = h_scale * math.asin(math.sqrt(min(1.0, srow[start // nx] + crow[start // nx] * scol[start % nx])))
+        hcache[start] = h0
+    keys, vals, size = _heap_push(keys, vals, size, g[start] + h0, start)
+    expanded = 0
+    scanned = 0
+    reached = False
+    hit = False
+    while size > 0:
+        f, u, size = _heap_pop(keys, vals, size)
+        if closed[u]:
+            continue
+        closed[u] = True
+        expanded += 1
+        if u == goal:
+            reached = True
+            break
+        gu = g[u]
+        tu = tarr[u]
+        ju = u // nx
+        iu = u - ju * nx
+        mask = allowed[u]
+        su = sea_index[u]
+        i0, i1, wt = _time_slot(tu, dt_h, n_times, step)
+        hs_u, wc_u, ws_u, cu_u, cv_u = _node_weather(su, i0, i1, wt, wave, cur, has_cur)
+        for k in range(K):
+            if (mask >> np.uint64(k)) & np.uint64(1) == 0:
+                continue
+            v = u + dj[k] * nx + di[k]
+            scanned += 1
+            if closed[v]:
+                continue
+            hs_v, wc_v, ws_v, cu_v, cv_v = _node_weather(sea_index[v], i0, i1, wt, wave, cur, has_cur)
+            c = elen[ju, k] * _pace(
+                model, v0, floor, lpp, dwt, printed, min_sog, 0.5 * (hs_u + hs_v), 0.5 * (wc_u + wc_v),
+                0.5 * (ws_u + ws_v), 0.5 * (cu_u + cu_v), 0.5 * (cv_u + cv_v), has_cur, ecos[ju, k], esin[ju, k],
+            )  # fmt: skip
+            tv = tu + c
+            k_lo, k_hi = _slice_range(tu, tv, dt_h, n_times)
+            if k_hi >= n_safe:
+                hit = True
+                k_hi = n_safe - 1
+            ex = 0.0
+            if _stencil_cells_unsafe(iu, ju, k, cells, counts, ny, nx, sea_index, unsafe, k_lo, k_hi, ebit[ju, k], start, goal):
+                if hard:
+                    continue
+                ex = c
+            ng = gu + c + penalty * ex
+            if ng < g[v]:
+                g[v] = ng
+                tarr[v] = tv
+                expo[v] = expo[u] + ex
+                parent[v] = u
+                hv = 0.0
+                if use_h:
+                    hv = hcache[v]
+                    if hv < 0.0:
+                        jv = v // nx
+                        hv = h_scale * math.asin(math.sqrt(min(1.0, srow[jv] + crow[jv] * scol[v - jv * nx])))
+                        hcache[v] = hv
+                keys, vals, size = _heap_push(keys, vals, size, ng + hv, v)
+    return g, tarr, expo, parent, expanded, scanned, reached, hit
+
+
+
 @njit(cache=True)
 def astar(
     nx,
@@ -465,6 +717,47 @@ def _eval_path(
     piece's start, bilinear in space over sea nodes (exactly the node values at nodes, so a
     grid path re-timed here equals the A* cost).
     """
+    times, hs_max, _, _ = _walk_path(
+        lat_deg, lon_deg, t_start_h, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index, wave, cur, has_cur,
+        dt_h, n_times, p, radius, False, np.zeros((1, 1), dtype=np.uint16), 1, -1, -1,
+    )  # fmt: skip
+    return times, hs_max
+
+
+@njit
+def _walk_path(
+    lat_deg,
+    lon_deg,
+    t_start_h,
+    max_piece_nmi,
+    lat0,
+    lon0,
+    dlat,
+    dlon,
+    ny,
+    nx,
+    sea_index,
+    wave,
+    cur,
+    has_cur,
+    dt_h,
+    n_times,
+    p,
+    radius,
+    use_safety,
+    unsafe,
+    sectors,
+    exempt_a,
+    exempt_b,
+):
+    """:func:`_eval_path`, plus (``use_safety``) the hours spent on pieces that touch an unsafe cell.
+
+    A piece is unsafe when a mesh cell its index-space segment touches (closed squares, as the
+    search's stencil cells) is flagged in ``unsafe`` for the piece's heading sector in any weather
+    slice from the one at or before the piece's start time to the one at or after its end time
+    (see :func:`astar_safe`). Returns ``(times, hs_max, exposure_h, horizon_hit)``, the exposure
+    cumulated at each vertex.
+    """
     model = int(p[P_MODEL])
     v0 = p[P_V0]
     floor = p[P_FLOOR]
@@ -478,6 +771,10 @@ def _eval_path(
     times[0] = t_start_h
     t = t_start_h
     hs_max = 0.0
+    exposure = 0.0
+    cum = np.zeros(n)
+    hit = False
+    n_safe = unsafe.shape[0]
     deg = math.pi / 180.0
     for leg in range(n - 1):
         la1 = lat_deg[leg] * deg
@@ -507,13 +804,26 @@ def _eval_path(
                     wave, cur, has_cur,
                 )  # fmt: skip
                 hs_max = max(hs_max, hs1, hs2)
-                t += plen * _pace(
+                dtp = plen * _pace(
                     model, v0, floor, lpp, dwt, printed, min_sog, 0.5 * (hs1 + hs2), 0.5 * (wc1 + wc2),
                     0.5 * (ws1 + ws2), 0.5 * (cu1 + cu2), 0.5 * (cv1 + cv2), has_cur, ch, sh,
                 )  # fmt: skip
+                if use_safety:
+                    k_lo, k_hi = _slice_range(t, t + dtp, dt_h, n_times)
+                    if k_hi >= n_safe:
+                        hit = True
+                        k_hi = n_safe - 1
+                    if _segment_cells_unsafe(
+                        (pa_lon / deg - lon0) / dlon, (pa_lat / deg - lat0) / dlat, (pb_lon / deg - lon0) / dlon,
+                        (pb_lat / deg - lat0) / dlat, ny, nx, sea_index, unsafe, k_lo, k_hi, _sector_bit(ch, sh, sectors),
+                        exempt_a, exempt_b,
+                    ):  # fmt: skip
+                        exposure += dtp
+                t += dtp
                 pa_lat, pa_lon = pb_lat, pb_lon
         times[leg + 1] = t
-    return times, hs_max
+        cum[leg + 1] = exposure
+    return times, hs_max, cum, hit
 
 
 @njit
@@ -669,11 +979,12 @@ def allowed_edges(sea, cell_ok, cell_clean, cells, counts, di, dj, lat0, lon0, d
     return out
 
 
-@njit(cache=True)
-def smooth_path(
+@njit
+def _smooth(
     lat_deg,
     lon_deg,
     raw_times,
+    raw_exposure,
     max_piece_nmi,
     lat0,
     lon0,
@@ -697,6 +1008,11 @@ def smooth_path(
     n_times,
     p,
     radius,
+    use_safety,
+    unsafe,
+    sectors,
+    exempt_a,
+    exempt_b,
 ):
     """Indices of the waypoints kept by greedy any-angle smoothing.
 
@@ -704,7 +1020,11 @@ def smooth_path(
     to a later waypoint j replaces the path between them when it crosses only sea cells and
     arrives no later than the raw route did (t_i + leg <= raw_times[j]); j is pushed forward
     until the first failure. Arrival at every kept waypoint, the goal included, is therefore
-    never later than on the raw route.
+    never later than on the raw route. With ``use_safety`` a direct leg must also keep the hours
+    spent in unsafe cells (:func:`_walk_path`, at its own times) at or below the raw route's up to
+    j (``raw_exposure``, cumulated per waypoint; all zeros for a route that keeps within the
+    limits, whose direct legs must then touch no unsafe cell). A raw leg kept is re-timed but not
+    re-judged (the caller compares the smoothed and the raw route's exposure).
     """
     n = lat_deg.size
     keep = np.empty(n, dtype=np.int64)
@@ -713,11 +1033,13 @@ def smooth_path(
     nk += 1
     i = 0
     t_i = raw_times[0]
+    e_i = 0.0
     two_lat = np.empty(2)
     two_lon = np.empty(2)
     while i < n - 1:
         best = i + 1
         best_t = -1.0
+        best_e = 0.0
         j = i + 2
         while j < n:
             if not _gc_leg_is_sea(
@@ -729,13 +1051,14 @@ def smooth_path(
             two_lat[1] = lat_deg[j]
             two_lon[0] = lon_deg[i]
             two_lon[1] = lon_deg[j]
-            tt, _ = _eval_path(
+            tt, _, ex, _ = _walk_path(
                 two_lat, two_lon, t_i, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
-                wave, cur, has_cur, dt_h, n_times, p, radius,
+                wave, cur, has_cur, dt_h, n_times, p, radius, use_safety, unsafe, sectors, exempt_a, exempt_b,
             )  # fmt: skip
-            if tt[1] <= raw_times[j] + 1e-9:
+            if tt[1] <= raw_times[j] + 1e-9 and e_i + ex[1] <= raw_exposure[j] + 1e-9:
                 best = j
                 best_t = tt[1]
+                best_e = e_i + ex[1]
                 j += 1
             else:
                 break
@@ -744,16 +1067,44 @@ def smooth_path(
             two_lat[1] = lat_deg[best]
             two_lon[0] = lon_deg[i]
             two_lon[1] = lon_deg[best]
-            tt, _ = _eval_path(
+            tt, _, ex, _ = _walk_path(
                 two_lat, two_lon, t_i, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
-                wave, cur, has_cur, dt_h, n_times, p, radius,
+                wave, cur, has_cur, dt_h, n_times, p, radius, use_safety, unsafe, sectors, exempt_a, exempt_b,
             )  # fmt: skip
             best_t = tt[1]
+            best_e = e_i + ex[1]
         keep[nk] = best
         nk += 1
         i = best
         t_i = best_t
+        e_i = best_e
     return keep[:nk]
+
+
+@njit(cache=True)
+def smooth_path(
+    lat_deg, lon_deg, raw_times, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, cell_ok, cell_clean, ocean, px_r0, px_c0,
+    ppd, has_px, sea_step_nmi, sea_index, wave, cur, has_cur, dt_h, n_times, p, radius,
+):  # fmt: skip
+    """Indices of the waypoints kept by greedy any-angle smoothing (see :func:`_smooth`)."""
+    return _smooth(
+        lat_deg, lon_deg, raw_times, np.zeros(lat_deg.size), max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, cell_ok, cell_clean,
+        ocean, px_r0, px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, cur, has_cur, dt_h, n_times, p, radius,
+        False, np.zeros((1, 1), dtype=np.uint16), 1, -1, -1,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def smooth_path_safe(
+    lat_deg, lon_deg, raw_times, raw_exposure, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, cell_ok, cell_clean, ocean, px_r0,
+    px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, cur, has_cur, dt_h, n_times, p, radius, unsafe, sectors, exempt_a, exempt_b,
+):  # fmt: skip
+    """:func:`smooth_path` whose direct legs are no more exposed to unsafe cells than the raw route (see :func:`_smooth`)."""
+    return _smooth(
+        lat_deg, lon_deg, raw_times, raw_exposure, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, cell_ok, cell_clean, ocean,
+        px_r0, px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, cur, has_cur, dt_h, n_times, p, radius,
+        True, unsafe, sectors, exempt_a, exempt_b,
+    )  # fmt: skip
 
 
 @njit(cache=True)
@@ -851,3 +1202,94 @@ def eval_path(
         lat_deg, lon_deg, t_start_h, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
         wave, cur, has_cur, dt_h, n_times, p, radius,
     )  # fmt: skip
+
+
+@njit(cache=True)
+def walk_path_safety(
+    lat_deg, lon_deg, t_start_h, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
+    wave, cur, has_cur, dt_h, n_times, p, radius, unsafe, sectors, exempt_a, exempt_b,
+):  # fmt: skip
+    """Compiled entry point of :func:`_walk_path` with the safety flags: (times, hs_max, exposure_h, horizon_hit)."""
+    return _walk_path(
+        lat_deg, lon_deg, t_start_h, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
+        wave, cur, has_cur, dt_h, n_times, p, radius, True, unsafe, sectors, exempt_a, exempt_b,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def heading_flags(hs, wf_deg, period_s, headings_deg, members, p, beam_lo, beam_hi, beam_gate, use_beam, imo_gate, use_imo,
+                  surf_num, use_surf, tr_s, roll_tol, use_roll):  # fmt: skip
+    """Heading-sector bits of the heading-dependent rules, the compiled twin of
+    :func:`thresholds.safety.assess` restricted to them (cross-checked by tests).
+
+    For every element e and sample heading h_j: encounter α = (wf − h_j) mod 360 (0 = head seas);
+    beam seas: α in a closed range [beam_lo, beam_hi] (operator limits, where Hs ≥ beam_gate when
+    that is > 0); IMO MSC.1/Circ.1228 (where Hs ≥ imo_gate when > 0): surf-riding
+    135° < α < 225° and V > surf_num / cos(180° − α) (surf_num = 1.8·√L), synchronous and
+    parametric roll |k·T_E − T_R| ≤ ε·T_R for k = 1, 2 with T_E = 3T² / |3T + V cos α|; V is the
+    speed through the water on that heading (:func:`speed_through_water`, parameters ``p``).
+    Bit s of the result is set when a rule fires at one of the headings ``members[s]``; the
+    samples of a sector are judged until one fires.
+    """
+    model = int(p[P_MODEL])
+    v0 = p[P_V0]
+    floor = p[P_FLOOR]
+    lpp = p[P_LPP]
+    dwt = p[P_DWT]
+    printed = p[P_PRINTED] > 0.5
+    m = hs.size
+    H = headings_deg.size
+    S = members.shape[0]
+    Q = members.shape[1]
+    nr = beam_lo.size
+    out = np.zeros(m, dtype=np.uint16)
+    state = np.zeros(H, dtype=np.int8)  # 0 not judged yet, 1 fires, 2 passes
+    ch = np.empty(H)
+    sh = np.empty(H)
+    for j in range(H):
+        ch[j] = math.cos(math.radians(headings_deg[j]))
+        sh[j] = math.sin(math.radians(headings_deg[j]))
+    band = roll_tol * tr_s
+    for e in range(m):
+        h = hs[e]
+        beam_ok = use_beam and (beam_gate <= 0.0 or h >= beam_gate)
+        imo_ok = use_imo and (imo_gate <= 0.0 or h >= imo_gate)
+        if not (beam_ok or imo_ok):
+            continue
+        wf = wf_deg[e]
+        cw = math.cos(math.radians(wf))
+        sw = math.sin(math.radians(wf))
+        t = period_s[e]
+        t3 = 3.0 * t
+        tt3 = 3.0 * t * t
+        state[:] = 0
+        bits = 0
+        for s in range(S):
+            for q in range(Q):
+                j = members[s, q]
+                if state[j] == 0:
+                    a = wf - headings_deg[j]
+                    if a < 0.0:
+                        a += 360.0
+                    f = False
+                    if beam_ok:
+                        for r in range(nr):
+                            if a >= beam_lo[r] and a <= beam_hi[r]:
+                                f = True
+                                break
+                    if not f and imo_ok:
+                        ca = cw * ch[j] + sw * sh[j]  # cos and sin of the encounter angle wf - h
+                        sa = sw * ch[j] - cw * sh[j]
+                        v = speed_through_water(model, v0, floor, lpp, dwt, printed, h, ca, sa)
+                        if use_surf and a > 135.0 and a < 225.0 and v * -ca > surf_num:  # cos(180 - a) = -cos a > 0
+                            f = True
+                        if not f and use_roll:
+                            d = abs(t3 + v * ca)  # T_E = 3T^2 / d; |k T_E - T_R| <= eps T_R, times d
+                            if d > 0.0 and (abs(tt3 - tr_s * d) <= band * d or abs(2.0 * tt3 - tr_s * d) <= band * d):
+                                f = True
+                    state[j] = 1 if f else 2
+                if state[j] == 1:
+                    bits |= 1 << s
+                    break
+        out[e] = bits
+    return out

@@ -11,6 +11,14 @@ weather of every sea node on a regular time axis. The cost of an edge u -> v is
   compiled twin) and the optional current vector;
 * ``cost="distance"``: L.
 
+With ``safety=`` (:class:`routing.safety.SafetyFlags`) the time search respects the vessel's
+limits (:func:`routing._kernels.astar_safe`): edges touching a cell flagged unsafe for their
+heading sector at the time they are sailed are forbidden (``hard``) or cost ``1 + penalty``
+times their duration (``soft``). The label then keeps cost and arrival time apart; a node keeps
+one label (the least cost), so under hard constraints a later arrival that would find a storm
+passed is not explored (no waiting at sea): the result is the least-cost path among those whose
+every prefix is least-cost, and A* and Dijkstra still agree on it.
+
 The heuristic is the great-circle distance to the goal over the highest speed any edge can
 reach (v0, or more with Khokhlov in following seas, plus the strongest current), so it never
 overestimates and the first time the goal is taken from the heap its cost is optimal
@@ -41,6 +49,7 @@ from routing import speed_loss as sl
 from routing.errors import NoRouteError
 from routing.field import NS_PER_HOUR, MeshWeather
 from routing.mesh import Mesh
+from routing.safety import SafetyFlags
 from thresholds.units import EARTH_RADIUS_NMI
 
 _NO_CURRENT = np.zeros((1, 1, 2), dtype=np.float32)
@@ -155,10 +164,13 @@ class SearchResult:
     """A grid path and its search statistics."""
 
     nodes: np.ndarray
-    cost: float  # hours (time) or nmi (distance) from the start node
+    cost: float  # hours (time) or nmi (distance) from the start node; with soft safety hours + penalties
     expanded: int
     scanned: int
     seconds: float
+    time_h: float | None = None  # sailing time (time searches)
+    exposure_h: float = 0.0  # hours on edges touching unsafe cells (safety searches)
+    horizon_hit: bool = False  # the safety flags did not reach far enough in time
 
 
 def search(
@@ -171,6 +183,7 @@ def search(
     t_start_h: float = 0.0,
     cost: str = "time",
     heuristic: bool = True,
+    safety: SafetyFlags | None = None,
 ) -> SearchResult:
     """Least-time (or least-distance) path from node ``start`` to node ``goal``.
 
@@ -181,14 +194,22 @@ def search(
     cost : {"time", "distance"}
     heuristic : bool
         False runs Dijkstra (same core, zero heuristic).
+    safety : SafetyFlags, optional
+        Respect the vessel's limits (time searches only; see the module docstring). The start
+        and goal nodes are exempt.
 
     Raises
     ------
     NoRouteError
-        When the goal cannot be reached over sea cells of this mesh.
+        When the goal cannot be reached over sea cells of this mesh (with ``hard`` safety: over
+        edges that keep within the limits).
     """
     if cost not in ("time", "distance"):
         raise ValueError(f"cost must be 'time' or 'distance', got {cost!r}")
+    if safety is not None:
+        if cost != "time":
+            raise ValueError("safety constraints apply to time searches only")
+        return _search_safe(mesh, wx, ship, start, goal, safety, t_start_h=t_start_h, heuristic=heuristic)
     g = mesh.grid
     if not (mesh.sea.ravel()[start] and mesh.sea.ravel()[goal]):
         raise NoRouteError("start or goal node is on land")
@@ -221,7 +242,76 @@ def search(
         nodes.append(int(parent[nodes[-1]]))
     nodes.reverse()
     total = float(gvals[goal]) - (0.0 if distance_mode else float(t_start_h))
-    return SearchResult(np.asarray(nodes, dtype=np.int64), total, int(expanded), int(scanned), seconds)
+    return SearchResult(np.asarray(nodes, dtype=np.int64), total, int(expanded), int(scanned), seconds,
+                        time_h=None if distance_mode else total)
+
+
+def _search_safe(mesh, wx, ship, start, goal, safety: SafetyFlags, *, t_start_h: float, heuristic: bool) -> SearchResult:
+    g = mesh.grid
+    if not (mesh.sea.ravel()[start] and mesh.sea.ravel()[goal]):
+        raise NoRouteError("start or goal node is on land")
+    if safety.unsafe.ndim != 2 or safety.unsafe.shape[1] != wx.wave.shape[1] or safety.unsafe.dtype != np.uint16:
+        raise ValueError(f"safety flags {safety.unsafe.shape} {safety.unsafe.dtype} do not match the weather's {wx.wave.shape[1]} sea rows")
+    elen, ecos, esin = mesh.edge_geometry
+    ebit = edge_bits(mesh, safety.sectors)
+    cells, counts = mesh.stencil_cells
+    p = ship.params(wx.step_time)
+    h_speed = ship.max_speed_kn(wx.hs_max_m) + wx.current_max_kn if heuristic else 0.0
+    t0 = _time.perf_counter()
+    gvals, tarr, expo, parent, expanded, scanned, reached, hit = _kernels.astar_safe(
+        g.nx, mesh.allowed, mesh.steps[:, 0].copy(), mesh.steps[:, 1].copy(), elen, ecos, esin, ebit, cells, counts,
+        np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg), wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, p,
+        int(start), int(goal), float(t_start_h), float(h_speed), EARTH_RADIUS_NMI, np.ascontiguousarray(safety.unsafe),
+        bool(safety.hard), float(safety.penalty_per_h),
+    )  # fmt: skip
+    seconds = _time.perf_counter() - t0
+    if not reached:
+        lat_s, lon_s = g.node_latlon(start)
+        lat_g, lon_g = g.node_latlon(goal)
+        raise NoRouteError(
+            f"no route from ({lat_s:.4f}, {lon_s:.4f}) to ({lat_g:.4f}, {lon_g:.4f}) keeps within the vessel's limits on this "
+            f"mesh ({g.dlat_deg * 60:.3g} nmi, {mesh.edges} edges): searched {expanded:,} nodes reachable over safe edges"
+        )
+    nodes = [int(goal)]
+    while nodes[-1] != start:
+        nodes.append(int(parent[nodes[-1]]))
+    nodes.reverse()
+    return SearchResult(
+        np.asarray(nodes, dtype=np.int64), float(gvals[goal]) - float(t_start_h), int(expanded), int(scanned), seconds,
+        time_h=float(tarr[goal]) - float(t_start_h), exposure_h=float(expo[goal]), horizon_hit=bool(hit),
+    )  # fmt: skip
+
+
+def edge_bits(mesh: Mesh, sectors: int) -> np.ndarray:
+    """Heading-sector bit of every stencil edge, per mesh row (cached on the mesh). (ny, K) uint16"""
+    from routing.safety import edge_sector_bits
+
+    cache = mesh.__dict__.setdefault("_edge_bits", {})
+    if sectors not in cache:
+        cache[sectors] = edge_sector_bits(mesh, sectors)
+    return cache[sectors]
+
+
+def path_exposure(
+    mesh: Mesh, wx: WeatherArrays, ship: ShipModel, lat_deg, lon_deg, safety: SafetyFlags, *, exempt=(-1, -1),
+    t_start_h: float = 0.0, max_piece_nmi: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Re-time a polyline (as :func:`evaluate_path`) and add up the hours on pieces touching unsafe cells.
+
+    The pieces are those of :func:`evaluate_path` (a grid path: its edges), judged as the search
+    judges edges (cells touched, heading sector of the piece's course, slices bracketing its
+    time); ``exempt`` nodes (start, goal) are skipped. Returns ``(times, exposure_h, horizon_hit)``
+    with the exposure cumulated at each vertex (``exposure_h[-1]`` is the route's).
+    """
+    g = mesh.grid
+    p = ship.params(wx.step_time)
+    piece = float(max_piece_nmi if max_piece_nmi is not None else mesh.max_edge_nmi * (1.0 + 1e-9))
+    times, _, expo, hit = _kernels.walk_path_safety(
+        np.ascontiguousarray(lat_deg, dtype=float), np.ascontiguousarray(lon_deg, dtype=float), float(t_start_h), piece,
+        g.lat0_deg, g.lon0_deg, g.dlat_deg, g.dlon_deg, g.ny, g.nx, wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, p,
+        EARTH_RADIUS_NMI, np.ascontiguousarray(safety.unsafe), int(safety.sectors), int(exempt[0]), int(exempt[1]),
+    )  # fmt: skip
+    return times, expo, bool(hit)
 
 
 def evaluate_path(
@@ -243,17 +333,31 @@ def evaluate_path(
 
 
 def smooth(
-    mesh: Mesh, wx: WeatherArrays, ship: ShipModel, lat_deg, lon_deg, raw_times_h, *, max_piece_nmi: float | None = None
+    mesh: Mesh, wx: WeatherArrays, ship: ShipModel, lat_deg, lon_deg, raw_times_h, *, max_piece_nmi: float | None = None,
+    safety: SafetyFlags | None = None, exempt=(-1, -1), raw_exposure_h=None,
 ) -> np.ndarray:
     """Indices of the waypoints kept by any-angle smoothing (see :func:`routing._kernels.smooth_path`).
 
     A waypoint is removed when the direct great-circle leg that skips it crosses only sea cells
-    and does not arrive later than the raw path: the smoothed route is never slower.
+    and does not arrive later than the raw path: the smoothed route is never slower. With
+    ``safety`` the direct leg must also keep the hours in unsafe cells at or below the raw
+    route's up to the waypoint it reaches (``raw_exposure_h``, cumulated per waypoint, from
+    :func:`path_exposure`; default zeros: the leg must touch no unsafe cell); ``exempt``: the
+    start and goal nodes.
     """
     g = mesh.grid
     p = ship.params(wx.step_time)
     px = mesh._px()
     piece = float(max_piece_nmi if max_piece_nmi is not None else mesh.max_edge_nmi * (1.0 + 1e-9))
+    if safety is not None:
+        raw_ex = np.zeros(np.size(lat_deg)) if raw_exposure_h is None else np.ascontiguousarray(raw_exposure_h, dtype=float)
+        return _kernels.smooth_path_safe(
+            np.ascontiguousarray(lat_deg, dtype=float), np.ascontiguousarray(lon_deg, dtype=float),
+            np.ascontiguousarray(raw_times_h, dtype=float), raw_ex, piece, g.lat0_deg, g.lon0_deg, g.dlat_deg, g.dlon_deg,
+            g.ny, g.nx, mesh.cell_ok, mesh.cell_clean, px[0], px[1], px[2], px[3], px[4],
+            0.5 * mesh.min_cell_nmi, wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, p, EARTH_RADIUS_NMI,
+            np.ascontiguousarray(safety.unsafe), int(safety.sectors), int(exempt[0]), int(exempt[1]),
+        )  # fmt: skip
     return _kernels.smooth_path(
         np.ascontiguousarray(lat_deg, dtype=float), np.ascontiguousarray(lon_deg, dtype=float),
         np.ascontiguousarray(raw_times_h, dtype=float), piece, g.lat0_deg, g.lon0_deg, g.dlat_deg, g.dlon_deg,

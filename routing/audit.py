@@ -77,8 +77,9 @@ def track_to_route(positions: pd.DataFrame, *, min_step_s: float = TRACK_MIN_STE
     return Route(name, lat, lon, t, speed, properties=props)
 
 
-#: Order in which alternatives are preferred when they are equally safe.
-PREFERENCE = ("deviation", "optimal", "min_distance")
+#: Order in which alternatives are preferred when they are equally safe (``safe_optimal``: the
+#: time-optimal A* route under the vessel's limits, :mod:`routing.safety`).
+PREFERENCE = ("deviation", "safe_optimal", "optimal", "min_distance")
 
 
 def propose(evaluations: dict, reference: str = "historical") -> str | None:

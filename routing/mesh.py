@@ -332,6 +332,19 @@ class Mesh:
         length = np.where(np.abs(lat2) <= 90.0, length, np.nan)
         return np.ascontiguousarray(length), np.ascontiguousarray(np.cos(course)), np.ascontiguousarray(np.sin(course))
 
+    @cached_property
+    def stencil_cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """Cells each stencil edge touches (closed squares, both end nodes included), as offsets
+        from the edge's start node: ``cells`` (K, m, 2) of ``(di, dj)`` and ``counts`` (K,)."""
+        offsets = [_cells_touched(int(di), int(dj)) for di, dj in self.steps]
+        m = max(len(o) for o in offsets)
+        cells = np.zeros((len(offsets), m, 2), dtype=np.int64)
+        counts = np.zeros(len(offsets), dtype=np.int64)
+        for k, o in enumerate(offsets):
+            cells[k, : len(o)] = o
+            counts[k] = len(o)
+        return cells, counts
+
     @property
     def max_edge_nmi(self) -> float:
         return float(np.nanmax(self.edge_geometry[0]))

@@ -9,6 +9,17 @@ and returns :class:`routing.route.Route` objects:
 ``optimal_smoothed``   the same after any-angle smoothing (never slower, never on land);
 ``min_distance``       the shortest sea route on the mesh, sailed through the weather;
 ``min_distance_calm``  the same path in calm water (v0 throughout).
+
+With ``safety="soft"`` or ``"hard"`` (and the vessel and its operator limits) two more routes
+respect the vessel's limits (:mod:`routing.safety`), and every route reports the hours it spends
+over them (``hours_over_limits``, ``hours_by_rule``, judged by the threshold functions at its
+own ETAs, and ``unsafe_cell_h``, as the search judges cells):
+
+``safe_optimal``           the raw grid route of least time (``hard``) or least time plus
+                           penalties (``soft``) under the limits; when ``hard`` finds no route it
+                           falls back to ``soft`` and says so (``safety_fallback``);
+``safe_optimal_smoothed``  the same after smoothing whose direct legs keep clear of unsafe cells
+                           (never slower, never more exposed than the raw route).
 """
 
 from __future__ import annotations
@@ -21,11 +32,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from routing.astar import ShipModel, WeatherArrays, evaluate_path, reachable, search, smooth
+from routing.astar import ShipModel, WeatherArrays, evaluate_path, path_exposure, reachable, search, smooth
 from routing.errors import LandPointError, NoRouteError, WeatherCoverageError
 from routing.field import NS_PER_HOUR, MeshWeather, WeatherField
 from routing.mesh import Mesh, MeshGrid, build_mesh, global_land_mask_window
 from routing.route import Route
+from routing.safety import DEFAULT_PENALTY_PER_H, DEFAULT_SECTORS, SafetySpec, build_flags, limits_exposure
 from thresholds.geodesy import haversine_nmi, intermediate_point
 from thresholds.units import wrap_deg
 
@@ -102,11 +114,28 @@ class RoutePlan:
     stats: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """The CLI's JSON object."""
+        """The CLI's JSON object (with safety: the safe routes, each route's hours over the limits,
+        and a ``safety`` summary)."""
         out = {"great_circle_nmi": round(self.great_circle_nmi, 6)}
-        for name in ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm"):
-            out[name] = self.routes[name].to_dict()
+        for name in ROUTE_NAMES + SAFE_ROUTE_NAMES:
+            if name not in self.routes:
+                continue
+            r = self.routes[name]
+            out[name] = r.to_dict()
+            for key in SAFETY_KEYS:
+                if key in r.properties:
+                    out[name][key] = r.properties[key]
+        if "safety" in self.stats:
+            out["safety"] = self.stats["safety"]
         return out
+
+
+#: Routes every plan has, and those a safety-constrained plan adds.
+ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
+SAFE_ROUTE_NAMES = ("safe_optimal", "safe_optimal_smoothed")
+#: Route properties copied into the JSON object when present.
+SAFETY_KEYS = ("hours_over_limits", "operator_h", "imo_h", "hours_by_rule", "unsafe_cell_h", "safety_requested", "safety_mode",
+               "safety_fallback")
 
 
 def default_bbox(start, goal, margin_deg: float | None = None) -> tuple:
@@ -205,14 +234,33 @@ def plan_routes(
     weather: WeatherField | None = None,
     *,
     land_mask_fn=global_land_mask_window,
+    safety: str | SafetySpec = "none",
+    vessel=None,
+    limits=None,
+    penalty_per_h: float = DEFAULT_PENALTY_PER_H,
+    sectors: int = DEFAULT_SECTORS,
 ) -> RoutePlan:
     """Compute the optimal, smoothed, minimum-distance and calm routes for ``req``.
+
+    Parameters
+    ----------
+    safety : {"none", "soft", "hard"} or SafetySpec
+        Also compute the safe time-optimal routes (``safe_optimal``, ``safe_optimal_smoothed``)
+        and every route's hours over the limits; ``"none"`` (default) leaves the plan exactly as
+        without it.
+    vessel : thresholds.vessel.Vessel
+        Needed with safety (operator-limit variant, IMO rules).
+    limits : OperatorProfile or OperatorLimits, optional
+        The operator limits (``None``: IMO rules only).
+    penalty_per_h, sectors
+        See :class:`routing.safety.SafetySpec`.
 
     Raises
     ------
     WeatherCoverageError, OutsideMeshError, LandPointError, NoRouteError, MeshSizeError
         With messages naming the point, the mesh and what to change.
     """
+    spec = safety if isinstance(safety, SafetySpec) else SafetySpec(str(safety), vessel, limits, penalty_per_h, sectors)
     timings = {}
     t_all = _time.perf_counter()
     c_all = _time.process_time()
@@ -383,6 +431,12 @@ def plan_routes(
     )
     calm_props = dict(base_props, cost="distance", speed_loss_model="none", calm_water=True, max_hs_m_along=0.0)
     routes["min_distance_calm"] = _make_route("min_distance_calm", mesh, None, None, md_lat, md_lon, mdc_t, depart, calm_props)
+    safety_stats = {}
+    if spec.mode != "none":
+        safety_stats = _safe_routes(
+            spec, req, mesh, mw, wx, routes, timings, start_node=start_node, goal_node=goal_node, t_node_h=t_node_h, t0_h=t0_h,
+            polyline=polyline, props=props,
+        )  # fmt: skip
     timings["total_s"] = _time.perf_counter() - t_all
     timings["total_cpu_s"] = _time.process_time() - c_all
     stats = {
@@ -393,5 +447,112 @@ def plan_routes(
         "scanned_distance": results["distance"].scanned,
         "start_node": int(start_node),
         "goal_node": int(goal_node),
+        **safety_stats,
     }
     return RoutePlan(gc_nmi, routes, mesh, stats)
+
+
+def _safe_routes(spec: SafetySpec, req, mesh, mw, wx, routes: dict, timings: dict, *, start_node, goal_node, t_node_h, t0_h,
+                 polyline, props) -> dict:
+    """Add ``safe_optimal`` and ``safe_optimal_smoothed`` to ``routes`` and the hours over the limits
+    to every route's properties; returns the statistics for :attr:`RoutePlan.stats`."""
+    grid = mesh.grid
+    exempt = (int(start_node), int(goal_node))
+    t = _time.perf_counter()
+    c = _time.process_time()
+    # flags up to twice the plain optimal route's duration (+6 h); extended to the whole weather if needed
+    opt_end_h = t0_h + routes["optimal"].time_h
+    n_need = None
+    if mw is not None:
+        n_need = int(math.ceil((opt_end_h + (opt_end_h - t0_h) + 6.0) / wx.dt_h)) + 2
+    flags = build_flags(spec, req.ship, mw, mesh.n_sea, n_slices=n_need)
+    timings["safety_flags_s"] = _time.perf_counter() - t
+    timings["safety_flags_cpu_s"] = _time.process_time() - c
+
+    def complete(fl):
+        """The flags extended to every weather slice (the search needed more than the first guess)."""
+        t1 = _time.perf_counter()
+        fl = build_flags(spec, req.ship, mw, mesh.n_sea, extend=fl)
+        timings["safety_flags_s"] += _time.perf_counter() - t1
+        return fl
+
+    t = _time.perf_counter()
+    c = _time.process_time()
+    fallback = None
+    fl = flags.with_mode(spec.mode)
+    try:
+        res = search(mesh, wx, req.ship, start_node, goal_node, t_start_h=t_node_h, safety=fl)
+        if res.horizon_hit and not fl.complete:
+            fl = complete(fl)
+            res = search(mesh, wx, req.ship, start_node, goal_node, t_start_h=t_node_h, safety=fl)
+    except NoRouteError as err:
+        if spec.mode != "hard":
+            raise
+        fallback = (f"hard: {err}; fell back to soft limits ({spec.penalty_per_h:g} h of penalty per hour over the limits): "
+                    "the route below still breaks them")
+        log.warning("%s", fallback)
+        fl = fl.with_mode("soft")
+        res = search(mesh, wx, req.ship, start_node, goal_node, t_start_h=t_node_h, safety=fl)
+        if res.horizon_hit and not fl.complete:
+            fl = complete(fl)
+            res = search(mesh, wx, req.ship, start_node, goal_node, t_start_h=t_node_h, safety=fl)
+    timings["search_safe_s"] = _time.perf_counter() - t
+    timings["search_safe_cpu_s"] = _time.process_time() - c
+
+    t = _time.perf_counter()
+    c = _time.process_time()
+    sa_lat, sa_lon = polyline(res.nodes)
+    sa_t, sa_hs = evaluate_path(mesh, wx, req.ship, sa_lat, sa_lon, t_start_h=t0_h)
+
+    def cell_exposure(lat, lon):
+        """Hours in unsafe cells, cumulated per vertex, as the search judges edges."""
+        nonlocal fl
+        _, ex, hit = path_exposure(mesh, wx, req.ship, lat, lon, fl, exempt=exempt, t_start_h=t0_h)
+        if hit and not fl.complete:
+            fl = complete(fl)
+            _, ex, _ = path_exposure(mesh, wx, req.ship, lat, lon, fl, exempt=exempt, t_start_h=t0_h)
+        return ex
+
+    raw_cum = cell_exposure(sa_lat, sa_lon)
+    keep = smooth(mesh, wx, req.ship, sa_lat, sa_lon, sa_t, safety=fl, exempt=exempt, raw_exposure_h=raw_cum)
+    ss_lat, ss_lon = sa_lat[keep], sa_lon[keep]
+    ss_t, ss_hs = evaluate_path(mesh, wx, req.ship, ss_lat, ss_lon, t_start_h=t0_h)
+    raw_ex = float(raw_cum[-1])
+    sm_ex = float(cell_exposure(ss_lat, ss_lon)[-1])
+    if ss_t[-1] > sa_t[-1] + 1e-9 or sm_ex > raw_ex + 1e-9:  # never slower, never more exposed
+        ss_lat, ss_lon, ss_t, ss_hs, sm_ex = sa_lat, sa_lon, sa_t, sa_hs, raw_ex
+    mode = "hard" if fl.hard else "soft"
+    extra = {
+        "safety_requested": spec.mode,
+        "safety_mode": mode,
+        "safety_fallback": fallback,
+        "safety": spec.describe(),
+        "search_cost_h": round(res.cost, 6),
+    }
+    depart = req.depart_utc
+    routes["safe_optimal"] = _make_route("safe_optimal", mesh, mw, None, sa_lat, sa_lon, sa_t, depart,
+                                         props("time", res, sa_t, sa_hs, unsafe_cell_h=round(raw_ex, 6), **extra))
+    routes["safe_optimal_smoothed"] = _make_route(
+        "safe_optimal_smoothed", mesh, mw, None, ss_lat, ss_lon, ss_t, depart,
+        props("time", None, ss_t, ss_hs, smoothed_from=int(sa_lat.size), unsafe_cell_h=round(sm_ex, 6), **extra),
+    )  # fmt: skip
+
+    # every route: hours over the limits at its own ETAs (threshold functions) and in unsafe cells
+    def weather_at(times, lat, lon):
+        t_h = (pd.DatetimeIndex(times).asi8 - (wx.time0_ns or 0)) / NS_PER_HOUR
+        return sample_weather(mesh, mw, lat, lon, t_h)
+
+    for name in ("optimal", "optimal_smoothed", "min_distance", "safe_optimal", "safe_optimal_smoothed"):
+        r = routes[name]
+        r.properties.update(limits_exposure(r, weather_at, spec))
+        if "unsafe_cell_h" not in r.properties:
+            r.properties["unsafe_cell_h"] = round(float(cell_exposure(r.lat_deg, r.lon_deg)[-1]), 6)
+    timings["safety_routes_s"] = _time.perf_counter() - t
+    timings["safety_routes_cpu_s"] = _time.process_time() - c
+    skipped = list(routes["safe_optimal"].properties.get("rules_not_evaluated", []))
+    return {
+        "expanded_safe": res.expanded,
+        "scanned_safe": res.scanned,
+        "safety": {**spec.describe(), "requested": spec.mode, "mode": mode, "fallback": fallback, "rules_not_evaluated": skipped,
+                   "flag_slices": int(fl.unsafe.shape[0]), "weather_slices": int(fl.n_times)},
+    }

@@ -126,14 +126,14 @@ def test_audit_of_a_voyage_through_the_storm(workspace, tmp_path):
 
     report = tmp_path / "audit.html"
     out = run_audit(workspace, voyage_id="v1", report=report)
-    assert {"historical", "optimal", "min_distance", "deviation"} <= set(out)
+    assert {"historical", "optimal", "safe_optimal", "min_distance", "deviation"} <= set(out)
     hist = out["historical"]
     assert out["vessel_profile"] == "container-feeder"  # AIS cargo, 150 m
     assert hist["max_hs_m"] > 6.0 and hist["exposure_h"] > 0.5
     assert hist["exposure_by_rule_h"]["hs"] > 0.5
     assert any(e["criterion"] == "hs" for e in hist["events"])
     # a faster or safer alternative is proposed, and it met lower seas
-    assert out["proposed"] in ("optimal", "deviation", "min_distance")
+    assert out["proposed"] in ("optimal", "safe_optimal", "deviation", "min_distance")
     best = out[out["proposed"]]
     assert best["adverse_h"] < hist["adverse_h"] or best["time_h"] < hist["time_h"]
     assert out["optimal"]["max_hs_m"] < hist["max_hs_m"]
@@ -142,7 +142,7 @@ def test_audit_of_a_voyage_through_the_storm(workspace, tmp_path):
     with open_workspace(workspace) as ws:
         routes = read_audit_routes(ws, "voyage:v1")
         events = read_audit_events(ws, "voyage:v1")
-    assert set(routes["role"]) == {"historical", "optimal", "min_distance", "deviation"}
+    assert set(routes["role"]) == {"historical", "optimal", "safe_optimal", "min_distance", "deviation"}
     assert (events["role"] == "historical").any()
     html = report.read_text()
     assert "TEST &lt;b&gt;SHIP&lt;/b&gt;" in html and "<b>SHIP</b>" not in html

@@ -9,6 +9,8 @@ import typer
 from pipelines.commands._common import JsonOption, emit_json
 
 ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
+SAFE_ROUTE_NAMES = ("safe_optimal", "safe_optimal_smoothed")
+SAFETY_MODES = ("none", "soft", "hard")
 
 
 def _floats(text: str, n: int, what: str, option: str) -> tuple[float, ...]:
@@ -48,12 +50,23 @@ def register(app: typer.Typer) -> None:
         edges: int = typer.Option(48, "--edges", metavar="8|16|24|48", help="Edges per node."),
         ignore_land: bool = typer.Option(False, "--ignore-land", help="Route on an all-sea sphere (accuracy tests)."),
         snap_nmi: float = typer.Option(10.0, "--snap-nmi", min=0.0, help="How far (nmi) a start or goal on land may move to the nearest sea node."),
+        safety: str = typer.Option(
+            "none", "--safety", metavar="none|soft|hard",
+            help="Also route under the vessel's limits (operator profile + IMO MSC.1/Circ.1228): hard forbids cells over the limits "
+                 "(falling back to soft, said in the output, when no route keeps within them), soft charges --safety-penalty per hour over them.",
+        ),
+        operator: str = typer.Option(None, "--operator", metavar="PROFILE|FILE", help="Operator-limits profile (data/operator_limits.toml) or TOML file; default the file's default profile."),
+        safety_penalty: float = typer.Option(
+            10.0, "--safety-penalty", min=0.0, metavar="H", help="Soft safety: extra hours of cost per hour sailed over the limits."
+        ),
         json_out: bool = JsonOption,
         out: Path = typer.Option(None, "--out", metavar="FILE.geojson|gpx|rtz", help="Also write the four routes to this file."),
     ) -> None:
         """Compute the time-optimal route (raw grid and smoothed) and the minimum-distance route.
 
         The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time).
+
+        With --safety soft|hard two more routes respect the vessel's limits (safe_optimal, safe_optimal_smoothed), every route reports hours_over_limits (operator + IMO rules at its own ETAs), hours_by_rule and unsafe_cell_h, and a "safety" object says which mode ran (hard falls back to soft when no route keeps within the limits).
         """  # noqa: E501 (typer keeps line breaks in --help)
         import logging
 
@@ -70,6 +83,10 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"{edges} is not one of 8, 16, 24, 48", param_hint="--edges")
         if speed_loss not in MODELS:
             raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}", param_hint="--speed-loss")
+        if safety not in SAFETY_MODES:
+            raise typer.BadParameter(f"{safety!r} is not one of {', '.join(SAFETY_MODES)}", param_hint="--safety")
+        if operator is not None and safety == "none":
+            raise typer.BadParameter("--operator applies with --safety soft|hard", param_hint="--operator")
         files = list(weather or [])
         if more_weather:
             if not files:
@@ -87,6 +104,11 @@ def register(app: typer.Typer) -> None:
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
         ship_vessel = load_vessel(vessel)
         ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn)
+        limits = None
+        if safety != "none":
+            from pipelines.config import load_operator_profile
+
+            limits = load_operator_profile(operator)
         field = None
         if files:
             from pipelines.routing_weather import load_weather
@@ -102,7 +124,8 @@ def register(app: typer.Typer) -> None:
             start, goal, t, ship, spacing_deg=spacing, bbox=box, edges=edges, ignore_land=ignore_land,
             snap_limit_nmi=snap_nmi, vessel_name=ship_vessel.name,
         )  # fmt: skip
-        plan = plan_routes(req, field)
+        plan = plan_routes(req, field, safety=safety, vessel=ship_vessel, limits=limits, penalty_per_h=safety_penalty)
+        names = ROUTE_NAMES + (SAFE_ROUTE_NAMES if safety != "none" else ())
         for what, key in (("start", "start_snap_nmi"), ("goal", "goal_snap_nmi")):
             moved = plan.routes["optimal"].properties.get(key, 0.0)
             if moved > 0.5 * plan.mesh.grid.dlat_deg * 60.0:
@@ -110,7 +133,7 @@ def register(app: typer.Typer) -> None:
         if out is not None:
             from dashboards.exports import write_routes
 
-            written = write_routes([plan.routes[name] for name in ROUTE_NAMES], out)
+            written = write_routes([plan.routes[name] for name in names], out)
             typer.echo(f"wrote {', '.join(map(str, written))}", err=True)
         if json_out:
             emit_json(plan.to_dict())
@@ -118,8 +141,17 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"great circle {plan.great_circle_nmi:.2f} nmi; mesh {plan.mesh.grid.ny} x {plan.mesh.grid.nx} "
                    f"({plan.mesh.grid.dlat_deg * 60:.3g} nmi, {plan.mesh.edges} edges), vessel {ship_vessel.name}, "
                    f"{ship.speed_kn:g} kn, {ship.model}")  # fmt: skip
-        typer.echo(f"{'route':<19}{'time_h':>9}{'dist_nmi':>10}{'max_hs_m':>10}{'waypoints':>11}")
-        for name in ROUTE_NAMES:
+        over = safety != "none"
+        if over:
+            sf = plan.stats["safety"]
+            typer.echo(f"safety {sf['requested']}" + (f" (ran {sf['mode']}: no route keeps within the limits)" if sf["fallback"] else "")
+                       + f"; limits {sf['operator_limits'] or 'none'}, IMO rules {'on' if sf['imo_rules'] else 'off'}"
+                       + (f"; not evaluated: {'; '.join(sf['rules_not_evaluated'])}" if sf["rules_not_evaluated"] else ""))
+        typer.echo(f"{'route':<22}{'time_h':>9}{'dist_nmi':>10}{'max_hs_m':>10}{'waypoints':>11}" + (f"{'over_limits_h':>15}" if over else ""))
+        for name in names:
             r = plan.routes[name]
             hs = "" if r.max_hs_m != r.max_hs_m else f"{r.max_hs_m:.2f}"
-            typer.echo(f"{name:<19}{r.time_h:>9.2f}{r.dist_nmi:>10.2f}{hs:>10}{r.n_waypoints:>11d}")
+            line = f"{name:<22}{r.time_h:>9.2f}{r.dist_nmi:>10.2f}{hs:>10}{r.n_waypoints:>11d}"
+            if over and "hours_over_limits" in r.properties:
+                line += f"{r.properties['hours_over_limits']:>15.2f}"
+            typer.echo(line)
