@@ -8,12 +8,14 @@ Prints, in one run:
 2. both A* searches alone on the R6 mesh (warm);
 3. edges scanned per second of the compiled core (Dijkstra over the MEDSEA-size mesh);
 4. a MEDSEA-size case: 1/24 deg mesh over 6 W - 36 E, 30 - 46 N (387 k nodes), Gibraltar ->
-   Port Said through a generated storm on a CMEMS-GLOBAL-like grid (1/12 deg, 3-hourly).
+   Port Said through a generated storm on a CMEMS-GLOBAL-like grid (1/12 deg, 3-hourly);
+5. R6 in safe mode (``safety="hard"``, container feeder, default operator profile + IMO rules):
+   NetCDF to all routes, warm, with the time of the safety flags and of the safe search.
 
 Baselines (issue 5, SIMROUTE's own code on these machines): R6 takes about 18.7 s, of which
 14.1 s interpolate the waves onto its mesh and 4.35 s are its two A* searches. Targets: both
 searches < 45 ms warm, R6 from NetCDF to both routes < 0.5 s warm, core >= 30 M edges/s,
-MEDSEA-size route < 2 s.
+MEDSEA-size route < 2 s; R6 in safe mode still < 0.5 s warm.
 
 Run: ``.venv/bin/python bench/routing.py`` (needs ../shared/data or STORMLANE_SHARED_DATA for
 R6). The machine has 2 cores shared with other jobs: figures are noisy.
@@ -57,10 +59,13 @@ def run():
     t = time.perf_counter()
     field, _ = load_weather({files!r})
     read.append(time.perf_counter() - t)
-    v = load_vessel("simroute-r6")
+    v = load_vessel({vessel!r})
     req = RouteRequest((39.225, 2.900), (41.500, 2.775), pd.Timestamp("2020-01-20T09:00Z"), ShipModel.from_vessel(v, "bowditch"),
                        spacing_deg=0.025, bbox=(2.0, 38.95, 5.1, 41.65), edges=48, vessel_name=v.name)
-    return plan_routes(req, field)
+    if {safety!r} == "none":
+        return plan_routes(req, field)
+    from pipelines.config import load_operator_profile
+    return plan_routes(req, field, safety={safety!r}, vessel=v, limits=load_operator_profile("default"))
 read = []
 plan = run()
 cold = time.perf_counter() - t0
@@ -70,15 +75,16 @@ for _ in range({n_warm}):
     t = time.perf_counter(); c = time.process_time(); plan = run(); warm.append(time.perf_counter() - t); warm_cpu.append(time.process_time() - c)
 r = plan.routes
 print(json.dumps({{"cold_s": cold, "cold_cpu_s": time.process_time(), "warm_s": warm, "warm_cpu_s": warm_cpu, "read_s": read[-1], "stats": plan.stats,
-    "routes": {{k: [v.time_h, v.dist_nmi, v.max_hs_m] for k, v in r.items()}}}}))
+    "routes": {{k: [v.time_h, v.dist_nmi, v.max_hs_m] for k, v in r.items()}},
+    "over": {{k: v.properties.get("hours_over_limits") for k, v in r.items()}}}}))
 """
 
 
-def run_r6_subprocess(n_warm: int, numba_cache_dir: str | None = None) -> dict:
+def run_r6_subprocess(n_warm: int, numba_cache_dir: str | None = None, safety: str = "none", vessel: str = "simroute-r6") -> dict:
     env = dict(os.environ)
     if numba_cache_dir:
         env["NUMBA_CACHE_DIR"] = numba_cache_dir
-    code = R6_SNIPPET.format(root=str(ROOT), files=[str(f) for f in R6_FILES], n_warm=n_warm)
+    code = R6_SNIPPET.format(root=str(ROOT), files=[str(f) for f in R6_FILES], n_warm=n_warm, safety=safety, vessel=vessel)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True, cwd=tempfile.gettempdir())
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -235,11 +241,36 @@ def bench_medsea() -> dict:
     return {"medsea_s": total, "medsea_cpu_s": total_cpu, "core_medges_s": max(rates), "core_cpu_medges_s": max(cpu_rates)}
 
 
+def bench_r6_safe() -> dict | None:
+    """R6 with the safety-constrained search (container feeder, default profile), NetCDF to all routes."""
+    if not all(f.exists() for f in R6_FILES):
+        return None
+    res = run_r6_subprocess(n_warm=5, safety="hard", vessel="container-feeder")
+    warm = float(np.median(res["warm_s"]))
+    warm_cpu = float(np.median(res["warm_cpu_s"]))
+    t = res["stats"]["timings"]
+    sf = res["stats"]["safety"]
+    print("== R6 safe mode: container feeder 17 kn, default operator profile (Lpp < 200 m: Hs <= 4.5 m, no beam seas at "
+          "Hs >= 2.5 m) + IMO rules, 16 heading sectors, safety='hard'")
+    print(f"  from NetCDF to all six routes, warm: {warm * 1000:.0f} ms wall / {warm_cpu * 1000:.0f} ms CPU (median of "
+          f"{len(res['warm_s'])})  target < {TARGETS['r6_warm_s']} s")
+    print(f"  last warm run: safety flags {t['safety_flags_s'] * 1000:.0f} ms ({sf['flag_slices']} of {sf['weather_slices']} "
+          f"hourly slices x all sea nodes), safe search(es) {t['search_safe_s'] * 1000:.0f} ms "
+          f"({res['stats']['expanded_safe']:,} nodes), smoothing + hours over the limits {t['safety_routes_s'] * 1000:.0f} ms; "
+          f"plain part {(t['total_s'] - t['safety_flags_s'] - t['search_safe_s'] - t['safety_routes_s']) * 1000:.0f} ms")  # fmt: skip
+    print(f"  ran {sf['mode']}" + (" (hard found no route within the limits: fell back to soft, 10 h per hour over them)" if sf["fallback"] else ""))
+    for name in ("optimal_smoothed", "min_distance", "safe_optimal_smoothed"):
+        th, dn, hs = res["routes"][name]
+        print(f"  {name:<23}{th:7.2f} h {dn:8.2f} nmi  max Hs {hs:4.2f} m  {res['over'][name]:5.2f} h over the limits")
+    return {"warm_s": warm, "warm_cpu_s": warm_cpu, "flags_s": t["safety_flags_s"], "search_safe_s": t["search_safe_s"]}
+
+
 def main() -> None:
     print(f"stormlane routing benchmark ({os.cpu_count()} cores, shared; timings are noisy)")
     r6 = bench_r6()
     searches = bench_r6_searches()
     med = bench_medsea()
+    safe = bench_r6_safe()
     print("== summary (ours vs target)")
     if r6:
         print(f"  R6 NetCDF -> both routes, warm: {r6['warm_s'] * 1000:.0f} ms wall ({r6['warm_cpu_s'] * 1000:.0f} ms CPU) vs < {TARGETS['r6_warm_s'] * 1000:.0f} ms "
@@ -249,6 +280,9 @@ def main() -> None:
               f"(SIMROUTE {SIMROUTE['astar_s']} s, {SIMROUTE['astar_s'] / searches:.0f}x faster)")  # fmt: skip
     print(f"  core: {med['core_medges_s']:.1f} M edges/s wall ({med['core_cpu_medges_s']:.1f} per CPU second) vs >= {TARGETS['core_medges_s']:.0f}")
     print(f"  MEDSEA-size route: {med['medsea_s']:.2f} s wall ({med['medsea_cpu_s']:.2f} s CPU) vs < {TARGETS['medsea_s']:.0f} s")
+    if safe:
+        print(f"  R6 safe mode NetCDF -> all routes, warm: {safe['warm_s'] * 1000:.0f} ms wall ({safe['warm_cpu_s'] * 1000:.0f} ms CPU) "
+              f"vs < {TARGETS['r6_warm_s'] * 1000:.0f} ms (flags {safe['flags_s'] * 1000:.0f} ms, safe search {safe['search_safe_s'] * 1000:.0f} ms)")
     print("  (CPU seconds are what this process used; on the shared 2-core machine wall time includes waiting for a core)")
 
 

@@ -515,7 +515,8 @@ def demo_step(ctx) -> dict:
     for role, row in out["comparison"].items():
         ctx.echo(f"  {role:<13} {row['time_h']:5.1f} h {row['dist_nmi']:6.1f} nmi  max Hs {row['max_hs_m']:4.1f} m  "
                  f"{row['exposure_h']:4.1f} h over limits  {int(row['n_safety_events'])} IMO event(s)  fuel {row['fuel_t']:6.2f} t")
-    for line in out["findings"][1:3] + out["findings"][-1:]:
+    tail = [f for f in out["findings"][3:] if f.startswith(("Proposed alternative", "No alternative", "no A* route"))]
+    for line in out["findings"][1:3] + (tail or out["findings"][-1:]):
         ctx.echo(f"  {line}")
     ctx.echo(f"  audit report: {report}")
     return {"voyage_id": v["voyage_id"], "proposed": out["proposed"], "report": str(report),

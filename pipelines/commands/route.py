@@ -55,7 +55,7 @@ def register(app: typer.Typer) -> None:
             help="Also route under the vessel's limits (operator profile + IMO MSC.1/Circ.1228): hard forbids cells over the limits "
                  "(falling back to soft, said in the output, when no route keeps within them), soft charges --safety-penalty per hour over them.",
         ),
-        operator: str = typer.Option(None, "--operator", metavar="PROFILE|FILE", help="Operator-limits profile (data/operator_limits.toml) or TOML file; default the file's default profile."),
+        operator: str = typer.Option(None, "--operator", "--profile", metavar="PROFILE|FILE", help="Operator-limits profile (data/operator_limits.toml) or TOML file; default the file's default profile."),
         safety_penalty: float = typer.Option(
             10.0, "--safety-penalty", min=0.0, metavar="H", help="Soft safety: extra hours of cost per hour sailed over the limits."
         ),
