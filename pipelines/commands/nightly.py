@@ -1,0 +1,114 @@
+"""`stormlane nightly` (one night now) and `stormlane schedule` (the nightly deployment on a cron)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import typer
+
+from pipelines.commands._common import DbOption, JsonOption, emit_json
+
+#: Deployment name used by `stormlane schedule` (the flow is ``nightly-reroute``).
+DEPLOYMENT_NAME = "nightly"
+
+
+def _quiet_prefect() -> None:
+    # quiet and offline (STACK.md): no telemetry look-ups from Prefect
+    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    os.environ.setdefault("DO_NOT_TRACK", "1")
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("nightly")
+    def nightly(
+        db: Path = DbOption,
+        out: Path = typer.Option(None, "--out", metavar="DIR", help="Folder for report.html, report.json and exports/ (default nightly/<now>)."),
+        weather: list[Path] = typer.Option(None, "--weather", metavar="FILE|DIR", help="Local weather files or folders (CMEMS/ERA5 NetCDF, GRIB); repeatable."),
+        fetch: bool = typer.Option(False, "--fetch", help="Download the night's weather with copernicusmarine + cdsapi (needs their credentials; cached)."),
+        now: str = typer.Option(None, "--now", metavar="ISO", help="Forecast reference time (default: the current hour, UTC); departures start here."),
+        window_h: float = typer.Option(48.0, "--window-h", min=0.1, help="Departure window length in hours."),
+        step_h: float = typer.Option(3.0, "--step-h", min=0.1, help="Hours between departures."),
+        voyages: Path = typer.Option(None, "--voyages", metavar="CSV", help="Planned voyages (vessel, origin, destination, depart_utc) instead of every lane x window."),
+        lane: list[str] = typer.Option(None, "--lane", metavar="ID", help="Only these lanes (repeatable)."),
+        vessel: str = typer.Option(None, "--vessel", metavar="NAME|FILE", help="One vessel profile for every lane (default: by the AIS ship types of each lane)."),
+        profile: str = typer.Option(None, "--profile", metavar="NAME|FILE", help="Operator limits profile (default: the file's default)."),
+        speed_loss: str = typer.Option("bowditch", "--speed-loss", metavar="bowditch|aertssen|khokhlov|none", help="Speed-loss model."),
+        max_detail: int = typer.Option(10, "--max-detail", min=0, help="Adverse lane-departures drawn with a map and plots in the report."),
+        no_report: bool = typer.Option(False, "--no-report", help="Store the results only (no HTML report or exports)."),
+        task_runner: str = typer.Option("sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]", help="Where the per-lane work runs: in this process, on a local Dask cluster, or on an existing Dask scheduler."),
+        json_out: bool = JsonOption,
+    ) -> None:
+        """Run one nightly reroute now: screen every lane x departure of the forecast window against the vessel's limits, reroute the adverse ones (cargo-safe deviation and time-optimal A*), evaluate, rank, store under a run id and write the report.
+
+        Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes), report, timings_s and the top-ranked lane-departures.
+        """  # noqa: E501 (typer keeps line breaks in --help)
+        import logging
+
+        _quiet_prefect()
+        from pipelines.nightly import NightlyParams, flow_with_runner, make_task_runner
+
+        logging.getLogger("routing.planner").setLevel(logging.ERROR)  # "last field held" per late route: stored as a route property
+        source = "fetch" if fetch else ("files" if weather else "auto")
+        params = NightlyParams.checked(
+            db=str(db), out=str(out) if out else None, weather=[str(w) for w in weather or []], weather_source=source, now=now,
+            window_h=window_h, step_h=step_h, voyages=str(voyages) if voyages else None, lanes=list(lane or []) or None,
+            vessel=vessel, profile=profile, speed_loss=speed_loss, max_detail=max_detail, report=not no_report,
+        )
+        make_task_runner(task_runner)  # validate before starting anything
+        summary = flow_with_runner(task_runner)(**params.model_dump())
+        if json_out:
+            emit_json(summary)
+            return
+        typer.echo(f"night {summary['run_id']} (now {summary['now_utc']}, {summary['window']['departures']} departures every "
+                   f"{summary['window']['step_h']:g} h): {summary['lanes_checked']} lanes, {summary['departures_checked']} "
+                   f"lane-departures checked, {summary['adverse']} adverse, {summary['reroutes']} with a proposed reroute, "
+                   f"{summary['failed']} failed")
+        for row in summary["top"]:
+            what = f"failed: {row['error']}" if row["status"] == "failed" else (
+                f"{row['rules']} -> {row['proposed'] or 'no safer alternative'}"
+                + (f", {row['risk_avoided_h']:.1f} h at risk avoided, {row['delta_time_h']:+.1f} h" if row["proposed"] else ""))
+            typer.echo(f"  {row['rank']:>3}. {row['lane']:<10} {row['depart_utc'][:16]}Z  {what}")
+        if summary.get("report"):
+            typer.echo(f"report: {summary['report']}")
+
+    @app.command("schedule")
+    def schedule(
+        cron: str = typer.Option("0 2 * * *", "--cron", help="Cron expression of the nightly run."),
+        timezone: str = typer.Option("UTC", "--timezone", help="IANA time zone of the cron expression."),
+        name: str = typer.Option(DEPLOYMENT_NAME, "--name", help="Deployment name (the flow is nightly-reroute)."),
+        db: Path = DbOption,
+        out: Path = typer.Option(None, "--out", metavar="DIR", help="Report folder root; each night writes <DIR>/<now> (default nightly/<now>)."),
+        weather: list[Path] = typer.Option(None, "--weather", metavar="FILE|DIR", help="Local weather files or folders read by every run (default: fetch with credentials, else the workspace grid)."),
+        window_h: float = typer.Option(48.0, "--window-h", min=0.1),
+        step_h: float = typer.Option(3.0, "--step-h", min=0.1),
+        vessel: str = typer.Option(None, "--vessel", metavar="NAME|FILE"),
+        profile: str = typer.Option(None, "--profile", metavar="NAME|FILE"),
+        max_detail: int = typer.Option(10, "--max-detail", min=0),
+    ) -> None:
+        """Serve the nightly reroute as a Prefect deployment on a cron schedule (runs until stopped).
+
+        It registers the deployment 'nightly-reroute/<name>' with the Prefect API in PREFECT_API_URL (start one with `prefect server start`) and runs each scheduled night in a subprocess; the forecast time of a run is its scheduled time. Stop it with Ctrl-C or SIGTERM. See the README for running it under systemd.
+        """  # noqa: E501
+        _quiet_prefect()
+        from prefect.schedules import Cron
+
+        from pipelines.nightly import _flow
+
+        try:
+            sched = Cron(cron, timezone=timezone)
+        except Exception as err:  # noqa: BLE001 - prefect validates cron and time zone
+            raise typer.BadParameter(str(err), param_hint="--cron/--timezone") from None
+        params = {"db": str(db.resolve()), "window_h": window_h, "step_h": step_h, "max_detail": max_detail}
+        if out is not None:
+            params["out_root"] = str(out.resolve())
+        if weather:
+            params["weather"] = [str(Path(w).resolve()) for w in weather]
+        if vessel:
+            params["vessel"] = vessel
+        if profile:
+            params["profile"] = profile
+        from prefect.deployments.runner import EntrypointType
+
+        _flow().serve(name=name, schedules=[sched], parameters=params, entrypoint_type=EntrypointType.MODULE_PATH,
+                      description=f"stormlane nightly reroute, cron {cron!r} ({timezone})", pause_on_shutdown=False)

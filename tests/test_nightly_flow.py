@@ -1,0 +1,308 @@
+"""The nightly reroute flow on the demo scenario (issue 7 acceptance).
+
+One world for the module (``tests/nightly_world.py``: the demo's lanes from its 30 days of AIS,
+the demo's forecast weather files) and one night run by the Prefect flow under the test
+harness; the other tests reuse it. Expected values are computed here from the weather arrays
+and the threshold functions (``thresholds.safety.assess``), never from the flow's helpers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from nightly_world import NOW, build_world
+
+R_NMI = 6371008.8 / 1852.0  # mean Earth radius (IUGG) in nautical miles
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    return build_world(tmp_path_factory.mktemp("nightly"))
+
+
+@pytest.fixture(scope="module")
+def night(world, prefect_harness):
+    """The demo's night (sequential runner), and the tables it stored."""
+    from pipelines.nightly import flow_with_runner
+
+    out = world["folder"] / "out"
+    summary = flow_with_runner("sequential")(db=str(world["db"]), out=str(out), weather=[str(world["weather"])], now=NOW,
+                                              max_detail=2)
+    return summary, _tables(world["db"], summary["run_id"])
+
+
+def _tables(db, run_id) -> dict:
+    from pipelines.storage import open_workspace
+    from pipelines.storage.nightly import count_rows, read_departures, read_events, read_routes
+
+    with open_workspace(db) as ws:
+        return {"departures": read_departures(ws, run_id), "routes": read_routes(ws, run_id, with_json=True),
+                "events": read_events(ws, run_id), "counts": count_rows(ws)}
+
+
+def _haversine_nmi(lat1, lon1, lat2, lon2):
+    p1, p2 = np.radians(lat1), np.radians(lat2)
+    a = np.sin((p2 - p1) / 2) ** 2 + np.cos(p1) * np.cos(p2) * np.sin(np.radians(lon2 - lon1) / 2) ** 2
+    return 2 * R_NMI * np.arcsin(np.sqrt(np.minimum(a, 1.0)))
+
+
+def _bearing_deg(lat1, lon1, lat2, lon2):
+    p1, p2, dl = np.radians(lat1), np.radians(lat2), np.radians(lon2 - lon1)
+    y = np.sin(dl) * np.cos(p2)
+    x = np.cos(p1) * np.sin(p2) - np.sin(p1) * np.cos(p2) * np.cos(dl)
+    return np.degrees(np.arctan2(y, x)) % 360.0
+
+
+def independent_adverse(world, profiles: dict) -> set:
+    """Adverse (lane, departure) pairs from the weather arrays and the threshold functions.
+
+    Method of the seed paper ``ais_weather_routing_cargo_loss`` §3.2 as the issue states it: each
+    centroid timed from the departure at the typical speeds (haversine legs), the weather of its
+    nearest grid point at the nearest time (no value beyond half a time step outside the data),
+    the vessel's operator limits and IMO rules at the course to the next centroid.
+    """
+    from pipelines.config import load_operator_profile, load_vessel
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_lane_centroids
+    from thresholds.safety import assess
+    from weather.io import read_local
+
+    ds, _ = read_local([str(world["weather"])])
+    lat_g, lon_g = ds["lat"].values, ds["lon"].values
+    t_g = ds["time_utc"].values.astype("datetime64[ns]").astype(np.int64)
+    half = np.median(np.diff(t_g)) / 2
+    names = [n for n in ("hs_m", "wave_from_deg", "tp_s", "tm_s", "wind_u_ms", "wind_v_ms") if n in ds]
+    arrays = {n: ds[n].transpose("time_utc", "lat", "lon").values.astype(float) for n in names}
+    limits = load_operator_profile(None)
+    with open_workspace(world["db"]) as ws:
+        cents = read_lane_centroids(ws)
+    deps = pd.date_range(NOW, periods=16, freq="3h")
+    adverse = set()
+    for lane_id, c in cents.groupby("lane_id"):
+        c = c.sort_values("seq")
+        vessel = load_vessel(profiles[lane_id])
+        la, lo = c["lat_deg"].to_numpy(float), c["lon_deg"].to_numpy(float)
+        sp = c["speed_kn"].to_numpy(float)
+        sp = np.where(np.isfinite(sp) & (sp > 0), sp, vessel.speed_kn)
+        hours = np.concatenate([[0.0], np.cumsum(_haversine_nmi(la[:-1], lo[:-1], la[1:], lo[1:]) / sp[:-1])])
+        fwd = _bearing_deg(la[:-1], lo[:-1], la[1:], lo[1:])
+        heading = np.concatenate([fwd, fwd[-1:]])
+        iy = np.abs(lat_g[None, :] - la[:, None]).argmin(axis=1)
+        ix = np.abs(lon_g[None, :] - lo[:, None]).argmin(axis=1)
+        for dep in deps:
+            eta = dep.value + np.round(hours * 3.6e12).astype(np.int64)
+            k = np.clip(np.searchsorted(t_g, eta), 1, t_g.size - 1)
+            k = np.where(np.abs(t_g[k] - eta) < np.abs(eta - t_g[k - 1]), k, k - 1)  # nearest, ties to the earlier
+            outside = (eta < t_g[0] - half) | (eta > t_g[-1] + half)
+            w = {n: np.where(outside, np.nan, a[k, iy, ix]) for n, a in arrays.items()}
+            a = assess(vessel, limits, heading_deg=heading, speed_kn=sp, missing="skip", **w)
+            if any(np.asarray(r.fired, dtype=bool).any() for r in a.rules.values()):
+                adverse.add((lane_id, dep))
+    return adverse
+
+
+def test_adverse_count_equals_an_independent_count_from_the_thresholds(world, night):
+    summary, t = night
+    d = t["departures"]
+    assert summary["lanes_checked"] == d["path_id"].nunique() >= 20
+    assert summary["departures_checked"] == len(d) == 16 * summary["lanes_checked"]
+    assert summary["failed"] == 0
+    flagged = {(r.path_id, r.depart_utc) for r in d.itertuples() if r.status == "adverse"}
+    profiles = d.groupby("path_id")["vessel_profile"].first().to_dict()
+    expected = independent_adverse(world, profiles)
+    assert len(expected) >= 20  # the forecast storm crosses several lanes
+    assert summary["adverse"] == len(flagged) == len(expected)
+    assert flagged == expected
+    # every adverse lane-departure says which rule fired, with a value and where
+    for r in d[d["status"] == "adverse"].itertuples():
+        reasons = json.loads(r.reasons_json)
+        assert r.rules and [x["rule"] for x in reasons] == r.rules.split(",")
+        assert all(" at 2025-" in x["text"] for x in reasons)
+
+
+def test_each_adverse_departure_has_a_deviation_and_an_astar_route(world, night):
+    from routing.route import Route
+
+    summary, t = night
+    d, routes = t["departures"], t["routes"]
+    adverse = d[d["status"] == "adverse"]
+    roles = routes.groupby(["path_id", "depart_utc"])["role"].apply(set)
+    assert len(roles) == len(adverse)
+    for r in adverse.itertuples():
+        assert roles[(r.path_id, r.depart_utc)] == {"historical", "deviation", "optimal", "min_distance"}
+    for row in routes.itertuples():
+        route = Route.from_json(row.route_json)
+        assert route.n_waypoints >= 2 and route.time_utc[0] == row.depart_utc
+        assert route.dist_nmi == pytest.approx(row.dist_nmi, rel=1e-9)
+        assert "search_s" not in route.properties  # no run-dependent timings in stored results
+    hist = routes[routes["role"] == "historical"].set_index(["path_id", "depart_utc"])
+    opt = routes[routes["role"] == "optimal"].set_index(["path_id", "depart_utc"])
+    # the A* route joins the same ends (within the mesh's snap distance)
+    for key in hist.index:
+        h, o = Route.from_json(hist.loc[key, "route_json"]), Route.from_json(opt.loc[key, "route_json"])
+        assert _haversine_nmi(h.lat_deg[0], h.lon_deg[0], o.lat_deg[0], o.lon_deg[0]) < 10.0
+        assert _haversine_nmi(h.lat_deg[-1], h.lon_deg[-1], o.lat_deg[-1], o.lon_deg[-1]) < 10.0
+    # ranking: risk avoided never increases down the list; deltas are proposed minus historical
+    ranked = adverse.sort_values("rank")
+    assert list(ranked["rank"]) == list(range(1, len(ranked) + 1))
+    assert (np.diff(ranked["risk_avoided_h"].to_numpy()) <= 1e-9).all()
+    assert summary["reroutes"] == int(adverse["proposed"].notna().sum()) > 0
+    for r in adverse[adverse["proposed"].notna()].itertuples():
+        h = hist.loc[(r.path_id, r.depart_utc)]
+        p = routes.set_index(["path_id", "depart_utc", "role"]).loc[(r.path_id, r.depart_utc, r.proposed)]
+        assert r.delta_time_h == pytest.approx(p["time_h"] - h["time_h"], abs=1e-9)
+        assert r.risk_avoided_h == pytest.approx(h["adverse_h"] - p["adverse_h"], abs=1e-9)
+        # proposed = safer (fewer adverse hours, then fewer IMO events, then lower max Hs) or as safe and faster
+        assert r.risk_avoided_h >= -1e-9
+        assert r.risk_avoided_h > 1e-9 or r.events_avoided > 0 or p["max_hs_m"] < h["max_hs_m"] or r.delta_time_h < 0
+
+
+def test_report_and_exports_are_written(world, night):
+    from dashboards.exports import read_rtz
+
+    summary, t = night
+    out = world["folder"] / "out"
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert summary["report"] == str(out / "report.html")
+    assert summary["run_id"] in html and "http://" not in html.split("Content-Security-Policy")[0]
+    model = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert model["run_id"] == summary["run_id"]
+    geo = sorted((out / "exports").glob("*.geojson"))
+    assert len(geo) == summary["adverse"]
+    first = json.loads(geo[0].read_text(encoding="utf-8"))
+    assert first["type"] == "FeatureCollection" and first["features"]
+    rtz = sorted((out / "exports").glob("*_optimal.rtz"))
+    assert len(rtz) == summary["adverse"]
+    assert read_rtz(rtz[0]).n_waypoints >= 2
+
+
+@pytest.mark.slow
+def test_rerun_on_a_two_worker_dask_cluster_is_identical_and_adds_no_rows(world, night):
+    """Four of the night's lanes, run sequentially, then again (same inputs, same run id) with the
+    per-lane work on a 2-worker ``distributed.LocalCluster`` through the Dask task runner."""
+    from distributed import LocalCluster
+
+    from pipelines.nightly import flow_with_runner
+
+    _, t = night
+    d = t["departures"]
+    lanes = sorted(d[d["status"] == "adverse"].groupby("path_id").size().sort_values(ascending=False).index[:4])
+    kwargs = dict(db=str(world["db"]), weather=[str(world["weather"])], now=NOW, lanes=lanes, report=False)
+    first = flow_with_runner("sequential")(**kwargs)
+    before = _tables(world["db"], first["run_id"])
+    assert first["adverse"] == (d[d["path_id"].isin(lanes)]["status"] == "adverse").sum() > 0
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
+        again = flow_with_runner(f"dask:{cluster.scheduler_address}")(**kwargs)
+    assert again["run_id"] == first["run_id"] != night[0]["run_id"]
+    after = _tables(world["db"], first["run_id"])
+    assert after["counts"] == before["counts"]  # a rerun adds no rows
+    for name in ("departures", "routes", "events"):
+        pd.testing.assert_frame_equal(after[name], before[name], check_exact=True)
+    # and the subset night agrees with the full night on those lanes (its weather is cut to a
+    # smaller box: bilinear weights on other grid offsets round differently in the last bits)
+    full = t["routes"][t["routes"]["path_id"].isin(lanes)].drop(columns="route_json").reset_index(drop=True)
+    sub = after["routes"].drop(columns="route_json").reset_index(drop=True)
+    pd.testing.assert_frame_equal(sub, full, check_exact=False, rtol=1e-9, atol=1e-9)
+
+
+def test_a_failing_lane_is_marked_failed_and_the_night_completes(world, night, tmp_path):
+    """Move one adverse lane's destination 40 km inland: no sea route reaches it."""
+    from pipelines.nightly import flow_with_runner
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import (read_lane_centroids, read_lane_voyages, read_lanes, read_last_run, read_ports,
+                                         read_voyages, write_lanes)
+
+    summary, t = night
+    d = t["departures"]
+    adverse = d[d["status"] == "adverse"]
+    counts = adverse.groupby("path_id").size().sort_values(ascending=False)
+    broken, healthy = counts.index[0], counts.index[1]
+    db = tmp_path / "ws.duckdb"
+    shutil.copy(world["db"], db)
+    with open_workspace(db) as ws:
+        cents = read_lane_centroids(ws)
+        last = cents[cents["lane_id"] == broken]["seq"].max()
+        sel = (cents["lane_id"] == broken) & (cents["seq"] == last)
+        cents.loc[sel, ["lat_deg", "lon_deg"]] = [43.0, 2.5]  # Corbières, southern France: 40 km from any sea
+        run = read_last_run(ws)
+        write_lanes(ws, read_ports(ws), read_voyages(ws), read_lanes(ws), cents, read_lane_voyages(ws), run["summary"], run["params"])
+    out = tmp_path / "out"
+    res = flow_with_runner("sequential")(db=str(db), out=str(out), weather=[str(world["weather"])], now=NOW,
+                                          lanes=[str(broken), str(healthy)], max_detail=1)
+    got = _tables(db, res["run_id"])["departures"]
+    bad = got[got["path_id"] == broken]
+    assert res["failed"] >= 1 and (bad["status"] == "failed").sum() == res["failed"]
+    assert all(("land" in e.lower()) or ("route" in e.lower()) for e in bad.loc[bad["status"] == "failed", "error"])
+    good = got[got["path_id"] == healthy]
+    ref = d[d["path_id"] == healthy]
+    assert list(good["status"]) == list(ref.sort_values("depart_utc")["status"]) or \
+        sorted(good["status"]) == sorted(ref["status"])
+    assert (good["status"] == "adverse").sum() == (ref["status"] == "adverse").sum() > 0
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "failed" in html and str(broken) in html
+    assert res["adverse"] == (good["status"] == "adverse").sum() + (bad["status"] == "adverse").sum()
+    assert math.isfinite(res["timings_s"]["reroute_s"])
+
+
+def _cli(capsys, *args):
+    """Run ``stormlane`` in-process; returns (exit code, stdout, stderr)."""
+    from pipelines.cli import main
+
+    try:
+        main(list(args))
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_cli_planned_voyages_json_contract(world, night, tmp_path, capsys):
+    """Planned voyages instead of lanes: one on an adverse lane, one between ports with no lane."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_lanes, read_ports
+
+    _, t = night
+    d = t["departures"]
+    top = d[d["status"] == "adverse"].sort_values("rank").iloc[0]
+    with open_workspace(world["db"]) as ws:
+        lanes, ports = read_lanes(ws), read_ports(ws)
+    lane = lanes[lanes["lane_id"] == top["path_id"]].iloc[0]
+    code = dict(zip(ports["port_id"], ports["locode"]))
+    pairs = {(code.get(o), code.get(x)) for o, x in zip(lanes["origin_port_id"], lanes["dest_port_id"])}
+    named = [c for c in ports["locode"].dropna()]
+    no_lane = next((a, b) for a in named for b in named if a != b and (a, b) not in pairs)
+    plan = tmp_path / "plan.csv"
+    plan.write_text(
+        "voyage_id,vessel,origin,destination,depart_utc\n"
+        f"P1,{top['vessel_profile']},{code[lane['origin_port_id']]},{code[lane['dest_port_id']].lower()},{top['depart_utc'].isoformat()}\n"
+        f"P2,ro-pax,{no_lane[0]},{no_lane[1]},{top['depart_utc'].isoformat()}\n", encoding="utf-8")
+    rc, out, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--weather", str(world["weather"]), "--now", NOW,
+                        "--voyages", str(plan), "--out", str(tmp_path / "out"), "--max-detail", "0", "--json")
+    assert rc == 0, err
+    res = json.loads(out)
+    assert res["lanes_checked"] == 2 and res["departures_checked"] == 2
+    assert res["adverse"] == 1 and res["failed"] == 1
+    by = {r["lane"]: r for r in res["top"]}
+    assert by["P1"]["status"] == "adverse" and by["P1"]["rules"] == top["rules"]
+    assert by["P2"]["status"] == "failed" and "no lane from" in by["P2"]["error"]
+    assert (tmp_path / "out" / "report.html").is_file()
+
+
+def test_cli_window_outside_the_weather_fails_early_with_a_clear_message(world, capsys):
+    rc, out, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--weather", str(world["weather"]),
+                        "--now", "2025-03-01T00:00Z", "--json")
+    assert rc == 2 and out == ""
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("error: the weather does not cover tonight's departures 2025-03-01T00:00Z -> 2025-03-02T21:00Z")
+    assert "data cover 2025-01-30T00:00Z -> 2025-02-02T06:00Z" in last
+    rc, _, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--speed-loss", "magic")
+    assert rc == 2 and "unknown speed-loss model 'magic'" in err
+    rc, _, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--task-runner", "spark")
+    assert rc == 2 and "use sequential, dask or dask:ADDRESS" in err
