@@ -138,6 +138,20 @@ def step_audit(ctx: DemoContext) -> dict:
     return demo_step(ctx)
 
 
+def step_nightly(ctx: DemoContext) -> dict:
+    """Tonight's reroute (the Prefect nightly flow) at the end of the AIS period; ``DIR/nightly/``."""
+    from pipelines.nightly import demo_step
+
+    return demo_step(ctx)
+
+
+def step_report(ctx: DemoContext) -> dict:
+    """Where the nightly report is (``make demo`` ends by printing its path)."""
+    from pipelines.nightly import demo_report_step
+
+    return demo_report_step(ctx)
+
+
 #: The demo's steps, in order; each component appends its own.
 STEPS: list[tuple[str, Callable[[DemoContext], dict]]] = [
     ("scenario", step_scenario),
@@ -145,6 +159,8 @@ STEPS: list[tuple[str, Callable[[DemoContext], dict]]] = [
     ("lanes", step_lanes),
     ("weather", step_weather),
     ("audit", step_audit),
+    ("nightly", step_nightly),
+    ("report", step_report),
 ]
 
 

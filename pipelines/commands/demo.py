@@ -32,4 +32,6 @@ def register(app: typer.Typer) -> None:
         results = run_demo(workdir, seed=seed, days=days, echo=echo)
         if json_out:
             emit_json({"workdir": str(workdir), "steps": results})
+        elif (results.get("report") or {}).get("report"):
+            typer.echo(f"report: {results['report']['report']}")
         sys.stdout.flush()
