@@ -41,6 +41,7 @@ plain entry point :func:`run_night` runs the same steps without Prefect.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import functools
@@ -73,6 +74,10 @@ DEFAULT_VESSEL = "container-feeder"
 WEATHER_PAD_DEG = 3.0
 #: Route properties that change from run to run (timings) and are not stored.
 VOLATILE_PROPERTIES = ("search_s",)
+#: Retries of the flow's I/O tasks (workspace, files) and of the network task (downloads); the
+#: pure steps (screen, per-lane work, ranking) never retry: a deterministic error would repeat.
+IO_RETRY_DELAYS_S = (2, 5)
+FETCH_RETRY_DELAYS_S = (2, 5, 15)
 #: Route roles evaluated for an adverse lane-departure, in report order.
 ROLES = ("historical", "deviation", "optimal", "min_distance")
 
@@ -1134,6 +1139,20 @@ def _finish(night: Night, screen, outcomes, started, timings) -> dict:
     return summary_of(night, result, report, {k: round(v, 3) for k, v in timings.items()})
 
 
+@contextlib.contextmanager
+def quiet_late_route_warnings():
+    """Silence the router's per-route "ends after the last weather time" warning for a run (the
+    late departures of a night all reach past the forecast; each route keeps it as its
+    ``weather_held_after_h`` property and its evaluation counts the hours without weather)."""
+    logger = logging.getLogger("routing.planner")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
 def demo_step(ctx) -> dict:
     """Demo step: tonight's reroute at the end of the scenario's AIS period (``--now``), with the
     scenario's forecast weather files (else the workspace's weather), report in ``DIR/nightly``."""
@@ -1150,8 +1169,8 @@ def demo_step(ctx) -> dict:
     if n_lanes == 0:
         ctx.echo("  no lanes in the workspace (too few days of AIS?): no nightly run")
         return {"skipped": "no lanes"}
-    logging.getLogger("routing.planner").setLevel(logging.ERROR)  # late routes hold the last field: a route property
-    out = _flow()(db=str(ctx.db), out=str(ctx.workdir / "nightly"), weather=files, now=now.isoformat(), max_detail=10)
+    with quiet_late_route_warnings():
+        out = _flow()(db=str(ctx.db), out=str(ctx.workdir / "nightly"), weather=files, now=now.isoformat(), max_detail=10)
     ctx.echo(f"  night {out['run_id']} at {out['now_utc']}: {out['lanes_checked']} lanes x {out['window']['departures']} "
              f"departures = {out['departures_checked']} lane-departures; {out['adverse']} adverse, {out['reroutes']} with a "
              f"proposed reroute, {out['failed']} failed")
@@ -1195,15 +1214,42 @@ def make_task_runner(spec: str | None):
     raise NightlyError(f"--task-runner {spec!r}: use sequential, dask or dask:ADDRESS (e.g. dask:tcp://10.0.0.5:8786)")
 
 
+def _retry_transient(task_, task_run, state) -> bool:
+    """Retry transient failures (network, a workspace locked by another writer), never bad input
+    or missing coverage (a :class:`StormlaneError` says what to change; retrying cannot fix it)."""
+    try:
+        state.result()
+    except StormlaneError:
+        return False
+    except Exception:  # noqa: BLE001
+        return True
+    return False
+
+
+def _retry_fetch(task_, task_run, state) -> bool:
+    """Downloads retry on network and service failures (the clients' own bounded attempts ran
+    out: ``FetchError("... download failed after N attempts ...")``), not on missing credentials
+    or an unknown product."""
+    try:
+        state.result()
+    except StormlaneError as err:
+        return "download failed" in str(err)
+    except Exception:  # noqa: BLE001
+        return True
+    return False
+
+
 @functools.lru_cache(maxsize=1)
 def _flow():
     """Build the Prefect flow lazily (importing Prefect costs seconds; the CLI must stay fast)."""
     from prefect import flow, task
     from prefect.cache_policies import NO_CACHE
 
-    io = {"retries": 2, "retry_delay_seconds": [2, 5], "cache_policy": NO_CACHE}
+    io = {"retries": len(IO_RETRY_DELAYS_S), "retry_delay_seconds": list(IO_RETRY_DELAYS_S), "cache_policy": NO_CACHE,
+          "retry_condition_fn": _retry_transient}
     load_task = task(load_paths, name="nightly-load-lanes", **io)
-    fetch_task = task(fetch_weather, name="nightly-fetch-weather", retries=3, retry_delay_seconds=[2, 5, 15], cache_policy=NO_CACHE)
+    fetch_task = task(fetch_weather, name="nightly-fetch-weather", retries=len(FETCH_RETRY_DELAYS_S),
+                      retry_delay_seconds=list(FETCH_RETRY_DELAYS_S), cache_policy=NO_CACHE, retry_condition_fn=_retry_fetch)
     read_task = task(read_weather_source, name="nightly-read-weather", **io)
     prepare_task = task(prepare_night, name="nightly-prepare", cache_policy=NO_CACHE)
     screen_task = task(screen_departures, name="nightly-screen", cache_policy=NO_CACHE)

@@ -306,3 +306,45 @@ def test_cli_window_outside_the_weather_fails_early_with_a_clear_message(world, 
     assert rc == 2 and "unknown speed-loss model 'magic'" in err
     rc, _, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--task-runner", "spark")
     assert rc == 2 and "use sequential, dask or dask:ADDRESS" in err
+
+
+def test_fetched_weather_retries_network_failures_and_is_requested_for_the_night(world, night, monkeypatch):
+    """``--fetch``: the download task retries a network failure; the requests cover the lanes and the night."""
+    import pipelines.nightly as nightly
+    import pipelines.weather as pw
+    from weather.errors import FetchError
+
+    files = {p.name: p for p in world["weather"].iterdir()}
+    calls = []
+
+    def fake_fetch(req, cache_dir=None):
+        calls.append(req)
+        if len(calls) <= 2:
+            raise FetchError(f"CMEMS x: download failed after 3 attempts: ConnectError: offline ({len(calls)})")
+        if req.product.startswith("era5"):
+            return [p for n, p in files.items() if n.startswith("era5")]
+        return [p for n, p in files.items() if n.startswith("cmems")]
+
+    monkeypatch.setattr(pw, "fetch_files", fake_fetch)
+    monkeypatch.setattr(nightly, "FETCH_RETRY_DELAYS_S", (0, 0, 0))
+    nightly._flow.cache_clear()
+    try:
+        _, t = night
+        lane = t["departures"].loc[t["departures"]["status"] == "adverse", "path_id"].iloc[0]
+        res = nightly._flow()(db=str(world["db"]), weather_source="fetch", now=NOW, lanes=[lane], report=False)
+    finally:
+        nightly._flow.cache_clear()
+    assert [c.product for c in calls] == ["cmems-wave", "cmems-wave", "cmems-wave", "era5-wind"]
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_lane_centroids
+
+    with open_workspace(world["db"]) as ws:
+        c = read_lane_centroids(ws, lane)
+    lon0, lat0, lon1, lat1 = calls[-1].bbox  # the lane lies inside the requested box, with a margin
+    assert lon0 < c["lon_deg"].min() - 1 and c["lon_deg"].max() + 1 < lon1
+    assert lat0 < c["lat_deg"].min() - 1 and c["lat_deg"].max() + 1 < lat1
+    cents = t["departures"]
+    assert pd.Timestamp(calls[-1].start_utc) <= pd.Timestamp(NOW) < pd.Timestamp(calls[-1].end_utc)
+    assert pd.Timestamp(calls[-1].end_utc) >= pd.Timestamp(NOW) + pd.Timedelta(hours=45)
+    ref = cents[cents["path_id"] == lane]
+    assert res["adverse"] == (ref["status"] == "adverse").sum()

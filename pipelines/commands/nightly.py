@@ -43,12 +43,9 @@ def register(app: typer.Typer) -> None:
 
         Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes), report, timings_s and the top-ranked lane-departures.
         """  # noqa: E501 (typer keeps line breaks in --help)
-        import logging
-
         _quiet_prefect()
-        from pipelines.nightly import NightlyParams, flow_with_runner, make_task_runner
+        from pipelines.nightly import NightlyParams, flow_with_runner, make_task_runner, quiet_late_route_warnings
 
-        logging.getLogger("routing.planner").setLevel(logging.ERROR)  # "last field held" per late route: stored as a route property
         source = "fetch" if fetch else ("files" if weather else "auto")
         params = NightlyParams.checked(
             db=str(db), out=str(out) if out else None, weather=[str(w) for w in weather or []], weather_source=source, now=now,
@@ -56,7 +53,8 @@ def register(app: typer.Typer) -> None:
             vessel=vessel, profile=profile, speed_loss=speed_loss, max_detail=max_detail, report=not no_report,
         )
         make_task_runner(task_runner)  # validate before starting anything
-        summary = flow_with_runner(task_runner)(**params.model_dump())
+        with quiet_late_route_warnings():
+            summary = flow_with_runner(task_runner)(**params.model_dump())
         if json_out:
             emit_json(summary)
             return
