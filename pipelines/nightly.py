@@ -22,8 +22,9 @@ What an operations team runs every night, unattended (issue 7):
    its limit, where and when.
 4. **Reroute** (:func:`reroute_lane`, pure, one task per lane, fanned out by the task runner):
    for each adverse departure of the lane, the cargo-safe deviation
-   (:func:`routing.deviate.deviate_lane`), the time-optimal and minimum-distance A* routes
-   (:func:`routing.planner.plan_routes`), and the evaluation of the lane as sailed (historical)
+   (:func:`routing.deviate.deviate_lane`), the time-optimal and minimum-distance A* routes and
+   the safe time-optimal route under the vessel's limits (:func:`routing.planner.plan_routes`
+   with ``safety="hard"``, falling back to ``soft``), and the evaluation of the lane as sailed (historical)
    and of the alternatives in the same weather (:func:`routing.evaluate.evaluate_route`,
    :func:`routing.audit.propose`). A failure of one lane-departure (unreachable destination, a
    lane outside the weather ...) marks it ``failed`` with the message; the rest completes.
@@ -79,7 +80,7 @@ VOLATILE_PROPERTIES = ("search_s",)
 IO_RETRY_DELAYS_S = (2, 5)
 FETCH_RETRY_DELAYS_S = (2, 5, 15)
 #: Route roles evaluated for an adverse lane-departure, in report order.
-ROLES = ("historical", "deviation", "optimal", "min_distance")
+ROLES = ("historical", "deviation", "safe_optimal", "optimal", "min_distance")
 
 
 class NightlyError(StormlaneError):
@@ -109,6 +110,7 @@ class NightlyParams(BaseModel):
     vessel: str | None = None
     profile: str | None = None
     speed_loss: str = "bowditch"
+    safety: Literal["hard", "soft", "none"] = "hard"
     max_detail: int = Field(20, ge=0)
     report: bool = True
     cache_dir: str | None = None
@@ -742,6 +744,7 @@ class LaneJob:
     speed_loss: str
     departures: list  # Timestamps
     weather: object  # routing.field.WeatherField
+    safety: str = "hard"
 
 
 def lane_jobs(night: Night, screen: pd.DataFrame) -> list[LaneJob]:
@@ -756,7 +759,8 @@ def lane_jobs(night: Night, screen: pd.DataFrame) -> list[LaneJob]:
         p = by_id[pid]
         jobs.append(LaneJob(path_id=pid, lane_id=p.lane_id, centroids=p.centroids, vessel=night.vessels[p.vessel_profile],
                             limits=night.limits, speed_loss=night.params.speed_loss,
-                            departures=sorted(pd.Timestamp(t) for t in g["depart_utc"]), weather=field_))
+                            departures=sorted(pd.Timestamp(t) for t in g["depart_utc"]), weather=field_,
+                            safety=night.params.safety))
     return jobs
 
 
@@ -820,9 +824,15 @@ def reroute_lane(job: LaneJob) -> list[dict]:
             dev = deviate_lane(lat, lon, spd, t, weather_at=weather_at, check=check, cells=cells, leg_at_sea=leg_at_sea,
                                default_speed_kn=vessel.speed_kn, properties=props)
             req = RouteRequest((float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1])), t, ship, vessel_name=vessel.name)
-            plan = plan_routes(req, job.weather)
-            routes = {"historical": hist, "deviation": dev, "optimal": _clean_route(plan.routes["optimal_smoothed"], "optimal"),
-                      "min_distance": _clean_route(plan.routes["min_distance"])}
+            if job.safety == "none":
+                plan = plan_routes(req, job.weather)
+            else:
+                plan = plan_routes(req, job.weather, safety=job.safety, vessel=vessel, limits=job.limits)
+            routes = {"historical": hist, "deviation": dev}
+            if "safe_optimal_smoothed" in plan.routes:
+                routes["safe_optimal"] = _clean_route(plan.routes["safe_optimal_smoothed"], "safe_optimal")
+            routes["optimal"] = _clean_route(plan.routes["optimal_smoothed"], "optimal")
+            routes["min_distance"] = _clean_route(plan.routes["min_distance"])
             evs = {role: evaluate_route(r, sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss)
                    for role, r in routes.items()}
             out.append({"path_id": job.path_id, "depart_utc": t, "status": "adverse", "evaluations": evs,
@@ -945,6 +955,23 @@ def _stem(path_id: str, t: pd.Timestamp) -> str:
     return f"{safe}_{t:%Y%m%dT%H%MZ}"
 
 
+def export_case(routes: dict, proposed: str | None, directory: Path, stem: str, relative_to: Path) -> dict[str, str]:
+    """Exports of one adverse lane-departure: ``<stem>.geojson`` with every route (for the
+    analyst's comparison) and, when an alternative is proposed, ``<stem>_<role>.gpx`` and
+    ``<stem>_<role>.rtz`` (RTZ 1.1, what an ECDIS imports) with that route. Returns the report's
+    links (label -> path relative to the report)."""
+    import os
+
+    from dashboards.exports import write_routes
+
+    directory.mkdir(parents=True, exist_ok=True)
+    files = {"GeoJSON (all routes)": write_routes(list(routes.values()), directory / f"{stem}.geojson")[0]}
+    if proposed is not None:
+        for label, suffix in ((f"GPX {proposed}", ".gpx"), (f"RTZ {proposed}", ".rtz")):
+            files[label] = write_routes([routes[proposed]], directory / f"{stem}_{proposed}{suffix}")[0]
+    return {label: Path(os.path.relpath(p, relative_to)).as_posix() for label, p in files.items()}
+
+
 def _most_common_vessel(night: Night):
     names = [p.vessel_profile for p in night.paths]
     name = sorted(set(names), key=lambda n: (-names.count(n), n))[0]
@@ -956,7 +983,6 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
 
     Returns ``{"report": path, "model": path, "exports": n_files}`` (paths as strings).
     """
-    from dashboards.exports import export_alternatives
     from dashboards.model import NightlyReport, report_to_json
     from dashboards.report import render_nightly_report
     from pipelines.reporting import lane_departure_model, provenance, speed_loss_curve
@@ -972,8 +998,8 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
                                                    depart_utc=row["depart_utc"], rules=rules, error=row["error"]))
             continue
         evs = case["outcome"]["evaluations"]
-        links = export_alternatives({role: evs[role].route for role in ROLES if role in evs}, out / "exports",
-                                    _stem(row["path_id"], row["depart_utc"]), relative_to=out)
+        links = export_case({role: evs[role].route for role in ROLES if role in evs}, case["outcome"]["proposed"],
+                            out / "exports", _stem(row["path_id"], row["depart_utc"]), relative_to=out)
         n_files += len(links)
         departures.append(lane_departure_model(
             lane_id=row["path_id"], origin=row["origin"], destination=row["destination"], depart_utc=row["depart_utc"],
@@ -992,7 +1018,9 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
             "nearest time (DuckDB ASOF join); operator limits and IMO MSC.1/Circ.1228 at every centroid with the course to the next.",
             "Deviation: Spyrou-Sioula et al. 2022, Alg. 1 (R-tree nearest passing cell within 3 h), legs kept at sea, ETAs recomputed.",
             f"A*: time-optimal (smoothed) and minimum-distance routes on a mesh at the weather's spacing, {night.params.speed_loss} "
-            "speed loss at the lane's typical speed.",
+            "speed loss at the lane's typical speed"
+            + ("." if night.params.safety == "none" else f"; safe time-optimal route under the vessel's limits ({night.params.safety} "
+               "constraints, soft when hard finds no route)."),
             "Ranking: risk avoided (hours over a limit or in an IMO situation, historical minus proposed), then IMO events "
             "avoided, then extra time and fuel.",
             f"Vessel profiles by lane (AIS ship type of the lane's voyages): {', '.join(profiles)}; the provenance lists "
@@ -1261,11 +1289,11 @@ def _flow():
                         weather_source: str = "auto", now: str | None = None, window_h: float = DEFAULT_WINDOW_H,
                         step_h: float = DEFAULT_STEP_H, voyages: str | None = None, lanes: list[str] | None = None,
                         vessel: str | None = None, profile: str | None = None, speed_loss: str = "bowditch",
-                        max_detail: int = 20, report: bool = True, cache_dir: str | None = None) -> dict:
+                        safety: str = "hard", max_detail: int = 20, report: bool = True, cache_dir: str | None = None) -> dict:
         """Screen every lane x departure of the forecast window, reroute the adverse ones, rank, store, report."""
         p = NightlyParams(db=db, out=out, out_root=out_root, weather=weather or [], weather_source=weather_source, now=now, window_h=window_h,
                           step_h=step_h, voyages=voyages, lanes=lanes, vessel=vessel, profile=profile, speed_loss=speed_loss,
-                          max_detail=max_detail, report=report, cache_dir=cache_dir)
+                          safety=safety, max_detail=max_detail, report=report, cache_dir=cache_dir)
         started, timings, t = pd.Timestamp.now(tz="UTC"), {}, time.perf_counter()
         the_now, source = resolve_now(p.now), choose_weather_source(p)
         paths = load_task(p.db, voyages=p.voyages, lanes=p.lanes, vessel=p.vessel)

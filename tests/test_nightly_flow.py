@@ -135,7 +135,7 @@ def test_each_adverse_departure_has_a_deviation_and_an_astar_route(world, night)
     roles = routes.groupby(["path_id", "depart_utc"])["role"].apply(set)
     assert len(roles) == len(adverse)
     for r in adverse.itertuples():
-        assert roles[(r.path_id, r.depart_utc)] == {"historical", "deviation", "optimal", "min_distance"}
+        assert roles[(r.path_id, r.depart_utc)] == {"historical", "deviation", "safe_optimal", "optimal", "min_distance"}
     for row in routes.itertuples():
         route = Route.from_json(row.route_json)
         assert route.n_waypoints >= 2 and route.time_utc[0] == row.depart_utc
@@ -177,9 +177,20 @@ def test_report_and_exports_are_written(world, night):
     assert len(geo) == summary["adverse"]
     first = json.loads(geo[0].read_text(encoding="utf-8"))
     assert first["type"] == "FeatureCollection" and first["features"]
-    rtz = sorted((out / "exports").glob("*_optimal.rtz"))
-    assert len(rtz) == summary["adverse"]
-    assert read_rtz(rtz[0]).n_waypoints >= 2
+    assert {f["properties"].get("route") for f in first["features"]} >= {"historical", "deviation", "optimal"}
+    # the proposed route of every reroute as RTZ (and GPX), the same waypoints as stored
+    d, routes = t["departures"], t["routes"].set_index(["path_id", "depart_utc", "role"])
+    props = d[d["proposed"].notna()]
+    rtz = sorted((out / "exports").glob("*.rtz"))
+    assert len(rtz) == len(list((out / "exports").glob("*.gpx"))) == len(props) == summary["reroutes"]
+    r = props.sort_values("rank").iloc[0]
+    stem = f"{r.path_id}_{r.depart_utc:%Y%m%dT%H%MZ}_{r.proposed}"
+    back = read_rtz(out / "exports" / f"{stem}.rtz")
+    from routing.route import Route
+
+    stored = Route.from_json(routes.loc[(r.path_id, r.depart_utc, r.proposed), "route_json"])
+    assert back.n_waypoints == stored.n_waypoints
+    assert np.allclose(back.lat_deg, stored.lat_deg, atol=1e-6) and np.allclose(back.lon_deg, stored.lon_deg, atol=1e-6)
 
 
 @pytest.mark.slow

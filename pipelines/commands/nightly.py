@@ -34,6 +34,7 @@ def register(app: typer.Typer) -> None:
         vessel: str = typer.Option(None, "--vessel", metavar="NAME|FILE", help="One vessel profile for every lane (default: by the AIS ship types of each lane)."),
         profile: str = typer.Option(None, "--profile", metavar="NAME|FILE", help="Operator limits profile (default: the file's default)."),
         speed_loss: str = typer.Option("bowditch", "--speed-loss", metavar="bowditch|aertssen|khokhlov|none", help="Speed-loss model."),
+        safety: str = typer.Option("hard", "--safety", metavar="hard|soft|none", help="Also route a safe time-optimal A* under the vessel's limits (hard: never through an unsafe cell, soft if none; none: skip it)."),
         max_detail: int = typer.Option(10, "--max-detail", min=0, help="Adverse lane-departures drawn with a map and plots in the report."),
         no_report: bool = typer.Option(False, "--no-report", help="Store the results only (no HTML report or exports)."),
         task_runner: str = typer.Option("sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]", help="Where the per-lane work runs: in this process, on a local Dask cluster, or on an existing Dask scheduler."),
@@ -50,7 +51,7 @@ def register(app: typer.Typer) -> None:
         params = NightlyParams.checked(
             db=str(db), out=str(out) if out else None, weather=[str(w) for w in weather or []], weather_source=source, now=now,
             window_h=window_h, step_h=step_h, voyages=str(voyages) if voyages else None, lanes=list(lane or []) or None,
-            vessel=vessel, profile=profile, speed_loss=speed_loss, max_detail=max_detail, report=not no_report,
+            vessel=vessel, profile=profile, speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report,
         )
         make_task_runner(task_runner)  # validate before starting anything
         with quiet_late_route_warnings():
@@ -82,6 +83,7 @@ def register(app: typer.Typer) -> None:
         step_h: float = typer.Option(3.0, "--step-h", min=0.1),
         vessel: str = typer.Option(None, "--vessel", metavar="NAME|FILE"),
         profile: str = typer.Option(None, "--profile", metavar="NAME|FILE"),
+        safety: str = typer.Option("hard", "--safety", metavar="hard|soft|none"),
         max_detail: int = typer.Option(10, "--max-detail", min=0),
     ) -> None:
         """Serve the nightly reroute as a Prefect deployment on a cron schedule (runs until stopped).
@@ -97,7 +99,9 @@ def register(app: typer.Typer) -> None:
             sched = Cron(cron, timezone=timezone)
         except Exception as err:  # noqa: BLE001 - prefect validates cron and time zone
             raise typer.BadParameter(str(err), param_hint="--cron/--timezone") from None
-        params = {"db": str(db.resolve()), "window_h": window_h, "step_h": step_h, "max_detail": max_detail}
+        if safety not in ("hard", "soft", "none"):
+            raise typer.BadParameter(f"{safety!r} is not one of hard, soft, none", param_hint="--safety")
+        params = {"db": str(db.resolve()), "window_h": window_h, "step_h": step_h, "max_detail": max_detail, "safety": safety}
         if out is not None:
             params["out_root"] = str(out.resolve())
         if weather:
