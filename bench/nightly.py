@@ -9,8 +9,9 @@ Run: ``.venv/bin/python bench/nightly.py [--workdir DEMO_DIR] [--max-detail N]``
 * The night runs through the Prefect flow (as ``stormlane nightly``): first with the sequential
   task runner (twice: the first run in a fresh process also loads numba's compiled kernels), then
   with the per-lane work on a 2-worker ``distributed.LocalCluster`` through the Dask task runner.
-  The cluster's start-up cost (start + workers importing the code and loading the kernels) is
-  timed on its own, so "Dask minus sequential" can be compared with it.
+  The same cluster runs the night twice: its start-up cost is the cluster's start plus what the
+  first night pays once per worker process (imports, Prefect's task engine, numba's compiled
+  kernels: first minus second night), to compare with "Dask minus sequential".
 
 Targets (issue 7): the full night under 60 s on 2 cores; the Dask runner not slower than the
 sequential one by more than its start-up cost. The machine is shared: figures are noisy.
@@ -28,23 +29,11 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+# `python bench/nightly.py` puts bench/ first on sys.path, where bench/lanes.py would shadow the
+# `lanes` package: drop it (Dask's spawned workers inherit the cleaned path).
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 NOW = "2025-01-31T00:00Z"
 TARGET_S = 60.0
-
-
-def _warm() -> float:
-    """What a Dask worker pays before its first lane: imports and numba kernels (a calm 1-leg route)."""
-    t = time.perf_counter()
-    import pandas as pd
-
-    import pipelines.nightly  # noqa: F401
-    import prefect  # noqa: F401
-    from routing.astar import ShipModel
-    from routing.planner import RouteRequest, plan_routes
-
-    ship = ShipModel(speed_kn=15.0, model="bowditch", lpp_m=180.0, dwt_t=20000.0, floor_kn=2.0)
-    plan_routes(RouteRequest((39.0, 4.5), (39.5, 5.5), pd.Timestamp(NOW), ship))
-    return time.perf_counter() - t
 
 
 def _world(args) -> tuple[Path, list[str]]:
@@ -52,7 +41,7 @@ def _world(args) -> tuple[Path, list[str]]:
         wd = Path(args.workdir)
         truth = json.loads((wd / "scenario.json").read_text(encoding="utf-8"))
         return wd / "stormlane.duckdb", [str(wd / f) for f in truth["weather"]["files"]]
-    sys.path.insert(0, str(ROOT / "tests"))
+    sys.path.append(str(ROOT / "tests"))
     from nightly_world import build_world
 
     t = time.perf_counter()
@@ -98,14 +87,18 @@ def main() -> None:
     cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0")
     client = Client(cluster)
     t_cluster = time.perf_counter() - t
-    warm = client.run(_warm)
-    t_startup = time.perf_counter() - t
-    dsk, wd = _night(f"dask:{cluster.scheduler_address}", db, weather, out / "dask", args.max_detail)
-    rows.append(_row("dask, 2 workers (warm cluster)", dsk, wd))
+    address = f"dask:{cluster.scheduler_address}"
+    dsk1, wd1 = _night(address, db, weather, out / "dask1", args.max_detail)
+    rows.append(_row("dask, 2 workers, fresh cluster", dsk1, wd1))
+    dsk, wd = _night(address, db, weather, out / "dask2", args.max_detail)
+    rows.append(_row("dask, 2 workers, same cluster again", dsk, wd))
     client.close()
     cluster.close()
     cold, wc = _night("dask", db, weather, out / "dask-own", args.max_detail)
-    rows.append(_row("dask (runner starts its cluster)", cold, wc))
+    rows.append(_row("--task-runner dask (own cluster)", cold, wc))
+    # start-up: starting the cluster, plus what the first night on it pays once per worker process
+    # (imports, Prefect's task engine, numba's compiled kernels), i.e. first minus second night
+    t_startup = t_cluster + max(0.0, dsk1["timings_s"]["reroute_s"] - dsk["timings_s"]["reroute_s"])
 
     print(f"\nnight {seq2['run_id']}: {seq2['lanes_checked']} lanes x {seq2['window']['departures']} departures = "
           f"{seq2['departures_checked']} lane-departures; {seq2['adverse']} adverse, {seq2['reroutes']} reroutes, "
@@ -113,13 +106,13 @@ def main() -> None:
     print(f"{'run':<34} {'wall':>8}   stages [s]")
     for r in rows:
         print(r)
-    same = all(s["run_id"] == seq2["run_id"] and s["adverse"] == seq2["adverse"] for s in (seq1, dsk, cold))
+    same = all(s["run_id"] == seq2["run_id"] and s["adverse"] == seq2["adverse"] for s in (seq1, dsk1, dsk, cold))
     print(f"\nsame run id and counts on every runner: {same}")
     extra = dsk["timings_s"]["reroute_s"] - seq2["timings_s"]["reroute_s"]
-    print(f"Dask start-up: cluster {t_cluster:.1f} s + worker warm-up {max(warm.values()):.1f} s = {t_startup:.1f} s; "
-          f"per-lane stage on the warm cluster {dsk['timings_s']['reroute_s']:.1f} s vs sequential "
-          f"{seq2['timings_s']['reroute_s']:.1f} s ({extra:+.1f} s; target: <= start-up {t_startup:.1f} s -> "
-          f"{'met' if extra <= t_startup else 'NOT met'})")
+    print(f"Dask start-up: cluster {t_cluster:.1f} s + first-night extra on fresh workers "
+          f"{dsk1['timings_s']['reroute_s'] - dsk['timings_s']['reroute_s']:.1f} s = {t_startup:.1f} s; per-lane stage on the "
+          f"warm cluster {dsk['timings_s']['reroute_s']:.1f} s vs sequential {seq2['timings_s']['reroute_s']:.1f} s "
+          f"({extra:+.1f} s; target: <= start-up -> {'met' if extra <= t_startup else 'NOT met'})")
     print(f"full night (sequential, warm): {w2:.1f} s; target < {TARGET_S:.0f} s on 2 cores -> "
           f"{'met' if w2 < TARGET_S else 'NOT met'} (2 shared cores: noisy)")
 

@@ -598,7 +598,7 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
     wd = weather_digest(sub)
     ld = lanes_digest(paths)
     rid = _digest(now.isoformat(), [t.isoformat() for t in departures], params.window_h, params.step_h, ld, wd,
-                  {k: repr(v) for k, v in vessels.items()}, repr(limits), params.speed_loss)
+                  {k: repr(v) for k, v in vessels.items()}, repr(limits), params.speed_loss, params.safety)
     run_id = f"{now:%Y%m%dT%H%MZ}-{rid[:12]}"
     out = Path(params.out) if params.out else default_out(now, params.out_root)
     return Night(run_id=run_id, now_utc=now, departures=departures, params=params, paths=paths, weather_ds=sub,
