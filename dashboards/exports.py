@@ -523,7 +523,8 @@ def read_geojson(path) -> list[Route]:
     return routes
 
 
-def export_alternatives(routes: dict, directory, stem: str, relative_to=None) -> dict[str, str]:
+def export_alternatives(routes: dict, directory, stem: str, relative_to=None, *, proposed: str | None = None,
+                        only_proposed: bool = False) -> dict[str, str]:
     """Write the exports for one voyage or lane-departure and return links for the report.
 
     Writes ``<stem>.geojson`` and ``<stem>.gpx`` with every route (the historical one included,
@@ -540,6 +541,10 @@ def export_alternatives(routes: dict, directory, stem: str, relative_to=None) ->
         File-name stem, e.g. ``"lane3_20250131T0600Z"``; only letters, digits, ``-`` and ``_``.
     relative_to : str or Path, optional
         Folder the returned paths are relative to (the report's folder); default ``directory``.
+    proposed, only_proposed : str or None, bool
+        With ``only_proposed`` (the nightly run): the GeoJSON still holds every route, but GPX
+        and RTZ are written for the ``proposed`` role only (``<stem>_<role>.gpx/.rtz``, the one
+        route a master would import), and none when nothing is proposed.
 
     Returns
     -------
@@ -561,13 +566,18 @@ def export_alternatives(routes: dict, directory, stem: str, relative_to=None) ->
     def rel(p: Path) -> str:
         return Path(os.path.relpath(p, base)).as_posix()
 
-    for label, suffix in (("GeoJSON", ".geojson"), ("GPX", ".gpx")):
-        (written,) = write_routes(ordered, directory / f"{stem}{suffix}")
-        links[label] = rel(written)
-    for role, route in routes.items():
-        if role == "historical":
-            continue
+    if only_proposed:
+        (written,) = write_routes(ordered, directory / f"{stem}.geojson")
+        links["GeoJSON (all routes)"] = rel(written)
+        per_route = {proposed: (".gpx", ".rtz")} if proposed is not None else {}
+    else:
+        for label, suffix in (("GeoJSON", ".geojson"), ("GPX", ".gpx")):
+            (written,) = write_routes(ordered, directory / f"{stem}{suffix}")
+            links[label] = rel(written)
+        per_route = {role: (".rtz",) for role in routes if role != "historical"}
+    for role, suffixes in per_route.items():
         safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in role)
-        (written,) = write_routes(route, directory / f"{stem}_{safe}.rtz")
-        links[f"RTZ {role}"] = rel(written)
+        for suffix in suffixes:
+            (written,) = write_routes(routes[role], directory / f"{stem}_{safe}{suffix}")
+            links[f"{suffix[1:].upper()} {role}"] = rel(written)
     return links

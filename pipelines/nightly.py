@@ -955,23 +955,6 @@ def _stem(path_id: str, t: pd.Timestamp) -> str:
     return f"{safe}_{t:%Y%m%dT%H%MZ}"
 
 
-def export_case(routes: dict, proposed: str | None, directory: Path, stem: str, relative_to: Path) -> dict[str, str]:
-    """Exports of one adverse lane-departure: ``<stem>.geojson`` with every route (for the
-    analyst's comparison) and, when an alternative is proposed, ``<stem>_<role>.gpx`` and
-    ``<stem>_<role>.rtz`` (RTZ 1.1, what an ECDIS imports) with that route. Returns the report's
-    links (label -> path relative to the report)."""
-    import os
-
-    from dashboards.exports import write_routes
-
-    directory.mkdir(parents=True, exist_ok=True)
-    files = {"GeoJSON (all routes)": write_routes(list(routes.values()), directory / f"{stem}.geojson")[0]}
-    if proposed is not None:
-        for label, suffix in ((f"GPX {proposed}", ".gpx"), (f"RTZ {proposed}", ".rtz")):
-            files[label] = write_routes([routes[proposed]], directory / f"{stem}_{proposed}{suffix}")[0]
-    return {label: Path(os.path.relpath(p, relative_to)).as_posix() for label, p in files.items()}
-
-
 def _most_common_vessel(night: Night):
     names = [p.vessel_profile for p in night.paths]
     name = sorted(set(names), key=lambda n: (-names.count(n), n))[0]
@@ -983,6 +966,7 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
 
     Returns ``{"report": path, "model": path, "exports": n_files}`` (paths as strings).
     """
+    from dashboards.exports import export_alternatives
     from dashboards.model import NightlyReport, report_to_json
     from dashboards.report import render_nightly_report
     from pipelines.reporting import lane_departure_model, provenance, speed_loss_curve
@@ -998,8 +982,9 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
                                                    depart_utc=row["depart_utc"], rules=rules, error=row["error"]))
             continue
         evs = case["outcome"]["evaluations"]
-        links = export_case({role: evs[role].route for role in ROLES if role in evs}, case["outcome"]["proposed"],
-                            out / "exports", _stem(row["path_id"], row["depart_utc"]), relative_to=out)
+        links = export_alternatives({role: evs[role].route for role in ROLES if role in evs}, out / "exports",
+                                    _stem(row["path_id"], row["depart_utc"]), relative_to=out,
+                                    proposed=case["outcome"]["proposed"], only_proposed=True)
         n_files += len(links)
         departures.append(lane_departure_model(
             lane_id=row["path_id"], origin=row["origin"], destination=row["destination"], depart_utc=row["depart_utc"],

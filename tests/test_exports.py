@@ -7,6 +7,7 @@ Barcelona -> Palma route); none comes from another project function.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -284,3 +285,23 @@ def test_export_alternatives_writes_all_formats_with_relative_links(tmp_path):
     assert read_rtz(tmp_path / links["RTZ optimal"]).n_waypoints == 4
     with pytest.raises(ExportError, match="stem"):
         export_alternatives(routes, tmp_path, "../evil")
+
+
+def test_export_alternatives_only_proposed_writes_gpx_and_rtz_of_that_route(tmp_path):
+    from dashboards.exports import export_alternatives
+
+    routes = {"historical": make_other(), "optimal": make_route("optimal"), "deviation": make_route("deviation")}
+    links = export_alternatives(routes, tmp_path / "x", "L2_20250131T0600Z", relative_to=tmp_path, proposed="deviation",
+                                only_proposed=True)
+    assert links == {
+        "GeoJSON (all routes)": "x/L2_20250131T0600Z.geojson",
+        "GPX deviation": "x/L2_20250131T0600Z_deviation.gpx",
+        "RTZ deviation": "x/L2_20250131T0600Z_deviation.rtz",
+    }
+    assert sorted(p.name for p in (tmp_path / "x").iterdir()) == sorted(Path(v).name for v in links.values())
+    (back,) = read_gpx(tmp_path / links["GPX deviation"])
+    assert back.n_waypoints == routes["deviation"].n_waypoints
+    assert np.allclose(read_rtz(tmp_path / links["RTZ deviation"]).lat_deg, routes["deviation"].lat_deg, atol=1e-6)
+    # nothing proposed: the comparison GeoJSON only
+    none = export_alternatives(routes, tmp_path / "y", "L2_20250131T0900Z", relative_to=tmp_path, only_proposed=True)
+    assert list(none) == ["GeoJSON (all routes)"]

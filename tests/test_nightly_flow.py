@@ -193,6 +193,30 @@ def test_report_and_exports_are_written(world, night):
     assert np.allclose(back.lat_deg, stored.lat_deg, atol=1e-6) and np.allclose(back.lon_deg, stored.lon_deg, atol=1e-6)
 
 
+
+@pytest.mark.browser
+def test_the_nights_report_opens_clean_in_a_headless_browser(world, night):
+    """Issue 8: the demo night's own report (maps, plots, the lanes-at-risk table), opened from
+    file:// in headless Chromium: no request leaves file://, no console error, not blank."""
+    import os
+
+    from dashboards.browser import find_chromium, is_blank_png, visit
+
+    chromium = find_chromium()
+    if chromium is None:
+        if os.environ.get("STORMLANE_REQUIRE_BROWSER") == "1":
+            pytest.fail("STORMLANE_REQUIRE_BROWSER=1 but no chromium found (make test installs Debian's 'chromium')")
+        pytest.skip("no chromium on PATH (make test installs it; or set STORMLANE_CHROMIUM)")
+    summary, _ = night
+    path = world["folder"] / "out" / "report.html"
+    v = visit(path, chromium=chromium, full_page=True)
+    assert v.requests and v.requests[0] == path.resolve().as_uri()
+    assert v.requests_leaving() == [], f"requests left file://: {v.requests_leaving()}"
+    assert v.errors == [], f"console errors: {v.errors}"
+    assert not is_blank_png(v.screenshot_png)
+    assert all(u.startswith("data:image/png;base64,") for u in v.requests[1:])
+    assert summary["adverse"] == 0 or len(v.requests) > 1  # the adverse departures' maps and plots were loaded
+
 @pytest.mark.slow
 def test_rerun_on_a_two_worker_dask_cluster_is_identical_and_adds_no_rows(world, night):
     """Four of the night's lanes, run sequentially, then again (same inputs, same run id) with the
