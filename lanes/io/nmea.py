@@ -531,7 +531,9 @@ def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
     sentences = [None] * k + items.sentences
     single_flag = np.concatenate([np.ones(k, dtype=bool), np.asarray(items.single, dtype=bool)])
     order = np.argsort(line, kind="stable")
-    if k and len(order) and not np.all(order == np.arange(len(order))):
+    # Items out of line order (a multipart group flushed after later lines) are reordered
+    # whether or not vectorised singles were merged in.
+    if len(order) and not np.all(order == np.arange(len(order))):
         raw = [raw[i] for i in order]
         perr = [perr[i] for i in order]
         payload = [payload[i] for i in order]
