@@ -246,6 +246,9 @@ class RouteSet:
         Role of the recommended alternative (``None``: no proposal, e.g. nothing better found).
     exports : dict of str -> str
         Export files for this case, label -> path relative to the report (linked, never loaded).
+    hs_limit_m : float, optional
+        The Hs limit of this case's vessel, drawn on its map and plot (default: the provenance's
+        ``limits["hs_m"]``; a nightly run mixes vessel classes with different limits).
     """
 
     routes: dict
@@ -255,6 +258,7 @@ class RouteSet:
     weather: WeatherSnapshot | None = None
     proposed: str | None = None
     exports: dict = field(default_factory=dict)
+    hs_limit_m: float | None = None
 
     def __post_init__(self):
         for role, route in self.routes.items():

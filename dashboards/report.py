@@ -151,7 +151,9 @@ def events_section(routes: RouteSet) -> Markup:
 
 
 def figures_section(routes: RouteSet, provenance: Provenance, worst=None) -> Markup:
-    hs_limit = provenance.limits.get("hs_m") if provenance.limits else None
+    hs_limit = routes.hs_limit_m
+    if hs_limit is None and provenance.limits:
+        hs_limit = provenance.limits.get("hs_m")
     ordered = {role: routes.routes[role] for role in routes.ordered_roles}
     if not ordered:
         return Markup("")

@@ -955,6 +955,18 @@ def _stem(path_id: str, t: pd.Timestamp) -> str:
     return f"{safe}_{t:%Y%m%dT%H%MZ}"
 
 
+def _limits_of(night: Night, vessel):
+    return night.limits.limits_for(vessel.vessel_class, vessel.lpp_m) if hasattr(night.limits, "limits_for") else night.limits
+
+
+def _hs_limit_m(night: Night, path_id: str) -> float | None:
+    """The Hs limit of the vessel sailing this lane (lanes of one night differ in vessel class)."""
+    profile = next((p.vessel_profile for p in night.paths if p.path_id == path_id), None)
+    if profile is None:
+        return None
+    return getattr(_limits_of(night, night.vessels[profile]), "hs_max_m", None)
+
+
 def _most_common_vessel(night: Night):
     names = [p.vessel_profile for p in night.paths]
     name = sorted(set(names), key=lambda n: (-names.count(n), n))[0]
@@ -989,9 +1001,10 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
         departures.append(lane_departure_model(
             lane_id=row["path_id"], origin=row["origin"], destination=row["destination"], depart_utc=row["depart_utc"],
             rules=rules, evaluations=evs, table=case["outcome"]["table"], proposed=case["outcome"]["proposed"],
-            weather_ds=night.weather_ds, exports=links, risk_avoided=row["risk_avoided_h"]))
+            weather_ds=night.weather_ds, exports=links, risk_avoided=row["risk_avoided_h"],
+            hs_limit_m=_hs_limit_m(night, row["path_id"])))
     vessel = _most_common_vessel(night)
-    limits = night.limits.limits_for(vessel.vessel_class, vessel.lpp_m) if hasattr(night.limits, "limits_for") else night.limits
+    limits = _limits_of(night, vessel)
     profiles = sorted({p.vessel_profile for p in night.paths})
     prov = provenance(
         weather_meta=night.weather_meta, weather_ds=night.weather_ds, vessel=vessel, speed_loss_model=night.params.speed_loss,

@@ -82,7 +82,7 @@ def speed_loss_curve(vessel, model: str, hs_max_m: float = 8.0, step_m: float = 
     return SpeedLossCurve(vessel=vessel.name, model=model, speed_kn=float(vessel.speed_kn), table=pd.concat(frames, ignore_index=True), min_speed_kn=getattr(vessel, "min_speed_kn", None))
 
 
-def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = None, proposed: str | None = None, weather: WeatherSnapshot | None = None, exports: dict | None = None) -> RouteSet:
+def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = None, proposed: str | None = None, weather: WeatherSnapshot | None = None, exports: dict | None = None, hs_limit_m: float | None = None) -> RouteSet:
     """A report ``RouteSet`` from ``routing.evaluate`` results keyed by role.
 
     ``table`` is :func:`routing.evaluate.comparison_table` (computed here when absent), events
@@ -101,6 +101,7 @@ def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = N
         weather=weather,
         proposed=proposed,
         exports=dict(exports or {}),
+        hs_limit_m=hs_limit_m,
     )
 
 
@@ -225,11 +226,13 @@ def voyage_audit_model(out: dict, *, mmsi: int, static=None, voyage: dict | None
 
 def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, rules=(), evaluations: dict | None = None,
                          table: pd.DataFrame | None = None, proposed: str | None = None, weather_ds=None,
-                         exports: dict | None = None, error: str | None = None, risk_avoided: float | None = None):
+                         exports: dict | None = None, error: str | None = None, risk_avoided: float | None = None,
+                         hs_limit_m: float | None = None):
     """One nightly lane-departure for the report: adverse with its evaluated routes, or failed with ``error``.
 
     The worst point is where the historical (lane) route meets its highest Hs; the map's weather
-    slice is taken at that time when ``weather_ds`` is given.
+    slice is taken at that time when ``weather_ds`` is given. ``hs_limit_m`` is the lane's vessel's
+    Hs limit (drawn on its map and plot).
     """
     from dashboards.model import LaneDeparture
 
@@ -239,7 +242,7 @@ def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, 
     if not evaluations:
         raise ValueError(f"lane {lane_id}: an adverse lane-departure needs its evaluated routes")
     snapshot, worst = _snapshot_for(evaluations, weather_ds)
-    routes = route_set_from_evaluations(evaluations, table, proposed, weather=snapshot, exports=exports)
+    routes = route_set_from_evaluations(evaluations, table, proposed, weather=snapshot, exports=exports, hs_limit_m=hs_limit_m)
     return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="adverse",
                          rules=list(rules), worst_time_utc=worst["time_utc"], worst_lat_deg=worst["lat_deg"],
                          worst_lon_deg=worst["lon_deg"], worst_hs_m=worst["hs_m"], routes=routes, risk_avoided=risk_avoided)

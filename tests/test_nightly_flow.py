@@ -173,6 +173,16 @@ def test_report_and_exports_are_written(world, night):
     assert summary["run_id"] in html and "http://" not in html.split("Content-Security-Policy")[0]
     model = json.loads((out / "report.json").read_text(encoding="utf-8"))
     assert model["run_id"] == summary["run_id"]
+    # each case's map and plot draw the Hs limit of the vessel that sails that lane
+    from pipelines.config import load_operator_profile, load_vessel
+
+    profile = load_operator_profile(None)
+    vessel_of = t["departures"].groupby("path_id")["vessel_profile"].first().to_dict()
+    drawn = [(c["lane_id"], c["routes"]["hs_limit_m"]) for c in model["departures"] if c["routes"]]
+    assert drawn
+    for lane, hs_limit in drawn:
+        v = load_vessel(vessel_of[lane])
+        assert hs_limit == profile.limits_for(v.vessel_class, v.lpp_m).hs_max_m
     geo = sorted((out / "exports").glob("*.geojson"))
     assert len(geo) == summary["adverse"]
     first = json.loads(geo[0].read_text(encoding="utf-8"))
