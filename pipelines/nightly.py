@@ -1165,6 +1165,31 @@ def _finish(night: Night, screen, outcomes, started, timings) -> dict:
     return summary_of(night, result, report, {k: round(v, 3) for k, v in timings.items()})
 
 
+#: Callbacks ``(done, total)`` told as each lane's reroute completes (the CLI's progress bar).
+_PROGRESS_CALLBACKS: list = []
+
+
+@contextlib.contextmanager
+def reroute_progress(callback):
+    """Call ``callback(done, total)`` as the lanes of a night finish (in submission order)."""
+    _PROGRESS_CALLBACKS.append(callback)
+    try:
+        yield
+    finally:
+        _PROGRESS_CALLBACKS.remove(callback)
+
+
+def _results_with_progress(futures: list) -> list:
+    results = []
+    for cb in _PROGRESS_CALLBACKS:
+        cb(0, len(futures))
+    for f in futures:
+        results.append(_future_result(f))
+        for cb in _PROGRESS_CALLBACKS:
+            cb(len(results), len(futures))
+    return results
+
+
 @contextlib.contextmanager
 def quiet_late_route_warnings():
     """Silence the router's per-route "ends after the last weather time" warning for a run (the
@@ -1304,7 +1329,7 @@ def _flow():
         timings["screen_s"], t = time.perf_counter() - t, time.perf_counter()
         jobs = lane_jobs(night, screen)
         futures = [lane_task.submit(job) for job in jobs]
-        outcomes = _collect(jobs, [_future_result(f) for f in futures])
+        outcomes = _collect(jobs, _results_with_progress(futures))
         timings["reroute_s"] = time.perf_counter() - t
         return finish_task(night, screen, outcomes, started, timings)
 

@@ -177,3 +177,47 @@ def test_ranking_puts_most_risk_avoided_first_then_cost_then_failures():
     stored = json.loads(res.routes.set_index(["path_id", "role"]).loc[("p", "deviation"), "route_json"])
     assert "search_s" not in json.dumps(stored) and "kept" in json.dumps(stored)
     assert len(res.routes) == 4
+
+
+def test_reroute_progress_reports_each_finished_lane_and_the_total():
+    from types import SimpleNamespace
+
+    from pipelines.nightly import _results_with_progress, reroute_progress
+
+    class Done:
+        def __init__(self, value):
+            self.value, self.state = value, SimpleNamespace(is_completed=lambda: True)
+
+        def wait(self):
+            pass
+
+        def result(self, raise_on_failure=True):
+            return self.value
+
+    seen = []
+    with reroute_progress(lambda done, total: seen.append((done, total))):
+        assert _results_with_progress([Done([1]), Done([2]), Done([3])]) == [[1], [2], [3]]
+    assert seen == [(0, 3), (1, 3), (2, 3), (3, 3)]
+    _results_with_progress([Done([4])])  # the callback is gone after the block
+    assert len(seen) == 4
+
+
+def test_cli_progress_bar_takes_its_total_when_known(capsys):
+    from pipelines.commands._common import progress
+
+    with progress("rerouting lanes", enabled=True) as advance:
+        advance(0, total=4)
+        for _ in range(4):
+            advance(1)
+    # rich renders the bar when the block closes (it used to fail on a None total); the bar is
+    # transient, so nothing is left on stderr but its final line break
+    assert capsys.readouterr().err.strip() == ""
+
+
+
+def test_cli_progress_bar_without_a_total_renders(capsys):
+    from pipelines.commands._common import progress
+
+    with progress("reading weather", enabled=True) as advance:
+        advance(2)  # "2/?" while the total is unknown
+    assert capsys.readouterr().err.strip() == ""

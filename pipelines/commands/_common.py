@@ -46,23 +46,24 @@ def interactive() -> bool:
 
 @contextmanager
 def progress(description: str, total: float | None = None, enabled: bool | None = None):
-    """A rich progress bar on stderr when attached to a terminal; yields ``advance(n)``."""
+    """A rich progress bar on stderr when attached to a terminal; yields ``advance(n, total=None)``
+    (``total`` sets the bar's length once it is known)."""
     if enabled is None:
         enabled = interactive()
     if not enabled:
-        yield lambda n=1: None
+        yield lambda n=1, total=None: None
         return
     from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
-        TextColumn("{task.completed:,.0f}/{task.total:,.0f}"),
+        MofNCompleteColumn(),  # "n/?" while the total is unknown
         TimeElapsedColumn(),
         TimeRemainingColumn(),
         console=Console(stderr=True),
         transient=True,
     ) as bar:
         task = bar.add_task(description, total=total)
-        yield lambda n=1: bar.advance(task, n)
+        yield lambda n=1, total=None: bar.update(task, advance=n, total=total)
