@@ -353,6 +353,8 @@ class LaneDeparture:
         What went wrong, for ``failed``.
     risk_avoided : float, optional
         The run's ranking score (higher first), shown as given.
+    vessel : str, optional
+        The vessel profile that sails this lane (its limits decided "adverse").
     """
 
     lane_id: str
@@ -368,6 +370,7 @@ class LaneDeparture:
     routes: RouteSet | None = None
     error: str | None = None
     risk_avoided: float | None = None
+    vessel: str | None = None
 
     def __post_init__(self):
         self.lane_id = str(self.lane_id)

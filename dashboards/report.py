@@ -262,6 +262,7 @@ def lanes_at_risk_table(model: NightlyReport) -> Markup:
                 link,
                 dep.lane_id,
                 f"{dep.origin} \u2192 {dep.destination}",
+                dep.vessel or "\u2013",
                 fmt_time(dep.depart_utc),
                 _rules(dep),
                 worst,
@@ -273,8 +274,22 @@ def lanes_at_risk_table(model: NightlyReport) -> Markup:
                 status,
             ]
         )
-    cols = ["#", "lane", "route", "departure", "rule(s) fired", "worst Hs on lane", "proposed", "\u0394 time [h]", "\u0394 fuel [t]", "\u0394 CO2 [t]", "events avoided", "status"]
-    return table(cols, rows, numeric={7, 8, 9, 10})
+    cols = ["#", "lane", "route", "vessel", "departure", "rule(s) fired", "worst Hs on lane", "proposed", "\u0394 time [h]", "\u0394 fuel [t]", "\u0394 CO2 [t]", "events avoided", "status"]
+    return table(cols, rows, numeric={8, 9, 10, 11})
+
+
+def _vessels_line(model: NightlyReport, prov) -> str:
+    """The provenance's vessel, or, when the night's lanes are sailed by several profiles, each
+    with its number of lanes at risk (the per-lane profile is in the lanes-at-risk table)."""
+    lanes: dict[str, set] = {}
+    for dep in model.departures:
+        if dep.vessel:
+            lanes.setdefault(dep.vessel, set()).add(dep.lane_id)
+    if len(lanes) > 1:
+        return ", ".join(f"{name} ({len(ids)} lane{'s' if len(ids) != 1 else ''} at risk)" for name, ids in sorted(lanes.items()))
+    if lanes:
+        return next(iter(lanes))
+    return prov.vessel.get("name", DASH) if prov.vessel else DASH
 
 
 def _nightly_summary(model: NightlyReport) -> Markup:
@@ -301,7 +316,7 @@ def _nightly_summary(model: NightlyReport) -> Markup:
         ["forecast reference (now)", fmt_time(model.now_utc)],
         ["departure window", f"{fmt_time(model.window_start_utc)} \u2192 {fmt_time(model.window_end_utc)}, every {fmt(model.departure_step_h, 1)} h"],
         ["weather", f"{prov.weather_source or 'unknown source'}: {', '.join(map(str, prov.weather_products)) or DASH}; {span}"],
-        ["vessel / model / limits", f"{prov.vessel.get('name', DASH) if prov.vessel else DASH} / {prov.speed_loss_model or DASH} / {prov.thresholds_profile or DASH}"],
+        ["vessel / model / limits", f"{_vessels_line(model, prov)} / {prov.speed_loss_model or DASH} / {prov.thresholds_profile or DASH}"],
     ]
     note = el("p", "Deltas are proposed minus historical, summed over the proposed reroutes; negative time, fuel and CO2 are savings.", class_="muted")
     return join([el("h2", "Summary"), cards, table(None, rows), note])

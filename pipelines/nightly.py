@@ -959,9 +959,14 @@ def _limits_of(night: Night, vessel):
     return night.limits.limits_for(vessel.vessel_class, vessel.lpp_m) if hasattr(night.limits, "limits_for") else night.limits
 
 
+def _vessel_name(night: Night, path_id: str) -> str | None:
+    """The vessel profile sailing this lane (lanes of one night differ in vessel class)."""
+    return next((p.vessel_profile for p in night.paths if p.path_id == path_id), None)
+
+
 def _hs_limit_m(night: Night, path_id: str) -> float | None:
-    """The Hs limit of the vessel sailing this lane (lanes of one night differ in vessel class)."""
-    profile = next((p.vessel_profile for p in night.paths if p.path_id == path_id), None)
+    """The Hs limit of the vessel sailing this lane."""
+    profile = _vessel_name(night, path_id)
     if profile is None:
         return None
     return getattr(_limits_of(night, night.vessels[profile]), "hs_max_m", None)
@@ -991,7 +996,8 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
         rules = [r["text"] for r in case["reasons"]] or list(filter(None, row["rules"].split(",")))
         if case["outcome"] is None:
             departures.append(lane_departure_model(lane_id=row["path_id"], origin=row["origin"], destination=row["destination"],
-                                                   depart_utc=row["depart_utc"], rules=rules, error=row["error"]))
+                                                   depart_utc=row["depart_utc"], rules=rules, error=row["error"],
+                                                   vessel=_vessel_name(night, row["path_id"])))
             continue
         evs = case["outcome"]["evaluations"]
         links = export_alternatives({role: evs[role].route for role in ROLES if role in evs}, out / "exports",
@@ -1002,7 +1008,7 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
             lane_id=row["path_id"], origin=row["origin"], destination=row["destination"], depart_utc=row["depart_utc"],
             rules=rules, evaluations=evs, table=case["outcome"]["table"], proposed=case["outcome"]["proposed"],
             weather_ds=night.weather_ds, exports=links, risk_avoided=row["risk_avoided_h"],
-            hs_limit_m=_hs_limit_m(night, row["path_id"])))
+            hs_limit_m=_hs_limit_m(night, row["path_id"]), vessel=_vessel_name(night, row["path_id"])))
     vessel = _most_common_vessel(night)
     limits = _limits_of(night, vessel)
     profiles = sorted({p.vessel_profile for p in night.paths})

@@ -227,7 +227,7 @@ def voyage_audit_model(out: dict, *, mmsi: int, static=None, voyage: dict | None
 def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, rules=(), evaluations: dict | None = None,
                          table: pd.DataFrame | None = None, proposed: str | None = None, weather_ds=None,
                          exports: dict | None = None, error: str | None = None, risk_avoided: float | None = None,
-                         hs_limit_m: float | None = None):
+                         hs_limit_m: float | None = None, vessel: str | None = None):
     """One nightly lane-departure for the report: adverse with its evaluated routes, or failed with ``error``.
 
     The worst point is where the historical (lane) route meets its highest Hs; the map's weather
@@ -238,11 +238,12 @@ def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, 
 
     if error is not None:
         return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="failed",
-                             rules=list(rules), error=str(error))
+                             rules=list(rules), error=str(error), vessel=vessel)
     if not evaluations:
         raise ValueError(f"lane {lane_id}: an adverse lane-departure needs its evaluated routes")
     snapshot, worst = _snapshot_for(evaluations, weather_ds)
     routes = route_set_from_evaluations(evaluations, table, proposed, weather=snapshot, exports=exports, hs_limit_m=hs_limit_m)
     return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="adverse",
                          rules=list(rules), worst_time_utc=worst["time_utc"], worst_lat_deg=worst["lat_deg"],
-                         worst_lon_deg=worst["lon_deg"], worst_hs_m=worst["hs_m"], routes=routes, risk_avoided=risk_avoided)
+                         worst_lon_deg=worst["lon_deg"], worst_hs_m=worst["hs_m"], routes=routes, risk_avoided=risk_avoided,
+                         vessel=vessel)

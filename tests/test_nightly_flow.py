@@ -183,6 +183,10 @@ def test_report_and_exports_are_written(world, night):
     for lane, hs_limit in drawn:
         v = load_vessel(vessel_of[lane])
         assert hs_limit == profile.limits_for(v.vessel_class, v.lpp_m).hs_max_m
+    # and the lanes-at-risk table names that vessel on every row
+    assert all(c["vessel"] == vessel_of[c["lane_id"]] for c in model["departures"])
+    if len({c["vessel"] for c in model["departures"]}) > 1:
+        assert "lanes at risk)" in html
     geo = sorted((out / "exports").glob("*.geojson"))
     assert len(geo) == summary["adverse"]
     first = json.loads(geo[0].read_text(encoding="utf-8"))
