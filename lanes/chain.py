@@ -9,8 +9,9 @@
 5. :func:`lanes.interpolate.resample_voyages` - regular time step on great circles;
 6. :func:`lanes.extract.extract_lanes` - DBSCAN on position and motion per O-D pair.
 
-The Prefect flow (``pipelines/lanes.py``) wraps this function between a reader and a writer;
-the benchmark and the tests call it directly.
+Steps 1-5 are :func:`prepare_chain`, step 6 plus the summary :func:`finish_chain`. The Prefect
+flow (``pipelines/lanes.py``) runs them between a reader and a writer, with step 6 fanned out one
+task per origin-destination partition; the benchmark and the tests call ``build_lanes`` directly.
 """
 
 from __future__ import annotations
@@ -61,32 +62,29 @@ class ChainResult:
     summary: dict
 
 
-def build_lanes(positions: pd.DataFrame, known_ports: pd.DataFrame | None = None,
-                params: ChainParams | None = None) -> ChainResult:
-    """Run the whole chain on canonical AIS positions.
+@dataclass
+class PreparedChain:
+    """The serial part of the chain (steps 1-5): everything lane extraction needs."""
 
-    Parameters
-    ----------
-    positions : DataFrame
-        Canonical AIS positions (``params.id_col``, ``time_utc``, ``lat_deg``, ``lon_deg``,
-        ``sog_kn``; other columns are ignored).
-    known_ports : DataFrame, optional
-        The port list (``locode``, ``name``, ``lat_deg``, ``lon_deg``), e.g. ``data/ports.csv``.
-    params : ChainParams
+    ports: pd.DataFrame
+    stops: pd.DataFrame
+    voyages: pd.DataFrame
+    points: pd.DataFrame
+    n_positions: int
+    n_jumps: int
+    timings: dict
 
-    Returns
-    -------
-    ChainResult
-        ``summary`` holds ``{"ports", "voyages", "lanes", "noise_points"}`` (the CLI contract;
-        ``voyages`` counts port-to-port voyages) and more detail.
-    """
+
+def prepare_chain(positions: pd.DataFrame, known_ports: pd.DataFrame | None = None,
+                  params: ChainParams | None = None) -> PreparedChain:
+    """Steps 1-5 of the chain (jump filter, stops, ports, voyages, resampling); see :func:`build_lanes`."""
     params = params or ChainParams()
     timings: dict[str, float] = {}
-    t0 = time.perf_counter()
+    t = time.perf_counter()
     cols = [c for c in (params.id_col, "time_utc", "lat_deg", "lon_deg", "sog_kn") if c in positions.columns]
     pts = sort_track_points(positions[cols], params.id_col)
     pts, n_jumps = drop_position_jumps(pts, params.max_jump_speed_kn, id_col=params.id_col)
-    timings["clean_s"] = time.perf_counter() - t0
+    timings["clean_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
     stops = detect_stops(pts, params.stops, id_col=params.id_col)
@@ -109,21 +107,28 @@ def build_lanes(positions: pd.DataFrame, known_ports: pd.DataFrame | None = None
     t = time.perf_counter()
     points = resample_voyages(pts, voyages, params.resample)
     timings["resample_s"] = time.perf_counter() - t
+    return PreparedChain(ports, stops, voyages, points, int(len(positions)), int(n_jumps), timings)
 
-    t = time.perf_counter()
-    lanes = extract_lanes(points, params.lanes)
-    timings["lanes_s"] = time.perf_counter() - t
-    timings["total_s"] = time.perf_counter() - t0
 
+def finish_chain(prep: PreparedChain, lanes: LaneResult, lanes_s: float) -> ChainResult:
+    """The chain's result from the serial part and the lanes of every partition (step 6).
+
+    ``lanes`` is :func:`lanes.extract.extract_lanes` of ``prep.points``, or the same computed
+    partition by partition and merged with :func:`lanes.extract.merge_lane_results`; ``lanes_s``
+    is the wall time it took. ``timings["total_s"]`` is the sum of the step times.
+    """
+    timings = {**prep.timings, "lanes_s": lanes_s}
+    timings["total_s"] = sum(timings.values())
+    ports, voyages, points = prep.ports, prep.voyages, prep.points
     kinds = voyages["kind"].value_counts().to_dict() if len(voyages) else {}
     summary = {
         "ports": int(len(ports)),
         "voyages": int(kinds.get("port_to_port", 0)),
         "lanes": int(len(lanes.lanes)),
         "noise_points": int(lanes.n_noise),
-        "positions": int(len(positions)),
-        "dropped_jumps": int(n_jumps),
-        "stops": int(len(stops)),
+        "positions": prep.n_positions,
+        "dropped_jumps": prep.n_jumps,
+        "stops": int(len(prep.stops)),
         "named_ports": int((ports["kind"] == "port").sum()) if len(ports) else 0,
         "voyage_kinds": {k: int(v) for k, v in kinds.items()},
         "resampled_points": int(len(points)),
@@ -132,7 +137,37 @@ def build_lanes(positions: pd.DataFrame, known_ports: pd.DataFrame | None = None
         "timings": {k: round(v, 3) for k, v in timings.items()},
     }
     log.info("lanes chain: %s", summary)
-    return ChainResult(ports, stops, voyages, points, lanes, lane_voyage_table(points, lanes.point_lane), summary)
+    return ChainResult(ports, prep.stops, voyages, points, lanes, lane_voyage_table(points, lanes.point_lane), summary)
+
+
+def build_lanes(positions: pd.DataFrame, known_ports: pd.DataFrame | None = None,
+                params: ChainParams | None = None) -> ChainResult:
+    """Run the whole chain on canonical AIS positions.
+
+    :func:`prepare_chain` (steps 1-5), :func:`lanes.extract.extract_lanes` (step 6, every
+    origin-destination partition in this process), :func:`finish_chain`. The Prefect lanes flow
+    runs the same three pieces with step 6 fanned out, one task per partition.
+
+    Parameters
+    ----------
+    positions : DataFrame
+        Canonical AIS positions (``params.id_col``, ``time_utc``, ``lat_deg``, ``lon_deg``,
+        ``sog_kn``; other columns are ignored).
+    known_ports : DataFrame, optional
+        The port list (``locode``, ``name``, ``lat_deg``, ``lon_deg``), e.g. ``data/ports.csv``.
+    params : ChainParams
+
+    Returns
+    -------
+    ChainResult
+        ``summary`` holds ``{"ports", "voyages", "lanes", "noise_points"}`` (the CLI contract;
+        ``voyages`` counts port-to-port voyages) and more detail.
+    """
+    params = params or ChainParams()
+    prep = prepare_chain(positions, known_ports, params)
+    t = time.perf_counter()
+    lanes = extract_lanes(prep.points, params.lanes)
+    return finish_chain(prep, lanes, time.perf_counter() - t)
 
 
 def voyages_as_table(voyages: pd.DataFrame) -> pd.DataFrame:
@@ -143,4 +178,4 @@ def voyages_as_table(voyages: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-__all__ = ["ChainParams", "ChainResult", "build_lanes", "voyages_as_table"]
+__all__ = ["ChainParams", "ChainResult", "PreparedChain", "build_lanes", "finish_chain", "prepare_chain", "voyages_as_table"]

@@ -436,40 +436,76 @@ def _build_lane(c: dict, lane_id: str, key: tuple[int, int], params: LaneParams)
     return lane, cents
 
 
-def extract_lanes(points: pd.DataFrame, params: LaneParams | None = None) -> LaneResult:
-    """Lanes of every partition: the driver around :func:`extract_lanes_for_pair`.
+def partition_rows(points: pd.DataFrame, include_loops: bool = True) -> list[tuple[tuple[int, int], np.ndarray]]:
+    """The partitions of ``points``: ``(key, row positions)`` per key, keys in ascending order.
 
-    Partitions are independent (nothing is shared but ``params``), so this is equivalent to
-    running :func:`extract_lanes_for_pair` on each partition separately (on a cluster, one task
-    per partition) and concatenating, which is what the tests check.
+    The key of a point is :func:`partition_key` of its voyage's ``origin_port_id`` and
+    ``dest_port_id`` (0 = unknown end). Row positions are ``iloc`` positions, ascending; every row
+    is in exactly one partition.
     """
-    params = params or LaneParams()
-    n = len(points)
-    point_lane = np.full(n, None, dtype=object)
-    if n == 0:
-        return LaneResult(_empty(LANE_COLUMNS), _empty(CENTROID_COLUMNS), point_lane, 0)
+    if len(points) == 0:
+        return []
     o = points["origin_port_id"].to_numpy(dtype=np.int64)
     d = points["dest_port_id"].to_numpy(dtype=np.int64)
-    keys = [partition_key(a, b, params.include_loops) for a, b in zip(*np.unique(np.column_stack([o, d]), axis=0).T)]
-    lanes, cents, parts = [], [], {}
-    n_noise = n_slow = n_sampled = 0
-    for key in sorted(set(keys)):
+    keys = {partition_key(a, b, include_loops) for a, b in zip(*np.unique(np.column_stack([o, d]), axis=0).T)}
+    out = []
+    for key in sorted(keys):
         if key == TRANSIT:
-            m = ~((o > 0) & (d > 0) & ((o != d) | params.include_loops))
+            m = ~((o > 0) & (d > 0) & ((o != d) | include_loops))
         else:
             m = (o == key[0]) & (d == key[1])
-        idx = np.flatnonzero(m)
-        res = extract_lanes_for_pair(points.iloc[idx], params, key)
-        point_lane[idx] = res.point_lane
+        out.append((key, np.flatnonzero(m)))
+    return out
+
+
+def merge_lane_results(n_points: int, parts) -> LaneResult:
+    """Merge per-partition results into the result of the whole point set (pure, deterministic).
+
+    Parameters
+    ----------
+    n_points : int
+        Number of points of the whole set (``point_lane`` of the merge has this length).
+    parts : iterable of (key, rows, LaneResult)
+        One entry per partition: its key, its row positions in the whole set
+        (:func:`partition_rows`) and :func:`extract_lanes_for_pair` of those rows.
+
+    Returns
+    -------
+    LaneResult
+        Lanes and centroids concatenated in ascending key order (whatever order ``parts`` came
+        in, e.g. the completion order of tasks on a cluster), each point's lane scattered back to
+        its row, counts summed.
+    """
+    point_lane = np.full(n_points, None, dtype=object)
+    lanes, cents, info = [], [], {}
+    n_noise = n_slow = n_sampled = 0
+    for key, rows, res in sorted(parts, key=lambda part: tuple(part[0])):
+        point_lane[rows] = res.point_lane
         lanes.append(res.lanes)
         cents.append(res.centroids)
         n_noise += res.n_noise
         n_slow += res.n_slow
         n_sampled += res.n_sampled_partitions
-        parts.update(res.partitions)
-    lanes_df = pd.concat([x for x in lanes if len(x)], ignore_index=True) if any(len(x) for x in lanes) else _empty(LANE_COLUMNS)
-    cents_df = pd.concat([x for x in cents if len(x)], ignore_index=True) if any(len(x) for x in cents) else _empty(CENTROID_COLUMNS)
-    return LaneResult(lanes_df, cents_df, point_lane, n_noise, n_slow, n_sampled, parts)
+        info.update(res.partitions)
+    lanes = [x for x in lanes if len(x)]
+    cents = [x for x in cents if len(x)]
+    lanes_df = pd.concat(lanes, ignore_index=True) if lanes else _empty(LANE_COLUMNS)
+    cents_df = pd.concat(cents, ignore_index=True) if cents else _empty(CENTROID_COLUMNS)
+    return LaneResult(lanes_df, cents_df, point_lane, n_noise, n_slow, n_sampled, info)
+
+
+def extract_lanes(points: pd.DataFrame, params: LaneParams | None = None) -> LaneResult:
+    """Lanes of every partition: the driver around :func:`extract_lanes_for_pair`.
+
+    Partitions are independent (nothing is shared but ``params``), so this is equivalent to
+    running :func:`extract_lanes_for_pair` on each partition of :func:`partition_rows` separately
+    (on a cluster, one task per partition, as the Prefect lanes flow does) and merging with
+    :func:`merge_lane_results`, which is exactly what this function does in one process.
+    """
+    params = params or LaneParams()
+    parts = partition_rows(points, params.include_loops)
+    return merge_lane_results(len(points), [(key, rows, extract_lanes_for_pair(points.iloc[rows], params, key))
+                                            for key, rows in parts])
 
 
 def lane_voyage_table(points: pd.DataFrame, point_lane: np.ndarray) -> pd.DataFrame:

@@ -59,6 +59,8 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, Field, field_validator
 
+from pipelines.runners import make_task_runner  # noqa: F401 (moved there, shared with the lanes flow)
+from pipelines.runners import retry_transient as _retry_transient
 from pipelines.storage import DEFAULT_DB
 from thresholds.errors import StormlaneError
 
@@ -1248,39 +1250,6 @@ def demo_report_step(ctx) -> dict:
     ctx.echo(f"  {night['exports']} export files in {Path(night['out']) / 'exports'}; model {Path(night['out']) / 'report.json'}")
     ctx.echo(f"  nightly report: {night['report']}")
     return {"report": night["report"], "out": night["out"]}
-
-
-def make_task_runner(spec: str | None):
-    """``sequential`` (one thread), ``dask`` (a local ``distributed`` cluster, one single-threaded
-    worker process per core) or ``dask:ADDRESS`` (an existing Dask scheduler)."""
-    import os
-
-    spec = (spec or "sequential").strip()
-    if spec == "sequential":
-        from prefect.task_runners import ThreadPoolTaskRunner
-
-        return ThreadPoolTaskRunner(max_workers=1)
-    if spec == "dask" or spec.startswith("dask:"):
-        from prefect_dask import DaskTaskRunner
-
-        address = spec[5:].strip()
-        if address:
-            return DaskTaskRunner(address=address)
-        n = max(1, min(os.cpu_count() or 1, 8))
-        return DaskTaskRunner(cluster_kwargs={"n_workers": n, "threads_per_worker": 1, "processes": True, "dashboard_address": ":0"})
-    raise NightlyError(f"--task-runner {spec!r}: use sequential, dask or dask:ADDRESS (e.g. dask:tcp://10.0.0.5:8786)")
-
-
-def _retry_transient(task_, task_run, state) -> bool:
-    """Retry transient failures (network, a workspace locked by another writer), never bad input
-    or missing coverage (a :class:`StormlaneError` says what to change; retrying cannot fix it)."""
-    try:
-        state.result()
-    except StormlaneError:
-        return False
-    except Exception:  # noqa: BLE001
-        return True
-    return False
 
 
 def _retry_fetch(task_, task_run, state) -> bool:

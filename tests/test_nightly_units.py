@@ -35,7 +35,8 @@ def test_resolve_now_parses_or_floors_the_clock():
 def test_parameters_are_validated_before_the_run():
     from pydantic import ValidationError
 
-    from pipelines.nightly import NightlyError, NightlyParams, make_task_runner
+    from pipelines.nightly import NightlyParams, make_task_runner
+    from pipelines.runners import TaskRunnerError
 
     with pytest.raises(ValidationError, match="unknown speed-loss model"):
         NightlyParams(speed_loss="magic")
@@ -43,7 +44,7 @@ def test_parameters_are_validated_before_the_run():
         NightlyParams(step_h=0)
     with pytest.raises(ValidationError, match="ISO 8601"):
         NightlyParams(now="tomorrow")
-    with pytest.raises(NightlyError, match="sequential, dask or dask:ADDRESS"):
+    with pytest.raises(TaskRunnerError, match="sequential, dask or dask:ADDRESS"):
         make_task_runner("threads")
     assert type(make_task_runner("sequential")).__name__ == "ThreadPoolTaskRunner"
     assert make_task_runner("dask:tcp://127.0.0.1:8786").address == "tcp://127.0.0.1:8786"

@@ -1,0 +1,152 @@
+"""Lanes fan out by origin-destination pair (issue 7 item 5): Dask task runner == sequential run.
+
+The workspace holds the demo scenario's positions (seed 0, 30 days; the fixes its ships reported,
+as ``tests/test_lanes_demo.py`` builds them) ingested through the real ingest. The sequential
+reference is ``run_lanes`` (the default ``stormlane lanes`` path: no Prefect, every partition in
+this process); the scale-out run is the Prefect lanes flow with one task per partition on a
+2-worker ``distributed.LocalCluster``. Both write the workspace tables, which must be identical.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+TABLES = ("ports", "voyages", "lanes", "lane_centroids", "lane_voyages")
+
+
+def _tables(db) -> dict:
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import (
+        read_lane_centroids,
+        read_lane_voyages,
+        read_lanes,
+        read_last_run,
+        read_ports,
+        read_voyages,
+    )
+
+    with open_workspace(db) as ws:
+        out = {"ports": read_ports(ws), "voyages": read_voyages(ws), "lanes": read_lanes(ws),
+               "lane_centroids": read_lane_centroids(ws), "lane_voyages": read_lane_voyages(ws)}
+        last = read_last_run(ws)
+    out["counts"] = {k: last[k] for k in ("n_positions", "ports", "voyages", "lanes", "noise_points")}
+    return out
+
+
+@pytest.fixture(scope="module")
+def demo_workspace(tmp_path_factory):
+    from lanes.scenario import ScenarioSettings, generate_scenario
+    from pipelines.demo import DEMO_DAYS, DEMO_SEED
+    from pipelines.ingest import ingest_paths
+    from pipelines.scenario import load_scenario_spec
+
+    sc = generate_scenario(load_scenario_spec(), ScenarioSettings(seed=DEMO_SEED, start_utc=pd.Timestamp("2025-01-01T00:00Z"),
+                                                                  days=DEMO_DAYS))
+    fixes = sc.fixes[sc.fixes["received"]]
+    nan = np.full(len(fixes), np.nan)
+    positions = pd.DataFrame({
+        "mmsi": fixes["mmsi"].to_numpy(dtype=np.int64),
+        "time_utc": pd.to_datetime(fixes["time_s"].to_numpy(), unit="s", utc=True),
+        "lat_deg": fixes["lat_deg"].to_numpy(dtype=float), "lon_deg": fixes["lon_deg"].to_numpy(dtype=float),
+        "sog_kn": fixes["sog_kn"].to_numpy(dtype=float), "cog_deg": nan, "heading_deg": nan, "nav_status": nan,
+    })
+    tmp = tmp_path_factory.mktemp("lanes_scaleout")
+    path = tmp / "demo_positions.parquet"
+    positions.to_parquet(path)
+    db = tmp / "ws.duckdb"
+    assert ingest_paths([path], db)["loaded"] == len(positions)
+    return db
+
+
+@pytest.mark.slow
+def test_lanes_on_a_two_worker_dask_cluster_equal_the_sequential_run(demo_workspace, prefect_harness):
+    from distributed import LocalCluster, get_task_stream
+
+    from pipelines.lanes import LanesSettings, flow_with_runner, run_lanes
+
+    db = demo_workspace
+    seq = run_lanes(db)
+    expected = _tables(db)
+    # the demo has many port pairs (issue 3: at least 12 sailed pairs), so the fan-out is real
+    assert expected["counts"]["lanes"] >= 12 and seq["details"]["resampled_points"] > 0
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
+        from distributed import Client
+
+        with Client(cluster) as client, get_task_stream(client) as stream:
+            out = flow_with_runner(f"dask:{cluster.scheduler_address}")(db=str(db), settings=LanesSettings())
+        workers = {t["worker"] for t in stream.data}
+
+    got = _tables(db)
+    assert out["run_id"] == seq["run_id"] + 1  # the flow really wrote its own result
+    for name in TABLES:
+        assert len(got[name]) == len(expected[name]) > 0, name
+        pd.testing.assert_frame_equal(got[name], expected[name], check_exact=True, obj=name)
+    assert got["counts"] == expected["counts"]
+    assert {k: out[k] for k in ("ports", "voyages", "lanes", "noise_points")} == \
+        {k: seq[k] for k in ("ports", "voyages", "lanes", "noise_points")}
+    drop = ("timings", "partition_tasks")
+    assert {k: v for k, v in out["details"].items() if k not in drop} == {k: v for k, v in seq["details"].items() if k != "timings"}
+    # one task per O-D pair of the stored voyages, plus one for the voyages with an unknown end,
+    # each one Dask task, spread over both worker processes
+    v = expected["voyages"]
+    both = v["origin_port_id"].notna() & v["dest_port_id"].notna()
+    n_parts = len(v[both].groupby(["origin_port_id", "dest_port_id"])) + int((~both).any())
+    assert out["details"]["partition_tasks"] == n_parts == len(stream.data)
+    assert len(workers) == 2, workers
+
+
+def test_merge_is_independent_of_partition_completion_order():
+    """Partitions merged in any order (as tasks finish on a cluster) give extract_lanes' result."""
+    from lanes.extract import LaneParams, extract_lanes, extract_lanes_for_pair, merge_lane_results, partition_rows
+
+    rng = np.random.default_rng(7)
+    frames = []
+    # three O-D pairs (1->2 eastbound, 2->1 westbound, 3->1) and a transit voyage set, 4 voyages each
+    for (o, d, lat0, course) in ((1, 2, 40.0, 90.0), (2, 1, 40.05, 270.0), (3, 1, 41.0, 180.0), (0, 2, 39.0, 90.0)):
+        for v in range(4):
+            n = 60
+            t = pd.Timestamp("2025-01-01T00:00Z") + pd.Timedelta(hours=v * 7) + pd.to_timedelta(np.arange(n) * 300, unit="s")
+            step = 12.0 * 300 / 3600 / 60  # 12 kn in degrees of arc per step
+            along = np.arange(n) * step
+            lat = lat0 + (along * np.cos(np.radians(course))) + rng.normal(0, 0.002, n)
+            lon = 3.0 + along * np.sin(np.radians(course)) / np.cos(np.radians(lat0)) + rng.normal(0, 0.002, n)
+            frames.append(pd.DataFrame({
+                "voyage": f"{o}-{d}-{v}", "track": 100 + v, "origin_port_id": o, "dest_port_id": d, "time_utc": t,
+                "lat_deg": lat, "lon_deg": lon, "speed_kn": 12.0 + rng.normal(0, 0.3, n), "course_deg": course, "run": 0,
+            }))
+    points = pd.concat(frames, ignore_index=True).sample(frac=1.0, random_state=3).reset_index(drop=True)
+    params = LaneParams(min_voyages=3)
+    whole = extract_lanes(points, params)
+    parts = partition_rows(points, params.include_loops)
+    assert [k for k, _ in parts] == [(0, 0), (1, 2), (2, 1), (3, 1)]
+    assert sorted(np.concatenate([r for _, r in parts]).tolist()) == list(range(len(points)))
+    done = [(key, rows, extract_lanes_for_pair(points.iloc[rows], params, key)) for key, rows in parts]
+    merged = merge_lane_results(len(points), done[::-1])
+    assert len(whole.lanes) == 4  # one lane per partition: the hand-built traffic has one stream each
+    assert sorted(whole.lanes["lane_id"]) == ["1-2-1", "2-1-1", "3-1-1", "T-1"]
+    pd.testing.assert_frame_equal(merged.lanes, whole.lanes, check_exact=True)
+    pd.testing.assert_frame_equal(merged.centroids, whole.centroids, check_exact=True)
+    assert list(merged.point_lane) == list(whole.point_lane)
+    assert (merged.n_noise, merged.n_slow, merged.partitions) == (whole.n_noise, whole.n_slow, whole.partitions)
+    # each point carries the lane of its own partition
+    lane_pair = dict(zip(whole.lanes["lane_id"], zip(whole.lanes["origin_port_id"], whole.lanes["dest_port_id"])))
+    for lane, o, d in zip(merged.point_lane, points["origin_port_id"], points["dest_port_id"]):
+        if lane is not None:
+            assert lane_pair[lane] == ((o, d) if o > 0 else (0, 0))
+
+
+def test_a_bad_task_runner_spec_is_one_line_and_exit_code_2(tmp_path, capsys):
+    from pipelines.cli import main
+
+    db = tmp_path / "never.duckdb"
+    for spec in ("threads", "dask:", "ray:tcp://x:1"):
+        capsys.readouterr()
+        with pytest.raises(SystemExit) as exc:
+            main(["lanes", "--db", str(db), "--task-runner", spec])
+        err = capsys.readouterr().err.strip()
+        assert exc.value.code == 2, spec
+        assert "\n" not in err and "--task-runner" in err and "sequential, dask or dask:ADDRESS" in err, err
+        assert not db.exists()  # rejected before anything started
