@@ -15,6 +15,14 @@ process, ``resource.getrusage``):
 
 Targets (issue 3): whole set < 60 s and < 4 GB peak on 2 cores.
 Usage: ``.venv/bin/python bench/lanes.py [--data PATH] [--skip-baseline]``.
+
+``--scaleout [--days N]`` instead times the lane-extraction stage (one task per
+origin-destination pair, issue 7 item 5) on the demo scenario's positions (built and ingested
+untimed): in-process without Prefect (``stormlane lanes``' default), through the Prefect flow with
+the sequential task runner, and on a 2-worker ``distributed.LocalCluster`` through the Dask task
+runner (fresh cluster, then the same cluster again), plus ``--task-runner dask`` starting its own
+cluster; it checks that every run wrote the same tables. (The Ushant set is a single "transit"
+partition, having no ports, so it cannot fan out.)
 """
 
 from __future__ import annotations
@@ -96,6 +104,92 @@ def run_baseline(data: Path, limit_gb: float, rows: int = SUBSET_ROWS) -> dict:
             "clusters": int(labels.max() + 1), "noise_frac": round(float((labels < 0).mean()), 3)}
 
 
+def _scaleout_workspace(days: float) -> Path:
+    import tempfile
+
+    import numpy as np
+    import pandas as pd
+
+    from lanes.scenario import ScenarioSettings, generate_scenario
+    from pipelines.ingest import ingest_paths
+    from pipelines.scenario import load_scenario_spec
+
+    sc = generate_scenario(load_scenario_spec(), ScenarioSettings(seed=0, start_utc=pd.Timestamp("2025-01-01T00:00Z"), days=days))
+    f = sc.fixes[sc.fixes["received"]]
+    nan = np.full(len(f), np.nan)
+    folder = Path(tempfile.mkdtemp(prefix="stormlane-bench-lanes-"))
+    pd.DataFrame({
+        "mmsi": f["mmsi"].to_numpy(dtype=np.int64), "time_utc": pd.to_datetime(f["time_s"].to_numpy(), unit="s", utc=True),
+        "lat_deg": f["lat_deg"].to_numpy(dtype=float), "lon_deg": f["lon_deg"].to_numpy(dtype=float),
+        "sog_kn": f["sog_kn"].to_numpy(dtype=float), "cog_deg": nan, "heading_deg": nan, "nav_status": nan,
+    }).to_parquet(folder / "positions.parquet")
+    ingest_paths([folder / "positions.parquet"], folder / "ws.duckdb")
+    return folder / "ws.duckdb"
+
+
+def _tables_digest(db: Path) -> str:
+    import hashlib
+
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_lane_centroids, read_lane_voyages, read_lanes, read_ports, read_voyages
+
+    h = hashlib.sha256()
+    with open_workspace(db) as ws:
+        for df in (read_ports(ws), read_voyages(ws), read_lanes(ws), read_lane_centroids(ws), read_lane_voyages(ws)):
+            h.update(df.to_csv(index=False, float_format="%.17g").encode())
+    return h.hexdigest()[:16]
+
+
+def run_scaleout(days: float) -> None:
+    import logging
+
+    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    os.environ.setdefault("DO_NOT_TRACK", "1")
+    os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
+    logging.getLogger("distributed").setLevel(logging.WARNING)
+    from distributed import Client, LocalCluster
+
+    from pipelines.lanes import flow_with_runner, run_lanes
+
+    t = time.perf_counter()
+    db = _scaleout_workspace(days)
+    print(f"lanes scale-out benchmark: demo scenario, {days:g} days, built and ingested in {time.perf_counter() - t:.1f} s "
+          f"(not timed); {os.cpu_count()} cores, shared machine: noisy")
+    rows = []
+
+    def timed(label, fn):
+        t0 = time.perf_counter()
+        out = fn()
+        wall = time.perf_counter() - t0
+        rows.append((label, wall, out["details"]["timings"]["lanes_s"], out, _tables_digest(db)))
+
+    timed("in process, no Prefect (default)", lambda: run_lanes(db))
+    timed("flow, sequential (Prefect start-up)", lambda: flow_with_runner("sequential")(db=str(db)))
+    timed("flow, sequential (again)", lambda: flow_with_runner("sequential")(db=str(db)))
+    t0 = time.perf_counter()
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0")
+    client = Client(cluster)
+    t_cluster = time.perf_counter() - t0
+    try:
+        address = f"dask:{cluster.scheduler_address}"
+        timed("flow, dask 2 workers (fresh)", lambda: flow_with_runner(address)(db=str(db)))
+        timed("flow, dask 2 workers (again)", lambda: flow_with_runner(address)(db=str(db)))
+    finally:
+        client.close()
+        cluster.close()
+    timed("flow, --task-runner dask (own)", lambda: flow_with_runner("dask")(db=str(db)))
+    d = rows[0][3]
+    print(f"{d['details']['resampled_points']:,} resampled points in {rows[-1][3]['details']['partition_tasks']} O-D "
+          f"partitions -> {d['lanes']} lanes; 2-worker cluster started in {t_cluster:.1f} s")
+    print(f"{'run':<38} {'wall s':>7} {'lanes stage s':>14}  tables")
+    for label, wall, lanes_s, _, digest in rows:
+        print(f"{label:<38} {wall:7.1f} {lanes_s:14.2f}  {digest}")
+    same = len({r[4] for r in rows}) == 1
+    print(f"identical tables on every runner: {same}")
+    print(json.dumps({"days": days, "cluster_start_s": round(t_cluster, 2),
+                      "runs": [{"run": r[0], "wall_s": round(r[1], 2), "lanes_s": r[2]} for r in rows], "identical": same}))
+
+
 def _child(mode: str, args) -> dict:
     cmd = [sys.executable, __file__, "--mode", mode, "--data", str(args.data), "--baseline-limit-gb", str(args.baseline_limit_gb)]
     out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
@@ -111,7 +205,12 @@ def main() -> None:
     ap.add_argument("--mode", choices=["all", "chain", "chain-1m", "baseline", "baseline-200k"], default="all")
     ap.add_argument("--baseline-limit-gb", type=float, default=8.0)
     ap.add_argument("--skip-baseline", action="store_true")
+    ap.add_argument("--scaleout", action="store_true", help="time the lanes stage sequential vs Dask on the demo scenario")
+    ap.add_argument("--days", type=float, default=30.0, help="with --scaleout: days of demo traffic (default 30)")
     args = ap.parse_args()
+    if args.scaleout:
+        run_scaleout(args.days)
+        return
     if not args.data.exists():
         print(f"bench/lanes.py: Ushant data not found at {args.data} (set STORMLANE_SHARED_DATA)", file=sys.stderr)
         sys.exit(1)
