@@ -61,7 +61,10 @@ def prefect_harness():
             PREFECT_SERVER_SERVICES_EVENT_PERSISTER_ENABLED: False,
         }
     ):
-        with prefect_test_harness():
+        # The harness starts a temporary API server (SQLite migrations first); Prefect's default
+        # 30 s wait is too short on a fresh venv on 2 busy cores, and a timeout here errors every
+        # flow test of the session.
+        with prefect_test_harness(server_startup_timeout=int(os.environ.get("STORMLANE_PREFECT_STARTUP_S", "240"))):
             yield
 
 
