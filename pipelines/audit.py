@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipelines.runners import retry_transient
 from thresholds.errors import StormlaneError
 
 log = logging.getLogger(__name__)
@@ -411,17 +412,6 @@ def run_audit(db, *, voyage_id: str | None = None, mmsi: int | None = None, star
     return store_audit(db, inputs, result, report=report, speed_loss_model=speed_loss_model)
 
 
-def _retry_io(task, task_run, state) -> bool:
-    """Retry I/O tasks on transient errors only: a user error (StormlaneError) fails at once."""
-    try:
-        state.result()
-    except StormlaneError:
-        return False
-    except Exception:  # noqa: BLE001
-        return True
-    return False
-
-
 def audit_flow(db: str, voyage_id: str | None = None, mmsi: int | None = None, start: str | None = None, end: str | None = None,
                weather: list[str] | None = None, vessel: str | None = None, profile: str | None = None,
                report: str | None = None, speed_loss_model: str = "bowditch") -> dict:
@@ -430,10 +420,10 @@ def audit_flow(db: str, voyage_id: str | None = None, mmsi: int | None = None, s
     from prefect.cache_policies import NO_CACHE
 
     # inputs are DataFrames and Datasets: no input hashing / caching (the audit is cheap to redo)
-    load = task(load_audit_inputs, name="load-audit-inputs", retries=3, retry_delay_seconds=[2, 5, 15], retry_condition_fn=_retry_io,
+    load = task(load_audit_inputs, name="load-audit-inputs", retries=3, retry_delay_seconds=[2, 5, 15], retry_condition_fn=retry_transient,
                 cache_policy=NO_CACHE)
     compute = task(audit_voyage, name="audit-voyage", cache_policy=NO_CACHE)
-    store = task(store_audit, name="store-audit", retries=3, retry_delay_seconds=[2, 5, 15], retry_condition_fn=_retry_io,
+    store = task(store_audit, name="store-audit", retries=3, retry_delay_seconds=[2, 5, 15], retry_condition_fn=retry_transient,
                  cache_policy=NO_CACHE)
 
     @flow(name="voyage-audit")
