@@ -148,6 +148,41 @@ class NightlyParams(BaseModel):
             raise NightlyError(f"invalid nightly parameters: {problems}") from None
 
 
+def preflight(params: NightlyParams) -> None:
+    """What a person can fix before a night starts, checked before Prefect starts: the
+    workspace, the weather paths and the planned voyages file exist (the flow checks them too)."""
+    if not Path(params.db).exists():
+        raise NightlyError(f"workspace {params.db} does not exist (run `stormlane demo`, or ingest-ais and lanes, first)")
+    missing = [str(w) for w in params.weather if not Path(w).exists()]
+    if missing:
+        raise NightlyWeatherError(f"weather file(s) not found: {', '.join(missing)}")
+    if params.voyages and not Path(params.voyages).is_file():
+        raise NightlyError(f"planned voyages file not found: {params.voyages}")
+
+
+class _UserErrorsWithoutTraceback(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.exc_info and isinstance(record.exc_info[1], StormlaneError):
+            record.exc_info, record.exc_text = None, None
+        return True
+
+
+@contextlib.contextmanager
+def user_errors_without_traceback():
+    """While the CLI runs a night: Prefect logs a failed run's exception with its traceback; for
+    a :class:`StormlaneError` (bad input, missing coverage) the one-line message is what the
+    user needs, so the traceback is dropped (other exceptions keep theirs)."""
+    loggers = [logging.getLogger(n) for n in ("prefect.flow_runs", "prefect.task_runs")]
+    f = _UserErrorsWithoutTraceback()
+    for lg in loggers:
+        lg.addFilter(f)
+    try:
+        yield
+    finally:
+        for lg in loggers:
+            lg.removeFilter(f)
+
+
 def parse_utc(text, what: str = "time") -> pd.Timestamp:
     """An ISO 8601 time as a tz-aware UTC Timestamp (naive input is taken as UTC)."""
     try:

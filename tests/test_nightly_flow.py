@@ -355,6 +355,21 @@ def test_cli_window_outside_the_weather_fails_early_with_a_clear_message(world, 
     assert rc == 2 and "unknown speed-loss model 'magic'" in err
     rc, _, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--task-runner", "spark")
     assert rc == 2 and "use sequential, dask or dask:ADDRESS" in err
+    # a user error inside the flow is one line, without Prefect's traceback
+    assert "Traceback" not in err
+
+
+def test_cli_missing_inputs_fail_before_the_flow_starts(world, tmp_path, capsys):
+    """Nothing a person can fix reaches Prefect: one line, exit 2, no run started."""
+    cases = [
+        (["--db", str(tmp_path / "none.duckdb")], f"error: workspace {tmp_path / 'none.duckdb'} does not exist"),
+        (["--db", str(world["db"]), "--weather", str(tmp_path / "nowhere")], f"error: weather file(s) not found: {tmp_path / 'nowhere'}"),
+        (["--db", str(world["db"]), "--voyages", str(tmp_path / "plan.csv")], f"error: planned voyages file not found: {tmp_path / 'plan.csv'}"),
+    ]
+    for args, message in cases:
+        rc, out, err = _cli(capsys, "nightly", *args, "--now", "2025-01-31T00:00Z")
+        assert rc == 2 and out == ""
+        assert len(err.strip().splitlines()) == 1 and err.strip().startswith(message)
 
 
 def test_fetched_weather_retries_network_failures_and_is_requested_for_the_night(world, night, monkeypatch):
