@@ -166,7 +166,7 @@ def _build_flow() -> dict:
 
     from lanes.chain import finish_chain, prepare_chain
     from lanes.extract import extract_lanes_for_pair, merge_lane_results
-    from pipelines.runners import retry_transient
+    from pipelines.runners import make_task_runner, retry_transient
 
     read_task = task(load_inputs, name="read positions and port lists", retries=3, retry_delay_seconds=[2, 5, 15],
                      cache_policy=NO_CACHE, retry_condition_fn=retry_transient)
@@ -176,7 +176,9 @@ def _build_flow() -> dict:
     store_task = task(store_result, name="store lanes", retries=3, retry_delay_seconds=[2, 5, 15],
                       cache_policy=NO_CACHE, retry_condition_fn=retry_transient)
 
-    @flow(name="lanes")
+    # Default runner: one partition at a time, like ``run_lanes`` (bounded memory: one DBSCAN at
+    # a time); ``flow_with_runner("dask[:ADDRESS]")`` fans the partitions out.
+    @flow(name="lanes", task_runner=make_task_runner("sequential"))
     def lanes_flow(db: str, ports_csv: Optional[list[str]] = None, settings: LanesSettings = LanesSettings()) -> dict:
         """Ports, voyages and traffic lanes from the workspace's AIS positions, one task per O-D pair."""
         params = settings.chain_params()
