@@ -433,9 +433,11 @@ def classify(stage: pd.DataFrame, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
     cand["mmsi"] = cand["mmsi"].astype("int64")
     values = ["lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg", "nav_status"]
     if len(cand):
-        first = cand.groupby(["mmsi", "time_utc"], sort=False)[values + ["line"]].transform("first")
-        ref = first[values]
-        is_first = (first["line"] == cand["line"]).to_numpy()
+        # the first row of each (mmsi, time) by line: groupby "first" would take each column's
+        # first non-null value, and an empty field would then match a later row's value
+        first_at = cand.groupby(["mmsi", "time_utc"], sort=False)["line"].transform("idxmin")
+        ref = cand.loc[first_at.to_numpy(), values].set_axis(cand.index)
+        is_first = (first_at.to_numpy() == cand.index.to_numpy())
         if existing is not None and len(existing):
             ex = existing[POSITION_COLUMNS].copy()
             ex["mmsi"] = ex["mmsi"].astype("int64")

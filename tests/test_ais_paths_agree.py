@@ -137,3 +137,19 @@ def test_jump_limit_agrees(tmp_path, limit):
     db = tmp_path / "ws.duckdb"
     ingest_paths([src], db, max_speed_kn=limit)
     compare(clean_positions(read_csv_stage(src)[0], max_speed_kn=limit), db)
+
+
+@pytest.mark.parametrize("first_cog, second_cog, reason", [("", "90.0", "duplicate_time"), ("90.0", "", "duplicate_time"),
+                                                           ("", "", "duplicate"), ("90.0", "90.0", "duplicate")])
+def test_same_time_twin_with_an_empty_field_conflicts(tmp_path, first_cog, second_cog, reason):
+    """An empty field is a value (NULL) in the comparison of same-MMSI-same-time rows: a row
+    equal to its earlier twin except that one of them has no COG is ``duplicate_time``, not an
+    exact duplicate (found by the fuzz test: pandas' groupby "first" skipped the NULL)."""
+    src = write_dma(tmp_path / "twin.csv", [DMA_LINES[0],
+                                            dma_row("01/01/2025 00:00:00", "219000001", "55.000000", "11.000000", cog=first_cog),
+                                            dma_row("01/01/2025 00:00:00", "219000001", "55.000000", "11.000000", cog=second_cog)])
+    s = ingest_paths([src], tmp_path / "ws.duckdb")
+    pure = clean_positions(read_csv_stage(src)[0])
+    counts = compare(pure, tmp_path / "ws.duckdb")
+    assert counts["reasons"] == {reason: 1} == s["reasons"]
+    assert dict(zip(pure.quarantine.line, pure.quarantine.reason)) == {3: reason}
