@@ -26,6 +26,9 @@ from thresholds.errors import StormlaneError
 
 log = logging.getLogger(__name__)
 
+#: CSV files from this size on take the typed fast path (smaller ones: one exact pass is cheaper).
+FAST_CSV_MIN_BYTES = 0
+
 SUMMARY_KEYS = ("files", "read", "loaded", "quarantined", "duplicates", "reasons", "static", "ignored", "already_loaded")
 
 
@@ -56,10 +59,28 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
         from lanes.io.files import head_text
 
         spec = SPECS[f.format]
-        first = head_text(f.path, 1 << 16).split("\n", 1)[0].rstrip("\r")
+        head = head_text(f.path, 1 << 16).split("\n", 2)
+        first = head[0].rstrip("\r")
         header = split_csv_line(first)
         index = resolve_columns(spec, header, f.path)
-        info = store.stage_csv(ws, f.path, f.gzip, spec, index, len(header), header=first)
+        info = None
+        if not f.gzip and f.size_bytes >= FAST_CSV_MIN_BYTES:
+            # Typed scanner + line index (built in a thread meanwhile); None = exact path needed.
+            from concurrent.futures import ThreadPoolExecutor
+
+            from lanes.io.csv_formats import sniff_time_format
+            from lanes.io.lineindex import LineIndex
+
+            fmt = sniff_time_format(spec, header, index, head[1].rstrip("\r") if len(head) > 1 else "")
+            with ThreadPoolExecutor(max_workers=1) as pool:
+                ix = pool.submit(LineIndex, f.path)
+                try:
+                    info = store.stage_csv_fast(ws, f.path, spec, index, len(header), first, ix, fmt)
+                finally:
+                    if info is None:
+                        ix.result().close()
+        if info is None:
+            info = store.stage_csv(ws, f.path, f.gzip, spec, index, len(header), header=first)
     elif f.format == "parquet":
         from lanes.io.parquet import column_mapping
 
@@ -104,24 +125,28 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
             progress(f.size_bytes)
         return {"path": str(f.path), "format": f.format, "read": 0, "loaded": 0, "quarantined": 0, "duplicates": 0,
                 "static": 0, "ignored": 0, "reasons": {}, "already_loaded": True, "file_id": done["file_id"]}
+    info = None
     try:
         info = stage_file(ws, f, progress)
         fp = full.result()
         if store.file_record(ws, fp) is not None:  # same bytes, different quick key: impossible
             raise RuntimeError(f"{f.path}: fingerprint already loaded")
         meta = {"fingerprint": fp, "quick_key": quick, "path": str(f.path), "format": f.format,
-                "size_bytes": f.size_bytes, "ignored": info["ignored"]}
+                "size_bytes": f.size_bytes, "ignored": info["ignored"], "line_index": info.get("line_index")}
         counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit)
     except BaseException:
         store.discard_stage(ws)
         raise
     finally:
         pool.shutdown(wait=True)
+        if info is not None and info.get("line_index") is not None:
+            info["line_index"].close()
     if progress is not None:
         progress(f.size_bytes - f.size_bytes // 2)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", f.path, f.format, counts["read"],
              counts["loaded"], counts["quarantined"], counts["duplicates"])
-    return {"path": str(f.path), "format": f.format, **counts, "already_loaded": False}
+    return {"path": str(f.path), "format": f.format, **counts, "already_loaded": False,
+            "staging": info.get("staging", f.format)}
 
 
 def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,

@@ -14,7 +14,9 @@ trailing ``\\r`` removed):
 * Every field is trimmed of ASCII white space (:data:`WS`, as DuckDB's casts do). An empty
   field is missing.
 * MMSI: exactly 9 ASCII digits, else missing (quarantined as ``bad_mmsi``).
-* Timestamp: the spec's formats (DMA day-first ``%d/%m/%Y %H:%M:%S``; NOAA ISO-8601), UTC.
+* Timestamp: the spec's formats (DMA day-first ``%d/%m/%Y %H:%M:%S``; NOAA ISO-8601), UTC;
+  a second of 60 or more is no time (AIS uses 60-63 for "not available"), nor is a time outside
+  the range of pandas' nanosecond timestamps (1677-2262).
 * Latitude, longitude, SOG, COG, heading: a decimal number (as ``TRY_CAST(x AS DOUBLE)`` reads
   it; "nan" is not a number); other text sets ``parse_error`` to ``bad_<field>`` (the first
   such field in that order).
@@ -105,6 +107,23 @@ SHIP_TYPE_WORDS = {
     "tanker": 80,
     "other": 90,
 }
+
+def _status_spellings() -> dict[str, int]:
+    """Exact spellings of the status field with their code: the numbers 0-15 and each status
+    word in lower case, upper case, title case and sentence case (DMA writes e.g. "Under way
+    using engine", "Reserved for future amendment [HSC]"). Every spelling reads to the same
+    code under the rules above; the bulk ingest maps these directly and re-types any other
+    text with :func:`type_fields`."""
+    out = {str(i): i for i in range(16)}
+    for word, code in NAV_STATUS_WORDS.items():
+        sentence = re.sub(r"\[(\w+)\]", lambda m: "[" + m.group(1).upper() + "]", word.capitalize())
+        for s in (word, word.upper(), word.title(), word.capitalize(), sentence):
+            out.setdefault(s, code)
+    return out
+
+
+#: Status texts the bulk CSV scanner maps to a code without the generic rules (see above).
+NAV_STATUS_SPELLINGS = _status_spellings()
 
 #: Static text values that mean "not known".
 NULL_WORDS = ("", "unknown", "undefined", "n/a", "na", "none", "null")
@@ -219,6 +238,18 @@ def resolve_columns(spec: CsvSpec, header: list[str], path) -> dict[str, int]:
     return index
 
 
+def sniff_time_format(spec: CsvSpec, header: list[str], index: dict[str, int], line: str) -> str:
+    """The first of the spec's time formats that reads the timestamp of a data line (the first
+    format when none does). Rows in another format are still read, by the exact path."""
+    f = split_csv_line(line)
+    if len(f) == len(header) and "time_utc" in index:
+        text = f[index["time_utc"]].strip(WS)
+        for fmt in spec.time_formats:
+            if not pd.isna(pd.to_datetime(pd.Series([text]), format=fmt, errors="coerce")[0]):
+                return fmt
+    return spec.time_formats[0]
+
+
 def read_lines(path) -> list[str]:
     """Physical lines of a text file (gzip transparent): split on ``\\n``, one trailing ``\\r``
     removed, UTF-8 with undecodable bytes replaced. A final newline does not add a line."""
@@ -288,6 +319,10 @@ def type_fields(fields: pd.DataFrame, spec: CsvSpec) -> pd.DataFrame:
         todo = parsed.isna() & (t != "")
         if todo.any():
             parsed[todo] = pd.to_datetime(t[todo], format=fmt, errors="coerce")
+    # strptime's %S takes 60 and 61; in AIS a second of 60-63 means "time stamp not available"
+    # (ITU-R M.1371-5, Annex 2, Table 45, "Time stamp"), so such a time is not a time.
+    sec = pd.to_numeric(t.str.extract(r":(\d+)$", expand=False), errors="coerce")
+    parsed[(sec >= 60).to_numpy()] = pd.NaT
     out["time_utc"] = parsed.dt.tz_localize("UTC")
 
     for name, code in NUMERIC_FIELDS.items():
@@ -371,9 +406,22 @@ def read_csv_stage(path, spec: CsvSpec | None = None) -> tuple[pd.DataFrame, dic
     header_text = lines[0].lstrip("\ufeff")
     header = split_csv_line(header_text)
     index = resolve_columns(spec, header, path)
+    stage, blank = type_lines(enumerate(lines[1:], start=2), header_text, header, index, spec)
+    return stage, {"format": spec.format, "path": str(path), "header": header, "ignored": blank}
+
+
+def type_lines(numbered, header_text: str, header: list[str], index: dict[str, int],
+               spec: CsvSpec) -> tuple[pd.DataFrame, int]:
+    """Typed stage rows of CSV data lines given as ``(line number, text)`` pairs.
+
+    Empty lines are skipped and counted (the second value returned); lines equal to the header
+    (with or without a byte-order mark) are skipped. Every other line becomes one stage row
+    (see the module docstring for the rules). The bulk ingest uses this for the lines its
+    typed scanner cannot be trusted with, so both paths share one definition.
+    """
     rows, nums, oks = [], [], []
     blank = 0
-    for i, line in enumerate(lines[1:], start=2):
+    for i, line in numbered:
         if line == "":
             blank += 1
             continue
@@ -385,11 +433,10 @@ def read_csv_stage(path, spec: CsvSpec | None = None) -> tuple[pd.DataFrame, dic
         nums.append((i, line))
         oks.append(ok)
     fields = pd.DataFrame(rows, columns=list(index.keys()), dtype=object)
-    fields["line"] = [n for n, _ in nums]
-    fields["raw"] = [r for _, r in nums]
-    fields["n_fields_ok"] = oks
-    stage = type_fields(fields, spec)
-    return stage, {"format": spec.format, "path": str(path), "header": header, "ignored": blank}
+    fields["line"] = pd.Series([n for n, _ in nums], dtype="int64")
+    fields["raw"] = pd.Series([r for _, r in nums], dtype=object)
+    fields["n_fields_ok"] = pd.Series(oks, dtype=bool)
+    return type_fields(fields, spec), blank
 
 
 def read_dma(path) -> tuple[pd.DataFrame, dict]:

@@ -33,6 +33,7 @@ never half of it (DuckDB MVCC); other processes wait for the writer's file lock
 from __future__ import annotations
 
 import json
+import logging
 import time
 from pathlib import Path
 
@@ -43,6 +44,8 @@ import pandas as pd
 from lanes import clean as C
 from lanes.io.csv_formats import MMSI_RE, NAV_STATUS_WORDS, NULL_WORDS, SHIP_TYPE_WORDS, WS, CsvSpec, split_csv_line
 from thresholds.units import EARTH_RADIUS_NMI
+
+log = logging.getLogger(__name__)
 
 COMPONENT = "ais"
 
@@ -114,6 +117,10 @@ MIGRATIONS = [
 _NUM_FIELDS = ("lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg")
 _TOL = C.SENTINEL_TOL
 _TEXT_STATIC = tuple("s_" + c for c in C.STATIC_COLUMNS)
+#: The range of pandas nanosecond timestamps, whole seconds (the pure path reads times outside
+#: it as missing; the typed scanner would read them).
+_PD_TMIN = pd.Timestamp.min.ceil("s").to_pydatetime()
+_PD_TMAX = pd.Timestamp.max.floor("s").to_pydatetime()
 
 
 def _q(name: str) -> str:
@@ -127,6 +134,9 @@ def _prepare(con: duckdb.DuckDBPyConnection) -> None:
     # DuckDB's own progress bar would print to stdout (and break --json); ours is on stderr.
     con.execute("SET enable_progress_bar = false")
     con.execute("CREATE OR REPLACE TEMP MACRO ais_num(x) AS nullif(TRY_CAST(x AS DOUBLE), 'nan'::DOUBLE)")
+    # A parsed time outside pandas' nanosecond range is no time (as in the pure path).
+    con.execute(f"CREATE OR REPLACE TEMP MACRO ais_time(t) AS CASE WHEN t BETWEEN TIMESTAMP '{_PD_TMIN}' "
+                f"AND TIMESTAMP '{_PD_TMAX}' THEN t END")
     try:
         con.create_function("ais_csv_split", split_csv_line, ["VARCHAR"], "VARCHAR[]", side_effects=False)
     except (duckdb.CatalogException, duckdb.NotImplementedException, RuntimeError):
@@ -192,7 +202,9 @@ def _reason_case() -> str:
 
     The common case (a clean row) is tested first as one conjunction, which DuckDB evaluates
     much faster than walking the WHEN branches for every row."""
-    rec = ", ".join(f"'{c}'" for c in C.RECORD_CODES)
+    # Equalities, not an IN list: DuckDB plans a long IN list as a hash (mark) join, which does
+    # not keep the scan's row order - and the CSV stages number their rows by that order.
+    rec = " OR ".join(f"parse_error = '{c}'" for c in C.RECORD_CODES)
     clean_row = f"""kind = '{C.KIND_POSITION}' AND parse_error IS NULL
         AND mmsi >= {C.MMSI_MIN} AND mmsi <= {C.MMSI_MAX} AND time_utc >= $tmin AND time_utc < $tmax
         AND lat_deg >= -90.0 AND lat_deg <= 90.0 AND lon_deg >= -180.0 AND lon_deg <= 180.0
@@ -203,7 +215,7 @@ def _reason_case() -> str:
     return f"""CASE
         WHEN {clean_row} THEN NULL
         WHEN kind <> '{C.KIND_POSITION}' THEN NULL
-        WHEN parse_error IN ({rec}) THEN parse_error
+        WHEN {rec} THEN parse_error
         WHEN mmsi IS NULL OR mmsi < {C.MMSI_MIN} OR mmsi > {C.MMSI_MAX} THEN '{C.BAD_MMSI}'
         WHEN time_utc IS NULL OR time_utc < $tmin OR time_utc >= $tmax THEN '{C.BAD_TIME}'
         WHEN parse_error IS NOT NULL THEN parse_error
@@ -247,21 +259,31 @@ def _norm(alias: str = "") -> str:
     return ", ".join(out)
 
 
-def _create_stage(con, typed_sql: str, extra_params: dict | None = None, line_from_rowid: bool = False) -> None:
+def _create_stage(con, typed_sql: str, extra_params: dict | None = None, line_from_rowid: bool = False,
+                  table: str = "ais_stage_t") -> None:
     """``ais_stage`` = the reader's typed SELECT plus ``reason0`` (rules 1-6).
 
     Stored as ``ais_stage_t``; ``ais_stage`` is a view adding ``line`` = rowid + 1 when the
-    reader keeps one row per physical line in file order (CSV: insertion order is preserved)."""
-    sql = (f"CREATE OR REPLACE TEMP TABLE ais_stage_t AS WITH typed AS ({typed_sql}) "
+    reader keeps one row per physical line in file order (CSV: insertion order is preserved).
+    With another ``table`` only that table is created (the caller builds the view)."""
+    sql = (f"CREATE OR REPLACE TEMP TABLE {_q(table)} AS WITH typed AS ({typed_sql}) "
            f"SELECT *, {_reason_case()} AS reason0 FROM typed")
     params = {**_params(), **(extra_params or {})}
     con.execute(sql, _used(sql, params))
-    line = "rowid + 1 AS line, " if line_from_rowid else ""
-    con.execute(f"CREATE OR REPLACE TEMP VIEW ais_stage AS SELECT {line}* FROM ais_stage_t")
+    if table == "ais_stage_t":
+        line = "rowid + 1 AS line, " if line_from_rowid else ""
+        con.execute(f"CREATE OR REPLACE TEMP VIEW ais_stage AS SELECT {line}* FROM ais_stage_t")
 
 
 _CSV_LINES = ("read_csv(?, columns={'raw': 'VARCHAR'}, header=false, delim=?, quote='', escape='', "
               "auto_detect=false, compression=?, max_line_size=?)")
+#: DuckDB CSV buffer size, None = DuckDB's default. Tests set it small so that even a small file
+#: is scanned as many parallel chunks (the stages number rows by their order).
+CSV_BUFFER_BYTES = None
+
+
+def _buffer_option() -> str:
+    return "" if CSV_BUFFER_BYTES is None else f", buffer_size = {int(CSV_BUFFER_BYTES)}"
 
 
 def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str) -> dict:
@@ -316,7 +338,7 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
         FROM (
             SELECT raw, is_data, nf_ok, f,
                 CASE WHEN regexp_full_match({fld('mmsi')}, $mmsi_re) THEN CAST({fld('mmsi')} AS BIGINT) END AS mmsi,
-                try_strptime({fld('time_utc')}, $time_formats::VARCHAR[]) AS time_utc,
+                ais_time(try_strptime({fld('time_utc')}, $time_formats::VARCHAR[])) AS time_utc,
                 {", ".join(f"ais_num({fld(n)}) AS {n}" for n in _NUM_FIELDS)},
                 CAST({nav} AS DOUBLE) AS nav_status,
                 hash({", ".join(fld(c[2:]) for c in _TEXT_STATIC)}) AS s_hash
@@ -338,9 +360,11 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
     fallback = False
     try:
         sql = typed(_CSV_LINES.replace("?", "$p_path", 1).replace("?", "$p_delim", 1).replace("?", "$p_comp", 1)
-                    .replace("?", "$p_max", 1))
+                    .replace("?", "$p_max", 1)[:-1] + _buffer_option() + ")")
         _create_stage(con, sql, {**params, "p_path": str(path), "p_delim": "\x01",
-                                 "p_comp": "gzip" if gz else "none", "p_max": 1 << 24}, line_from_rowid=True)
+                                 "p_comp": "gzip" if gz else "none",
+                                 "p_max": (1 << 24) if CSV_BUFFER_BYTES is None else int(CSV_BUFFER_BYTES) // 2},
+                      line_from_rowid=True)
     except (duckdb.InvalidInputException, duckdb.ConversionException, duckdb.IOException):
         from lanes.io.csv_formats import read_lines
         import pyarrow as pa
@@ -357,7 +381,223 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
     ignored = con.execute(
         f"SELECT count(*) FROM ais_stage_t WHERE kind = '{C.KIND_IGNORED}' AND (raw IS NULL OR raw = '')"
     ).fetchone()[0]
-    return {"ignored": int(ignored), "python_fallback": fallback}
+    return {"ignored": int(ignored), "python_fallback": fallback, "staging": "python" if fallback else "lines"}
+
+
+#: Above this share of data lines needing the exact Python typing, the raw-lines path is faster.
+FAST_MAX_EXACT_FRAC = 0.02
+
+
+def stage_csv_fast(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str,
+                   line_index, time_format: str) -> dict | None:
+    """Typed fast path of :func:`stage_csv` for an uncompressed DMA/NOAA file.
+
+    DuckDB's parallel CSV scanner types the needed columns itself (``read_csv`` with explicit
+    column types, the day-first time format, status words as an ENUM of their usual spellings,
+    no quoting so that every record is one physical line) and keeps the rows it cannot type
+    in its rejects table with their line numbers. ``line_index`` (a
+    :class:`lanes.io.lineindex.LineIndex`, or a future of one built in a thread meanwhile)
+    gives the rest:
+
+    * the line of every accepted row: rows come out in file order, so the k-th accepted row is
+      the k-th line that is not the header, an empty line or a rejected line;
+    * the invariant ``accepted + rejected + header + empty lines == lines in the file``, checked
+      before anything is used (with a spot check of sampled rows against their text);
+    * the lines the scanner cannot be trusted with: rejected rows, lines with a double quote
+      or a ``+``, rows whose MMSI text is not canonical digits or whose number read as NaN.
+      Those are typed by :func:`lanes.io.csv_formats.type_lines`, the pure path itself.
+
+    The raw text of a row is read from the index only when it is quarantined. Returns the
+    stage info, or None (nothing staged) when the file needs the exact raw-lines path: a stray
+    ``\r``, an invariant that does not hold, a scanner error, or more than
+    :data:`FAST_MAX_EXACT_FRAC` of the lines to re-type.
+    """
+    import pyarrow as pa
+
+    from lanes.io.csv_formats import NAV_STATUS_SPELLINGS, split_csv_line, type_lines
+
+    con = ws.con
+    _prepare(con)
+    con.execute("SET preserve_insertion_order = true")
+    names = [f"c{i}" for i in range(int(n_fields))]
+    col = {f: names[i] for f, i in index.items()}
+    types = dict.fromkeys(names, "VARCHAR")
+    types[col["time_utc"]] = "TIMESTAMP"
+    for f in _NUM_FIELDS:
+        if f in col:
+            types[col[f]] = "DOUBLE"
+    spellings = list(NAV_STATUS_SPELLINGS)
+    if "nav_status" in col:
+        types[col["nav_status"]] = "ENUM(" + ", ".join("'" + w.replace("'", "''") + "'" for w in spellings) + ")"
+
+    def c(f, cast="DOUBLE"):
+        return col[f] if f in col else f"CAST(NULL AS {cast})"
+
+    canon = "CAST(mm AS VARCHAR) = m"
+    nan_any = " OR ".join(f"isnan({col[f]})" for f in _NUM_FIELDS if f in col) or "false"
+    nav = (f"CAST(list_extract($nav_codes::DOUBLE[], enum_code({col['nav_status']}) + 1) AS DOUBLE)"
+           if "nav_status" in col else "CAST(NULL AS DOUBLE)")
+    statics = [col[s] for s in C.STATIC_COLUMNS if s in col]
+    s_hash = f"hash({', '.join(statics)})" if statics else "CAST(NULL AS UBIGINT)"
+    used = sorted({col[f] for f in col}, key=names.index)
+    typed = f"""
+        SELECT '{C.KIND_POSITION}' AS kind, CAST(NULL AS VARCHAR) AS parse_error,
+            CASE WHEN mm BETWEEN 100000000 AND 999999999 AND {canon} THEN mm END AS mmsi,
+            ais_time(t) AS time_utc,
+            {", ".join(f"{c(f)} AS {f}" for f in _NUM_FIELDS)}, {nav} AS nav_status,
+            {s_hash} AS s_hash,
+            coalesce((m IS NOT NULL AND NOT coalesce({canon}, false)) OR {nan_any}, false) AS exact
+        FROM (
+            SELECT {", ".join(used)}, {c('mmsi', 'VARCHAR')} AS m, TRY_CAST({c('mmsi', 'VARCHAR')} AS BIGINT) AS mm,
+                {col['time_utc']} AS t
+            FROM read_csv($path, skip = 1, header = false, delim = ',', quote = '', escape = '', comment = '',
+                          auto_detect = false, columns = $cols, timestampformat = $tfmt, store_rejects = true,
+                          rejects_table = 'ais_rejects', rejects_scan = 'ais_reject_scans'{_buffer_option()})
+        )"""
+    params = {"path": str(path), "cols": types, "tfmt": time_format,
+              "nav_codes": [float(NAV_STATUS_SPELLINGS[w]) for w in spellings]}
+    for t in ("ais_rejects", "ais_reject_scans"):
+        con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
+    try:
+        _create_stage(con, typed, params, table="ais_fast")
+    except (duckdb.InvalidInputException, duckdb.ConversionException, duckdb.IOException) as err:
+        log.info("%s: typed CSV scan refused the file (%s); exact raw-lines path", path, str(err).split("\n")[0])
+        _drop_temp(con)
+        return None
+    n_fast = int(con.execute("SELECT count(*) FROM ais_fast").fetchone()[0])
+    reported = con.execute("SELECT DISTINCT line, csv_line FROM ais_rejects").fetchall()
+    ix = line_index.result() if hasattr(line_index, "result") else line_index
+
+    def give_up(why: str):
+        log.info("%s: %s; exact raw-lines path", path, why)
+        _drop_temp(con)
+        return None
+
+    if ix.stray_cr:
+        return give_up("a carriage return inside a line")
+    rej = _verified_reject_lines(reported, ix)
+    if rej is None:
+        return give_up("a rejected row does not match the text of its line")
+    blank = ix.blank_lines[ix.blank_lines > 1]
+    excluded = np.union1d(np.union1d(np.array([1], dtype=np.int64), blank), rej)
+    if len(excluded) != 1 + len(blank) + len(rej) or n_fast + len(excluded) != ix.n_lines:
+        return give_up(f"line count does not add up (typed {n_fast} + rejected {len(rej)} + header 1 + empty "
+                       f"{len(blank)} vs {ix.n_lines} lines)")
+    # The k-th accepted row (0-based) is the line L with L - #{excluded <= L} = k + 1.
+    k = np.arange(n_fast, dtype=np.int64)
+    fast_line = k + 1 + np.searchsorted(excluded - 1 - np.arange(len(excluded)), k, side="right")
+    del k
+    flagged = np.asarray(con.execute("SELECT rowid FROM ais_fast WHERE exact ORDER BY rowid").fetchnumpy()["rowid"],
+                         dtype=np.int64)
+    special = np.union1d(np.union1d(rej, fast_line[flagged]), np.union1d(ix.quote_lines, ix.plus_lines))
+    special = special[special > 1]
+    if len(special) > max(1000, FAST_MAX_EXACT_FRAC * ix.n_lines):
+        return give_up(f"{len(special)} of {ix.n_lines} lines need the exact typing")
+    skip = np.zeros(n_fast, dtype=bool)
+    pos = np.searchsorted(fast_line, special)
+    hit = pos < n_fast
+    hit[hit] = fast_line[pos[hit]] == special[hit]
+    skip[pos[hit]] = True
+
+    header_fields = split_csv_line(header)
+    if not _spot_check(con, ix, fast_line, skip, header, header_fields, index, spec):
+        return give_up("sampled rows differ from their lines")
+    exact, _ = type_lines(zip(special.tolist(), ix.text(special)), header, header_fields, index, spec)
+    _create_exact_stage(con, exact)
+    con.register("ais_fast_pos", pa.table({"line": fast_line, "skip": skip}))
+    typed_nulls = ", ".join(f"CAST(NULL AS {t}) AS {c_}" for c_, t in _STATIC_TYPES.items())
+    text_nulls = ", ".join(f"CAST(NULL AS VARCHAR) AS {c_}" for c_ in _TEXT_STATIC)
+    values = ", ".join(f"f.{v}" for v in (*_NUM_FIELDS, "nav_status"))
+    con.execute(f"""CREATE OR REPLACE TEMP VIEW ais_stage AS
+        SELECT p.line, CAST(NULL AS VARCHAR) AS raw, f.kind, f.parse_error, f.mmsi, f.time_utc, {values},
+               {typed_nulls}, {text_nulls}, f.s_hash, f.reason0
+        FROM ais_fast f POSITIONAL JOIN ais_fast_pos p WHERE NOT p.skip
+        UNION ALL
+        SELECT line, raw, kind, parse_error, mmsi, time_utc, {", ".join(v for v in (*_NUM_FIELDS, "nav_status"))},
+               {", ".join(_STATIC_TYPES)}, {text_nulls}, CAST(NULL AS UBIGINT) AS s_hash, reason0
+        FROM ais_exact""")
+    _set_stage_kind(con, "csvfast", {"path": str(path), "header": header,
+                                     "index": {s: index[s] for s in C.STATIC_COLUMNS if s in index}})
+    return {"ignored": int(len(blank)), "python_fallback": False, "staging": "typed", "line_index": ix,
+            "exact_lines": int(len(special))}
+
+
+def _verified_reject_lines(reported: list, ix) -> np.ndarray | None:
+    """The lines of the rows DuckDB's scanner rejected, each checked against the line index.
+
+    ``reported``: distinct ``(line, csv_line)`` pairs of the rejects table. A pair whose text
+    (without the empty lines DuckDB sometimes prefixes, nor a trailing ``\r``) is the text of
+    its line is kept. DuckDB 1.5 can also report an error of a row a second time under the
+    number of an empty line before it; such a pair is dropped when its text is that of a
+    verified rejected line. Any other mismatch returns None (the numbering cannot be trusted).
+    """
+    if not reported:
+        return np.empty(0, dtype=np.int64)
+    lines = np.asarray([r[0] if r[0] is not None else -1 for r in reported], dtype=np.int64)
+    texts = []
+    for _, t in reported:
+        t = (t or "").lstrip("\r\n")
+        texts.append(t[:-1] if t.endswith("\r") else t)
+    inside = (lines >= 1) & (lines <= ix.n_lines)
+    actual = dict(zip(lines[inside].tolist(), ix.text(lines[inside]))) if inside.any() else {}
+    ok = [L for L, t in zip(lines.tolist(), texts) if actual.get(L) == t]
+    good = {actual[L] for L in ok}
+    if any(actual.get(L) != t and t not in good for L, t in zip(lines.tolist(), texts)):
+        return None
+    return np.unique(np.asarray(ok, dtype=np.int64))
+
+
+def _spot_check(con, ix, fast_line, skip, header, header_fields, index, spec, n: int = 64) -> bool:
+    """Type ``n`` accepted rows spread over the file (and up to ``n`` quarantined ones) again
+    from their line text with the pure rules and compare: a wrong line mapping shows here."""
+    from lanes.io.csv_formats import type_lines
+
+    ok_rows = np.flatnonzero(~skip)
+    if len(ok_rows) == 0:
+        return True
+    pick = ok_rows[np.unique(np.linspace(0, len(ok_rows) - 1, min(n, len(ok_rows))).astype(np.int64))]
+    bad = np.asarray(con.execute("SELECT rowid FROM ais_fast WHERE reason0 IS NOT NULL AND NOT exact LIMIT ?",
+                                 [int(n)]).fetchnumpy()["rowid"], dtype=np.int64)
+    bad = bad[~skip[bad]]
+    rows = np.union1d(pick, bad)
+    con.register("ais_spot_df", pd.DataFrame({"r": rows}))
+    try:
+        got = con.execute(f"""SELECT rowid AS r, mmsi, epoch_us(time_utc) AS t_us, {", ".join(_NUM_FIELDS)}, nav_status
+                              FROM ais_fast WHERE rowid IN (SELECT r FROM ais_spot_df) ORDER BY rowid""").fetchdf()
+    finally:
+        con.unregister("ais_spot_df")
+    lines = fast_line[rows]
+    ref, _ = type_lines(zip(lines.tolist(), ix.text(lines)), header, header_fields, index, spec)
+    if len(ref) != len(rows) or len(got) != len(rows) or not np.array_equal(ref["line"].to_numpy(), lines):
+        return False
+    ref_t = ref["time_utc"].dt.tz_convert(None).to_numpy().astype("datetime64[us]").astype(np.int64)
+    ref_t = np.where(ref["time_utc"].isna().to_numpy(), -1, ref_t)
+    if not np.array_equal(got["t_us"].fillna(-1).to_numpy(dtype=np.int64), ref_t):
+        return False
+    if not np.array_equal(got["mmsi"].fillna(-1).to_numpy(dtype=np.int64), ref["mmsi"].fillna(-1).to_numpy(dtype=np.int64)):
+        return False
+    for v in (*_NUM_FIELDS, "nav_status"):
+        if not np.array_equal(got[v].to_numpy(dtype=float), ref[v].to_numpy(dtype=float), equal_nan=True):
+            return False
+    return True
+
+
+def _create_exact_stage(con, stage: pd.DataFrame) -> None:
+    """The rows typed by the pure path as the temporary table ``ais_exact`` (with ``reason0``)."""
+    import pyarrow as pa
+
+    df = C.conform_stage(stage)
+    tbl = pa.Table.from_pandas(df.assign(time_utc=df["time_utc"].dt.tz_convert(None)), preserve_index=False)
+    con.register("ais_exact_df", tbl)
+    try:
+        _create_stage(con, f"""SELECT CAST(line AS BIGINT) AS line, CAST(raw AS VARCHAR) AS raw,
+                CAST(kind AS VARCHAR) AS kind, CAST(parse_error AS VARCHAR) AS parse_error,
+                CAST(mmsi AS BIGINT) AS mmsi, CAST(time_utc AS TIMESTAMP) AS time_utc,
+                {", ".join(f"CAST({v} AS DOUBLE) AS {v}" for v in (*_NUM_FIELDS, "nav_status"))},
+                {", ".join(f"CAST({c_} AS {t}) AS {c_}" for c_, t in _STATIC_TYPES.items())}
+            FROM ais_exact_df""", table="ais_exact")
+    finally:
+        con.unregister("ais_exact_df")
 
 
 _STATIC_TYPES = {"imo": "BIGINT", "name": "VARCHAR", "callsign": "VARCHAR", "ship_type": "INTEGER",
@@ -521,6 +761,24 @@ def read_stage(ws) -> pd.DataFrame:
            f"  SELECT line, raw, kind, parse_error, {', '.join(cols)} FROM {source}) s "
            f"WHERE kind <> '{C.KIND_IGNORED}' ORDER BY line")
     df = ws.con.execute(sql, _used(sql, _params())).fetchdf()
+    if kind == "csvfast":  # rows typed by the scanner: raw text and static values from their lines
+        from lanes.io.csv_formats import split_csv_line, type_static
+        from lanes.io.lineindex import LineIndex
+
+        fast = df["raw"].isna().to_numpy()
+        if fast.any():
+            with LineIndex(extra["path"]) as ix:
+                raw = ix.text(df.loc[fast, "line"].to_numpy(dtype=np.int64))
+            texts = [split_csv_line(x) for x in raw]
+            index = extra["index"]
+            fields = pd.DataFrame({c: [f[index[c]].strip(WS) if c in index else "" for f in texts]
+                                   for c in C.STATIC_COLUMNS})
+            typed = type_static(fields)
+            df["raw"] = df["raw"].astype(object)
+            df.loc[fast, "raw"] = raw
+            for c in C.STATIC_COLUMNS:
+                df[c] = df[c].astype(object)
+                df.loc[fast, c] = typed[c].astype(object).where(typed[c].notna(), None).to_numpy()
     bad = df["parse_error"] == C.BAD_LINE
     keep = {"line", "raw", "kind", "parse_error"}
     df.loc[bad, [c for c in df.columns if c not in keep]] = None
@@ -667,6 +925,110 @@ def _split_duplicates(tr: dict) -> tuple[np.ndarray, np.ndarray, list]:
     return ~same, lines, reasons
 
 
+def _track_order(mmsi: np.ndarray, t_us: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """Permutation sorting fixes by track, then time, then line.
+
+    Tracks are grouped by MMSI (in order of first appearance, which is all the duplicate and
+    jump rules need); one stable sort of a packed 64-bit (track, time) key when it fits, else
+    a lexicographic sort."""
+    n = len(mmsi)
+    base = None
+    if n > 1 and not (line[1:] > line[:-1]).all():
+        base = np.argsort(line, kind="stable")
+        mmsi, t_us = mmsi[base], t_us[base]
+    codes, uniq = pd.factorize(mmsi)
+    t_rel = t_us - t_us.min() if n else t_us
+    bits_t = int(t_rel.max()).bit_length() if n else 0
+    if bits_t + max(len(uniq), 1).bit_length() <= 62:
+        order = np.argsort((codes.astype(np.int64) << bits_t) | t_rel, kind="stable")
+    else:
+        order = np.lexsort((t_us, codes))
+    return base[order] if base is not None else order
+
+
+def _first_load_outcomes(con, max_speed_kn: float) -> tuple[np.ndarray, list]:
+    """Rules 7-8 for a file whose (mmsi, time) keys meet no stored position: (lines, reasons)
+    of the duplicates and speed jumps among the rows that passed rules 1-6.
+
+    The accepted fixes come to numpy once, sorted by (track, time, line); a row with the key of
+    the row before it duplicates the first row of its run (values compared on those few rows
+    only), and the kept fixes go through :func:`lanes.clean.speed_jump_mask`."""
+    d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, {_NORM['lon_deg']} AS lon_deg "
+                    f"FROM ais_stage WHERE {_OK}").fetchnumpy()
+    line = np.asarray(d["line"], dtype=np.int64)
+    if len(line) == 0:
+        return np.empty(0, dtype=np.int64), []
+    mmsi = np.asarray(d["mmsi"], dtype=np.int64)
+    t_us = np.asarray(d["t_us"], dtype=np.int64)
+    order = _track_order(mmsi, t_us, line)
+    line, mmsi, t_us = line[order], mmsi[order], t_us[order]
+    lat = np.asarray(d["lat_deg"], dtype=float)[order]
+    lon = np.asarray(d["lon_deg"], dtype=float)[order]
+    del d, order
+    n = len(line)
+    same = np.zeros(n, dtype=bool)
+    same[1:] = (mmsi[1:] == mmsi[:-1]) & (t_us[1:] == t_us[:-1])
+    out_lines, out_reasons = [], []
+    if same.any():
+        first = np.maximum.accumulate(np.where(~same, np.arange(n), 0))
+        dup = np.flatnonzero(same)
+        ref = first[dup]
+        need = np.union1d(line[dup], line[ref])
+        con.register("ais_need_df", pd.DataFrame({"line": need}))
+        try:
+            vals = con.execute(f"SELECT line, {_norm()} FROM ais_stage SEMI JOIN ais_need_df USING (line) "
+                               f"WHERE {_OK} ORDER BY line").fetchnumpy()
+        finally:
+            con.unregister("ais_need_df")
+        at = np.searchsorted(np.asarray(vals["line"], dtype=np.int64), line[dup])
+        at_ref = np.searchsorted(np.asarray(vals["line"], dtype=np.int64), line[ref])
+        equal = np.ones(len(dup), dtype=bool)
+        for v in _VALUES:
+            col = vals[v]
+            x = np.asarray(col.filled(np.nan) if np.ma.isMaskedArray(col) else col, dtype=float)
+            a, b = x[at], x[at_ref]
+            equal &= (a == b) | (np.isnan(a) & np.isnan(b))
+        out_lines.append(line[dup])
+        out_reasons += [C.DUPLICATE if e else C.DUPLICATE_TIME for e in equal]
+        keep = ~same
+        line, mmsi, t_us, lat, lon = line[keep], mmsi[keep], t_us[keep], lat[keep], lon[keep]
+    # Seconds as the pure path computes them (nanoseconds / 1e9), so float ties agree.
+    mask = C.speed_jump_mask(mmsi, (t_us * 1000) / 1e9, lat, lon, max_speed_kn)
+    out_lines.append(line[mask])
+    out_reasons += [C.SPEED_JUMP] * int(mask.sum())
+    return np.concatenate(out_lines), out_reasons
+
+
+def _line_index(con, meta: dict):
+    """The line index of a fast-staged CSV file (from the stage info, else built again)."""
+    if meta.get("line_index") is not None:
+        return meta["line_index"]
+    kind, extra = _stage_kind(con)
+    if kind != "csvfast":
+        return None
+    from lanes.io.lineindex import LineIndex
+
+    meta["line_index"] = LineIndex(extra["path"])
+    meta["line_index_owned"] = True
+    return meta["line_index"]
+
+
+def _fill_raw(con, meta: dict) -> None:
+    """Raw text for the quarantined rows staged without it (fast CSV path), from the line index."""
+    import pyarrow as pa
+
+    need = np.asarray(con.execute("SELECT line FROM ais_q WHERE raw IS NULL ORDER BY line").fetchnumpy()["line"],
+                      dtype=np.int64)
+    if len(need) == 0:
+        return
+    ix = _line_index(con, meta)
+    con.register("ais_raw_df", pa.table({"line": need, "raw": pa.array(ix.text(need), pa.string())}))
+    try:
+        con.execute("UPDATE ais_q SET raw = r.raw FROM ais_raw_df r WHERE ais_q.line = r.line")
+    finally:
+        con.unregister("ais_raw_df")
+
+
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
@@ -689,23 +1051,20 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             # kernel with the stored fixes as context.
             con.execute(_dedupe_sql(True))
             tr = con.execute(_track_sql(True), {"vmax": float(max_speed_kn)}).fetchnumpy()
-        else:
-            # First load of these positions: one window pass finds both the repeated (mmsi, time)
-            # keys and the tracks with a candidate jump; numpy classifies the duplicates.
-            con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
-            tr = con.execute(_track_merged_sql(), {"vmax": float(max_speed_kn)}).fetchnumpy()
             if len(tr["line"]):
-                keep, dup_lines, dup_reasons = _split_duplicates(tr)
-                out_lines.append(dup_lines)
-                out_reasons += dup_reasons
-                tr = {k: np.asarray(v)[keep] for k, v in tr.items()}
-        if len(tr["line"]):
-            lines = np.asarray(tr["line"], dtype=np.int64)
-            t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
-            mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"], dtype=float),
-                                     np.asarray(tr["lon_deg"], dtype=float), max_speed_kn, fixed=lines < 0)
-            out_lines.append(lines[mask])
-            out_reasons += [C.SPEED_JUMP] * int(mask.sum())
+                lines = np.asarray(tr["line"], dtype=np.int64)
+                t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
+                mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"], dtype=float),
+                                         np.asarray(tr["lon_deg"], dtype=float), max_speed_kn, fixed=lines < 0)
+                out_lines.append(lines[mask])
+                out_reasons += [C.SPEED_JUMP] * int(mask.sum())
+        else:
+            # First load of these positions: the accepted fixes go to numpy once, sorted by
+            # track; repeated (mmsi, time) keys and the jump kernel run there.
+            con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
+            lines, reasons = _first_load_outcomes(con, float(max_speed_kn))
+            out_lines.append(lines)
+            out_reasons += reasons
         all_lines = np.concatenate(out_lines) if out_lines else np.empty(0, dtype=np.int64)
         con.register("ais_out_df", pd.DataFrame({"line": all_lines.astype(np.int64),
                                                  "reason": pd.Series(out_reasons, dtype=object)}))
@@ -725,22 +1084,22 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             [file_id],
         ).fetchone()[0]
         con.execute(
-            """INSERT INTO ais_quarantine
-            SELECT ?, s.line, coalesce(s.reason0, o.reason), s.raw,
-                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN s.mmsi END,
-                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN make_timestamptz(epoch_us(s.time_utc)) END
+            """CREATE OR REPLACE TEMP TABLE ais_q AS
+            SELECT s.line, coalesce(s.reason0, o.reason) AS reason, s.raw,
+                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN s.mmsi END AS mmsi,
+                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN make_timestamptz(epoch_us(s.time_utc)) END AS time_utc
             FROM ais_stage s LEFT JOIN ais_out o USING (line)
             WHERE s.kind = ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
-            [file_id, C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
+            [C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
         )
-        reasons = dict(con.execute(
-            "SELECT reason, count(*) FROM ais_quarantine WHERE file_id = ? GROUP BY reason ORDER BY reason", [file_id]
-        ).fetchall())
+        _fill_raw(con, meta)
+        con.execute("INSERT INTO ais_quarantine SELECT ?, line, reason, raw, mmsi, time_utc FROM ais_q", [file_id])
+        reasons = dict(con.execute("SELECT reason, count(*) FROM ais_q GROUP BY reason ORDER BY reason").fetchall())
         read, static = con.execute(
             "SELECT count(*) FILTER (WHERE kind = ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
             [C.KIND_POSITION, C.KIND_STATIC],
         ).fetchone()
-        _upsert_vessels(con, file_id)
+        _upsert_vessels(con, file_id, meta)
         dups = int(sum(v for k, v in reasons.items() if k in C.DUPLICATE_CODES))
         counts = {
             "file_id": file_id,
@@ -770,7 +1129,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     return counts
 
 
-def _upsert_vessels(con, file_id: int) -> None:
+def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
     """Latest non-missing static value per MMSI of this file, merged into ``vessels``.
 
     The stage is first reduced to its distinct (MMSI, static values) combinations with their
@@ -781,7 +1140,17 @@ def _upsert_vessels(con, file_id: int) -> None:
     key = "{'t': coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'), 'l': line}"
     rows = (f"FROM ais_stage WHERE kind <> '{C.KIND_IGNORED}' AND mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} "
             f"AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'")
-    if kind == "csvhash":
+    if kind == "csvfast":
+        if not _fast_vessel_combos(con, meta or {}, rows, key):
+            return
+        combos = ""
+        typed = f"""typed AS (
+            SELECT CAST(mmsi AS BIGINT) AS mmsi,
+                   {{'t': make_timestamp(CAST(k_t AS BIGINT)), 'l': CAST(k_l AS BIGINT)}} AS k,
+                   make_timestamp(CAST(tmax AS BIGINT)) AS tmax,
+                   {", ".join(f"CAST({c} AS {_STATIC_TYPES[c]}) AS {c}" for c in C.STATIC_COLUMNS)}
+            FROM ais_combos_df),"""
+    elif kind == "csvhash":
         # Distinct static field tuples by hash (a 64-bit collision inside one MMSI would merge two
         # tuples: odds ~1e-19 per pair); their texts come from re-splitting the latest raw line.
         index = extra["index"]
@@ -796,7 +1165,7 @@ def _upsert_vessels(con, file_id: int) -> None:
                 FROM latest JOIN ais_stage s ON s.line = latest.l
             ),
             combos AS (SELECT mmsi, k, tmax, {texts} FROM split),"""
-        statics = list(_TEXT_STATIC)
+        typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
     else:
         # Group by the columns that can hold values (Parquet: text; NMEA: typed).
         statics = list(_STAGE_STATIC_COLUMNS.get(kind, C.STATIC_COLUMNS))
@@ -805,6 +1174,7 @@ def _upsert_vessels(con, file_id: int) -> None:
                 SELECT mmsi, {", ".join(statics)}, max({key}) AS k, max(time_utc) AS tmax
                 {rows} GROUP BY mmsi, {", ".join(statics)}
             ),"""
+        typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(statics)} FROM combos),"
     aggs = ",\n".join(f"arg_max({c}, k) FILTER (WHERE {c} IS NOT NULL) AS {c}" for c in C.STATIC_COLUMNS)
     any_set = " OR ".join(f"{c} IS NOT NULL" for c in C.STATIC_COLUMNS)
     merge = ",\n".join(
@@ -814,18 +1184,66 @@ def _upsert_vessels(con, file_id: int) -> None:
     )
     sql = f"""INSERT INTO vessels
         WITH {combos}
-        typed AS (SELECT mmsi, k, tmax, {_typed_static_select(statics)} FROM combos),
+        {typed}
         agg AS (SELECT mmsi, make_timestamptz(epoch_us(max(tmax))) AS updated_utc, {aggs} FROM typed GROUP BY mmsi)
         SELECT mmsi, {", ".join(C.STATIC_COLUMNS)}, updated_utc, $file_id AS file_id FROM agg WHERE {any_set}
         ON CONFLICT (mmsi) DO UPDATE SET {merge},
             updated_utc = greatest(vessels.updated_utc, EXCLUDED.updated_utc),
             file_id = EXCLUDED.file_id"""
-    con.execute(sql, _used(sql, {**_params(), "file_id": file_id}))
+    try:
+        con.execute(sql, _used(sql, {**_params(), "file_id": file_id}))
+    finally:
+        if kind == "csvfast":
+            con.unregister("ais_combos_df")
+
+
+def _fast_vessel_combos(con, meta: dict, rows: str, key: str) -> bool:
+    """Register ``ais_combos_df``: the typed static values of a fast-staged CSV file, one row per
+    (MMSI, static fields) combination with its latest (time, line) and latest time.
+
+    Rows typed by the scanner carry a hash of their static fields; only the latest line of each
+    (MMSI, hash) is split again (from the line index) and typed with
+    :func:`lanes.io.csv_formats.type_static`. Rows typed by the pure path bring their values.
+    Returns False when there is nothing to merge."""
+    from lanes.io.csv_formats import split_csv_line, type_static
+
+    sentinel = "TIMESTAMP '1677-09-22 00:00:00'"
+    fast = con.execute(
+        f"""SELECT mmsi, arg_max(line, {key}) AS k_l, epoch_us(max(coalesce(time_utc, {sentinel}))) AS k_t,
+                   epoch_us(max(time_utc)) AS tmax
+            {rows} AND raw IS NULL GROUP BY mmsi, s_hash""").fetchdf()
+    exact = con.execute(
+        f"""SELECT mmsi, line AS k_l, epoch_us(coalesce(time_utc, {sentinel})) AS k_t, epoch_us(time_utc) AS tmax,
+                   {", ".join(C.STATIC_COLUMNS)}
+            {rows} AND raw IS NOT NULL""").fetchdf()
+    if len(fast):
+        kind, extra = _stage_kind(con)
+        index = extra["index"]
+        ix = _line_index(con, meta)
+        texts = [split_csv_line(x) for x in ix.text(fast["k_l"].to_numpy(dtype=np.int64))]
+        fields = pd.DataFrame({c: [f[index[c]].strip(WS) if c in index else "" for f in texts]
+                               for c in C.STATIC_COLUMNS})
+        typed = type_static(fields)
+        for c in C.STATIC_COLUMNS:
+            fast[c] = typed[c] if c in typed else None
+    combos = pd.concat([f for f in (fast, exact) if len(f)], ignore_index=True) if len(fast) or len(exact) else None
+    if combos is None:
+        return False
+    for c in ("k_t", "tmax"):
+        combos[c] = combos[c].astype("Int64")
+    con.register("ais_combos_df", combos)
+    return True
 
 
 def _drop_temp(con) -> None:
     con.execute("DROP VIEW IF EXISTS temp.ais_stage")
-    for t in ("ais_stage_t", "ais_dup", "ais_out", "ais_stage_info"):
+    for name in ("ais_fast_pos", "ais_raw_df", "ais_combos_df"):
+        try:
+            con.unregister(name)
+        except Exception:  # noqa: BLE001 - not registered
+            pass
+    for t in ("ais_stage_t", "ais_dup", "ais_out", "ais_q", "ais_stage_info", "ais_fast", "ais_exact", "ais_rejects",
+              "ais_reject_scans"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
 
 

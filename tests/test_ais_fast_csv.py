@@ -1,0 +1,196 @@
+"""The typed fast CSV path (DuckDB's typed scanner + line index) gives exactly what the exact
+raw-lines path gives, and falls back to it whenever one record per line cannot be trusted."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ais_fixtures import DMA_HEADER, DMA_LINES, dma_row
+from lanes.io.lineindex import LineIndex
+from pipelines import ingest as ingest_mod
+from pipelines.ingest import ingest_file
+from pipelines.storage import open_workspace
+from pipelines.storage import ais as store
+
+
+# --- the line index --------------------------------------------------------------------------
+def test_line_index_offsets_and_flags(tmp_path):
+    p = tmp_path / "x.txt"
+    # lines: 1 "ab", 2 "" (CRLF), 3 'c"d', 4 "", 5 "e+f" (no final newline)
+    p.write_bytes(b'ab\n\r\nc"d\r\n\ne+f')
+    with LineIndex(p) as ix:
+        assert ix.n_lines == 5
+        assert ix.starts.tolist() == [0, 3, 5, 10, 11]
+        assert ix.ends.tolist() == [2, 3, 8, 10, 14]
+        assert ix.blank_lines.tolist() == [2, 4]
+        assert ix.quote_lines.tolist() == [3]
+        assert ix.plus_lines.tolist() == [5]
+        assert not ix.stray_cr
+        assert ix.text([5, 1, 3, 2]) == ["e+f", "ab", 'c"d', ""]
+        with pytest.raises(IndexError):
+            ix.text([6])
+
+
+def test_line_index_stray_cr_empty_file_and_bad_utf8(tmp_path):
+    p = tmp_path / "cr.txt"
+    p.write_bytes(b"a\rb\nc\n")
+    with LineIndex(p) as ix:
+        assert ix.stray_cr and ix.n_lines == 2
+    p.write_bytes(b"a\r")  # a \r at the very end, no \n after it
+    with LineIndex(p) as ix:
+        assert ix.stray_cr
+    p.write_bytes(b"")
+    with LineIndex(p) as ix:
+        assert ix.n_lines == 0 and len(ix.blank_lines) == 0
+    p.write_bytes(b"N\xd8RD\n")
+    with LineIndex(p) as ix:
+        assert ix.n_lines == 1 and ix.text([1]) == ["N\ufffdRD"]
+
+
+# --- both staging paths give the same workspace ----------------------------------------------
+def _rows(n_vessels=12, n_steps=120, seed=3):
+    """Clean time-ordered fixes with a few jumps (several DuckDB scan chunks at a small buffer)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for step in range(n_steps):
+        m, s = divmod(step * 20, 60)
+        h, m = divmod(m, 60)
+        ts = f"02/01/2025 {h:02d}:{m:02d}:{s:02d}"
+        for v in range(n_vessels):
+            lat = 54.0 + v * 0.05 + (1.0 if rng.random() < 0.003 else 0.0)
+            out.append(dma_row(ts, str(219200000 + v), f"{lat:.6f}", f"{8.0 + step * 0.001:.6f}",
+                               name=f"SHIP {v}", callsign=f"OX{v:03d}", imo=str(9100000 + v)))
+    return out
+
+
+def _snapshot(db):
+    with open_workspace(db) as ws:
+        con = ws.con
+        files = con.execute("SELECT n_read, n_loaded, n_quarantined, n_duplicates, n_static, n_ignored, reasons "
+                            "FROM ais_files").fetchall()
+        pos = con.execute("SELECT source_line, mmsi, time_utc, lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, "
+                          "nav_status FROM ais_positions ORDER BY source_line").fetchall()
+        quar = con.execute("SELECT line, reason, raw, mmsi, time_utc FROM ais_quarantine ORDER BY line").fetchall()
+        ves = con.execute("SELECT * EXCLUDE (file_id) FROM vessels ORDER BY mmsi").fetchall()
+    return files, pos, quar, ves
+
+
+def _both_paths(tmp_path, monkeypatch, data: bytes, name: str):
+    path = tmp_path / f"{name}.csv"
+    path.write_bytes(data)
+    # A small scanner buffer: even these files are read as many parallel chunks.
+    monkeypatch.setattr(store, "CSV_BUFFER_BYTES", 1 << 14)
+    out = {}
+    for label, min_bytes in (("fast", 0), ("exact", 1 << 62)):
+        monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", min_bytes)
+        db = tmp_path / f"{name}-{label}.duckdb"
+        with open_workspace(db) as ws:
+            counts = ingest_file(ws, path, fmt="dma")
+        out[label] = (counts, _snapshot(db))
+    (cf, sf), (ce, se) = out["fast"], out["exact"]
+    assert ce["staging"] in ("lines", "python")
+    for k in ("read", "loaded", "quarantined", "duplicates", "ignored", "reasons"):
+        assert cf[k] == ce[k], k
+    assert cf["read"] == cf["loaded"] + cf["quarantined"] + cf["duplicates"]
+    for part, a, b in zip(("files", "positions", "quarantine", "vessels"), sf, se):
+        assert a == b, part
+    # Every quarantined row keeps its line and raw text: the text of that physical line.
+    lines = data.decode("utf-8", errors="replace").split("\n")
+    for line, _reason, raw, _m, _t in sf[2]:
+        assert raw == lines[line - 1].removesuffix("\r")
+    return cf, sf
+
+
+DIRTY = list(DMA_LINES[1:])  # every kind of dirty row, a quoted name, a blank line
+
+
+def _mix(rows, extra, every=97):
+    out = list(rows)
+    for i, x in enumerate(extra):
+        out.insert(min(len(out), (i + 1) * every), x)
+    return out
+
+
+CASES = {
+    "plain": ("\n", False, []),
+    "crlf": ("\r\n", False, []),
+    "bom_repeated_header_blanks": ("\n", True, [DMA_HEADER, "", "", DMA_HEADER]),
+    "quotes_plus_nan_spaces": ("\n", False, [
+        dma_row("02/01/2025 00:00:05", "219200001", "54.05", "8.0", name='"A, ""B"""'),
+        dma_row("02/01/2025 00:00:06", "219200002", "+54.1", "8.0"),
+        dma_row("02/01/2025 00:00:07", "219200003", "54.15", "8.0", sog="nan", cog="NaN"),
+        dma_row("02/01/2025 00:00:08", " 219200004 ", " 54.2 ", "\t8.0"),
+        dma_row("02/01/2025 00:00:09", "0219200005", "54.25", "8.0"),
+        dma_row("2/1/2025 0:00:10", "219200006", "54.3", "8.0", status="MOORED"),
+        dma_row("02/01/2025 00:00:11", "219200007", "54.35", "8.0", status="under way using engine"),
+        dma_row("02/01/2025 00:00:60", "219200008", "54.4", "8.0"),
+        dma_row("02/01/2025 00:00:12.5", "219200009", "54.45", "8.0"),
+        dma_row("02/01/2025T00:00:13", "219200010", "54.5", "8.0"),
+        dma_row("02/01/2025 00:00:14", "219200011", "1e1", "8.0", hdg="inf"),
+        "   ",
+        "01/01/2025 00:08:00,Class A,219000001,55.0,11.03,Under way using engine,0.0,10.0,1,2,3,4,5,6,7,8,9,0,1,2,3,"
+        "4,5,6,7,8,9",  # too many fields
+    ]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_fast_path_equals_exact_path(tmp_path, monkeypatch, case):
+    newline, bom, extra = CASES[case]
+    lines = [DMA_HEADER] + _mix(_rows(), DIRTY + extra)
+    text = newline.join(lines) + newline
+    data = (("\ufeff" if bom else "") + text).encode("utf-8")
+    counts, snap = _both_paths(tmp_path, monkeypatch, data, case)
+    assert counts["staging"] == "typed"  # the invariant held: the fast path was used
+    assert counts["loaded"] > 1000 and counts["quarantined"] >= 14
+
+
+def test_embedded_newline_is_two_bad_lines_on_both_paths(tmp_path, monkeypatch):
+    # A quoted field with a newline inside: both paths read physical lines (the scanner runs
+    # with quoting off), so the record is two bad lines on both, and the fast path holds.
+    rows = _rows(n_vessels=6, n_steps=60)
+    rows.insert(50, dma_row("02/01/2025 00:05:00", "219200001", "54.05", "8.0", name='"TWO\nLINES"'))
+    data = ("\n".join([DMA_HEADER] + rows) + "\n").encode()
+    counts, _ = _both_paths(tmp_path, monkeypatch, data, "embedded")
+    assert counts["staging"] == "typed" and counts["reasons"]["bad_line"] == 2
+
+
+def test_reject_lines_are_checked_against_the_text():
+    class Ix:
+        n_lines = 5
+        _t = ["h", "a", "", "b,c", "d"]
+
+        def text(self, lines):
+            return [self._t[i - 1] for i in lines]
+
+    ix = Ix()
+    assert store._verified_reject_lines([], ix).tolist() == []
+    # DuckDB prefixes the empty lines before a row, and may report it again on the empty line.
+    assert store._verified_reject_lines([(4, "\nb,c"), (3, "b,c"), (2, "a\r")], ix).tolist() == [2, 4]
+    assert store._verified_reject_lines([(4, "b,c"), (5, "b,c")], ix).tolist() == [4]
+    assert store._verified_reject_lines([(5, "x")], ix) is None  # a wrong number: no fast path
+    assert store._verified_reject_lines([(9, "d")], ix) is None
+
+
+@pytest.mark.parametrize("case", ["stray_cr", "many_exact_lines"])
+def test_fast_path_falls_back_when_the_line_invariant_fails(tmp_path, monkeypatch, case):
+    rows = _rows(n_vessels=6, n_steps=60)
+    if case == "stray_cr":
+        rows.insert(50, dma_row("02/01/2025 00:05:00", "219200001", "54.05", "8.0", name="A\rB"))
+    else:  # over the share of lines the fast path re-types line by line
+        monkeypatch.setattr(store, "FAST_MAX_EXACT_FRAC", 0.0)
+        rows = [r.replace("ALPHA", '"ALPHA"') for r in rows] * 1
+        rows += [r.replace(",GPS,", ',"GPS",') for r in _rows(n_vessels=6, n_steps=200, seed=9)]
+    data = ("\n".join([DMA_HEADER] + rows) + "\n").encode()
+    counts, _ = _both_paths(tmp_path, monkeypatch, data, case)
+    assert counts["staging"] in ("lines", "python")
+
+
+def test_fast_path_raw_text_of_invalid_utf8_line(tmp_path, monkeypatch):
+    rows = _rows(n_vessels=4, n_steps=30)
+    data = ("\n".join([DMA_HEADER] + rows) + "\n").encode() + dma_row(
+        "02/01/2025 01:00:00", "219200001", "95.0", "8.0", name="N\xd8RD").encode("latin-1") + b"\n"
+    counts, snap = _both_paths(tmp_path, monkeypatch, data, "latin1")
+    assert counts["reasons"].get("bad_lat") == 1
+    assert [q[2] for q in snap[2] if q[1] == "bad_lat"][0].count("\ufffd") == 1
