@@ -59,23 +59,20 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
         from lanes.io.files import head_text
 
         spec = SPECS[f.format]
-        head = head_text(f.path, 1 << 16).split("\n", 2)
-        first = head[0].rstrip("\r")
+        first = head_text(f.path, 1 << 16).split("\n", 1)[0].rstrip("\r")
         header = split_csv_line(first)
         index = resolve_columns(spec, header, f.path)
         info = None
         if not f.gzip and f.size_bytes >= FAST_CSV_MIN_BYTES:
-            # Typed scanner + line index (built in a thread meanwhile); None = exact path needed.
+            # Scanner-split stage + line index (built in a thread meanwhile); None = exact path needed.
             from concurrent.futures import ThreadPoolExecutor
 
-            from lanes.io.csv_formats import sniff_time_format
             from lanes.io.lineindex import LineIndex
 
-            fmt = sniff_time_format(spec, header, index, head[1].rstrip("\r") if len(head) > 1 else "")
             with ThreadPoolExecutor(max_workers=1) as pool:
                 ix = pool.submit(LineIndex, f.path)
                 try:
-                    info = store.stage_csv_fast(ws, f.path, spec, index, len(header), first, ix, fmt)
+                    info = store.stage_csv_fast(ws, f.path, spec, index, len(header), first, ix)
                 finally:
                     if info is None:
                         ix.result().close()
@@ -146,7 +143,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", f.path, f.format, counts["read"],
              counts["loaded"], counts["quarantined"], counts["duplicates"])
     return {"path": str(f.path), "format": f.format, **counts, "already_loaded": False,
-            "staging": info.get("staging", f.format)}
+            "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping")}
 
 
 def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,

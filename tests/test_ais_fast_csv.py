@@ -25,7 +25,6 @@ def test_line_index_offsets_and_flags(tmp_path):
         assert ix.ends.tolist() == [2, 3, 8, 10, 14]
         assert ix.blank_lines.tolist() == [2, 4]
         assert ix.quote_lines.tolist() == [3]
-        assert ix.plus_lines.tolist() == [5]
         assert not ix.stray_cr
         assert ix.text([5, 1, 3, 2]) == ["e+f", "ab", 'c"d', ""]
         with pytest.raises(IndexError):
@@ -143,7 +142,22 @@ def test_fast_path_equals_exact_path(tmp_path, monkeypatch, case):
     data = (("\ufeff" if bom else "") + text).encode("utf-8")
     counts, snap = _both_paths(tmp_path, monkeypatch, data, case)
     assert counts["staging"] == "typed"  # the invariant held: the fast path was used
+    assert counts["line_mapping"] == "ordinal"  # rejected rows (other field counts) / empty lines
     assert counts["loaded"] > 1000 and counts["quarantined"] >= 14
+
+
+def test_fast_path_without_rejects_numbers_rows_by_rowid(tmp_path, monkeypatch):
+    # Every line has the header's field count and there is no empty line: line = rowid + 2;
+    # quoted lines (without commas inside quotes) are still typed from their text.
+    same_width = [x for x in DIRTY if x and x.count(",") == DMA_HEADER.count(",") and '"' not in x]
+    quoted = [dma_row("02/01/2025 00:00:05", "219200001", "54.05", "8.0", name='"QUOTED"'),
+              dma_row("02/01/2025 00:00:06", "219200002", "54.1", "8.0", dest='"X"Y'),
+              dma_row("02/01/2025 00:00:07", " 219200003", "54.15", "8.0", sog="nan", hdg="+90")]
+    lines = [DMA_HEADER] + _mix(_rows(), same_width + quoted + [DMA_HEADER])
+    data = ("\r\n".join(lines) + "\r\n").encode()
+    counts, snap = _both_paths(tmp_path, monkeypatch, data, "rowid")
+    assert counts["staging"] == "typed" and counts["line_mapping"] == "rowid"
+    assert counts["reasons"]["bad_mmsi"] >= 3 and counts["reasons"]["bad_lon"] == 1
 
 
 def test_embedded_newline_is_two_bad_lines_on_both_paths(tmp_path, monkeypatch):

@@ -108,22 +108,6 @@ SHIP_TYPE_WORDS = {
     "other": 90,
 }
 
-def _status_spellings() -> dict[str, int]:
-    """Exact spellings of the status field with their code: the numbers 0-15 and each status
-    word in lower case, upper case, title case and sentence case (DMA writes e.g. "Under way
-    using engine", "Reserved for future amendment [HSC]"). Every spelling reads to the same
-    code under the rules above; the bulk ingest maps these directly and re-types any other
-    text with :func:`type_fields`."""
-    out = {str(i): i for i in range(16)}
-    for word, code in NAV_STATUS_WORDS.items():
-        sentence = re.sub(r"\[(\w+)\]", lambda m: "[" + m.group(1).upper() + "]", word.capitalize())
-        for s in (word, word.upper(), word.title(), word.capitalize(), sentence):
-            out.setdefault(s, code)
-    return out
-
-
-#: Status texts the bulk CSV scanner maps to a code without the generic rules (see above).
-NAV_STATUS_SPELLINGS = _status_spellings()
 
 #: Static text values that mean "not known".
 NULL_WORDS = ("", "unknown", "undefined", "n/a", "na", "none", "null")
@@ -236,18 +220,6 @@ def resolve_columns(spec: CsvSpec, header: list[str], path) -> dict[str, int]:
             line=1,
         )
     return index
-
-
-def sniff_time_format(spec: CsvSpec, header: list[str], index: dict[str, int], line: str) -> str:
-    """The first of the spec's time formats that reads the timestamp of a data line (the first
-    format when none does). Rows in another format are still read, by the exact path."""
-    f = split_csv_line(line)
-    if len(f) == len(header) and "time_utc" in index:
-        text = f[index["time_utc"]].strip(WS)
-        for fmt in spec.time_formats:
-            if not pd.isna(pd.to_datetime(pd.Series([text]), format=fmt, errors="coerce")[0]):
-                return fmt
-    return spec.time_formats[0]
 
 
 def read_lines(path) -> list[str]:
@@ -416,8 +388,7 @@ def type_lines(numbered, header_text: str, header: list[str], index: dict[str, i
 
     Empty lines are skipped and counted (the second value returned); lines equal to the header
     (with or without a byte-order mark) are skipped. Every other line becomes one stage row
-    (see the module docstring for the rules). The bulk ingest uses this for the lines its
-    typed scanner cannot be trusted with, so both paths share one definition.
+    (see the module docstring for the rules).
     """
     rows, nums, oks = [], [], []
     blank = 0

@@ -9,8 +9,8 @@ runs in a thread while DuckDB parses), and the text of any line is then a slice 
 Line rules are those of :func:`lanes.io.csv_formats.read_lines`: lines are split on ``\\n``,
 one trailing ``\\r`` is removed, a final newline does not add a line, text is UTF-8 with
 undecodable bytes replaced. Besides the offsets the index records what a one-record-per-line
-scanner cannot be trusted with: lines holding a double quote or a plus sign (re-typed
-exactly by the caller), empty lines, and whether any ``\\r`` stands anywhere but right before a
+scanner cannot be trusted with: lines holding a double quote (typed from their text by the
+caller), empty lines, and whether any ``\\r`` stands anywhere but right before a
 ``\\n`` (then the caller must not rely on the index at all).
 """
 
@@ -47,8 +47,8 @@ class LineIndex:
         trailing ``\\r``); line ``k`` (1-based) is ``starts[k - 1]:ends[k - 1]``.
     blank_lines : numpy.ndarray of int64
         1-based numbers of the empty lines.
-    quote_lines, plus_lines : numpy.ndarray of int64
-        1-based numbers of the lines containing ``"`` / ``+`` (sorted, unique).
+    quote_lines : numpy.ndarray of int64
+        1-based numbers of the lines containing ``"`` (sorted, unique).
     stray_cr : bool
         True when a ``\\r`` is not immediately followed by ``\\n``.
     """
@@ -61,7 +61,7 @@ class LineIndex:
         if self._mm is None:
             self.n_lines = 0
             self.starts = self.ends = self.blank_lines = np.empty(0, dtype=np.int64)
-            self.quote_lines = self.plus_lines = np.empty(0, dtype=np.int64)
+            self.quote_lines = np.empty(0, dtype=np.int64)
             self.stray_cr = False
             return
         buf = np.frombuffer(self._mm, dtype=np.uint8)
@@ -84,7 +84,6 @@ class LineIndex:
             self.stray_cr = False
         self.blank_lines = np.flatnonzero(self.ends == self.starts) + 1
         self.quote_lines = self.lines_of(_positions(buf, self._mm, ord('"')))
-        self.plus_lines = self.lines_of(_positions(buf, self._mm, ord("+")))
         del buf
 
     def lines_of(self, offsets: np.ndarray) -> np.ndarray:

@@ -286,23 +286,13 @@ def _buffer_option() -> str:
     return "" if CSV_BUFFER_BYTES is None else f", buffer_size = {int(CSV_BUFFER_BYTES)}"
 
 
-def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str) -> dict:
-    """Type a DMA/NOAA CSV file into ``ais_stage`` (rules in :mod:`lanes.io.csv_formats`).
+def _csv_typing(index: dict[str, int], fld, inner: str, passthrough: str = "") -> str:
+    """The typing SELECT of the CSV stages (rules in :mod:`lanes.io.csv_formats`), shared by
+    both paths so that they type every field with the same expressions.
 
-    One stage row per physical line, in file order (``line`` = rowid + 1): DuckDB's parallel
-    CSV scanner reads the raw lines (one VARCHAR column, no quoting) and the same statement
-    splits and types them. Files the scanner refuses (a stray ``\r``, invalid UTF-8, control
-    characters) are split by Python with the same rules (``read_lines``) and staged from Arrow.
-    The header line, lines equal to it (concatenated files) and empty lines are kind "X"
-    (not data; empty ones count as ``ignored``). ``index`` maps stage fields to 0-based columns
-    of the header line ``header`` (``n_fields`` columns). Static fields stay text (``s_*``); they are typed per
-    distinct value when merged into ``vessels``.
-    """
-    _prepare(ws.con)
-    con = ws.con
-
-    def fld(name):
-        return f"f[{index[name] + 1}]" if name in index else "CAST(NULL AS VARCHAR)"
+    ``inner`` yields ``raw``, ``is_data`` (a record, not a header/empty line), ``nf_ok`` (the
+    right number of fields) and the fields ``fld(name)`` refers to; ``passthrough`` (e.g.
+    ``"line, "``) names columns carried through."""
 
     def blank(x):
         return f"({x} IS NULL OR trim({x}, $ws) = '')"
@@ -326,41 +316,68 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
     # Fast path of the parse-error CASE: a row of the right length whose fields all typed.
     all_typed = " AND ".join(["nf_ok"] + [f"{n} IS NOT NULL" for n in ("lat_deg", "lon_deg", "sog_kn", "cog_deg",
                                                                       "heading_deg", "nav_status") if n in index])
-
-    def typed(source: str) -> str:
-        return f"""
-        SELECT raw, CASE WHEN is_data THEN '{C.KIND_POSITION}' ELSE '{C.KIND_IGNORED}' END AS kind,
+    return f"""
+        SELECT {passthrough}raw, CASE WHEN is_data THEN '{C.KIND_POSITION}' ELSE '{C.KIND_IGNORED}' END AS kind,
             CASE WHEN NOT is_data OR {all_typed} THEN NULL WHEN NOT nf_ok THEN '{C.BAD_LINE}' {perr} END AS parse_error,
             mmsi, time_utc, lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, nav_status,
             {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
             {", ".join(f"CAST(NULL AS VARCHAR) AS {c}" for c in _TEXT_STATIC)},
             s_hash
         FROM (
-            SELECT raw, is_data, nf_ok, f,
+            SELECT *,
                 CASE WHEN regexp_full_match({fld('mmsi')}, $mmsi_re) THEN CAST({fld('mmsi')} AS BIGINT) END AS mmsi,
                 ais_time(try_strptime({fld('time_utc')}, $time_formats::VARCHAR[])) AS time_utc,
                 {", ".join(f"ais_num({fld(n)}) AS {n}" for n in _NUM_FIELDS)},
                 CAST({nav} AS DOUBLE) AS nav_status,
                 hash({", ".join(fld(c[2:]) for c in _TEXT_STATIC)}) AS s_hash
-            FROM (
-                SELECT raw, f, len(f) = {int(n_fields)} AS nf_ok, is_data FROM (
-                    SELECT raw,
-                        raw IS NOT NULL AND raw <> '' AND raw <> $header AND raw <> $bom_header AS is_data,
-                        CASE WHEN contains(raw, '"') THEN ais_csv_split(raw) ELSE string_split(raw, ',') END AS f
-                    FROM {source}
-                )
-            )
+            FROM ({inner})
         )
         """
 
+
+def _csv_split_typing(index: dict[str, int], n_fields: int, source: str, passthrough: str = "") -> str:
+    """:func:`_csv_typing` of raw lines (column ``raw`` of ``source``) split in SQL."""
+
+    def fld(name):
+        return f"f[{index[name] + 1}]" if name in index else "CAST(NULL AS VARCHAR)"
+
+    inner = f"""
+        SELECT {passthrough}raw, f, len(f) = {int(n_fields)} AS nf_ok, is_data FROM (
+            SELECT {passthrough}raw,
+                raw IS NOT NULL AND raw <> '' AND raw <> $header AND raw <> $bom_header AS is_data,
+                CASE WHEN contains(raw, '"') THEN ais_csv_split(raw) ELSE string_split(raw, ',') END AS f
+            FROM {source}
+        )"""
+    return _csv_typing(index, fld, inner, passthrough)
+
+
+def _csv_params(spec: CsvSpec, header: str) -> dict:
     params = {"mmsi_re": MMSI_RE, "time_formats": list(spec.time_formats), "header": header,
               "bom_header": "\ufeff" + header}
     for i, (word, code) in enumerate(NAV_STATUS_WORDS.items()):
         params[f"navw{i}"], params[f"navc{i}"] = word, float(code)
+    return params
+
+
+def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str) -> dict:
+    """Type a DMA/NOAA CSV file into ``ais_stage`` (rules in :mod:`lanes.io.csv_formats`).
+
+    One stage row per physical line, in file order (``line`` = rowid + 1): DuckDB's parallel
+    CSV scanner reads the raw lines (one VARCHAR column, no quoting) and the same statement
+    splits and types them. Files the scanner refuses (a stray ``\r``, invalid UTF-8, control
+    characters) are split by Python with the same rules (``read_lines``) and staged from Arrow.
+    The header line, lines equal to it (concatenated files) and empty lines are kind "X"
+    (not data; empty ones count as ``ignored``). ``index`` maps stage fields to 0-based columns
+    of the header line ``header`` (``n_fields`` columns). Static fields stay text (``s_*``); they are typed per
+    distinct value when merged into ``vessels``.
+    """
+    _prepare(ws.con)
+    con = ws.con
+    params = _csv_params(spec, header)
     fallback = False
     try:
-        sql = typed(_CSV_LINES.replace("?", "$p_path", 1).replace("?", "$p_delim", 1).replace("?", "$p_comp", 1)
-                    .replace("?", "$p_max", 1)[:-1] + _buffer_option() + ")")
+        sql = _csv_split_typing(index, n_fields, _CSV_LINES.replace("?", "$p_path", 1).replace("?", "$p_delim", 1)
+                                .replace("?", "$p_comp", 1).replace("?", "$p_max", 1)[:-1] + _buffer_option() + ")")
         _create_stage(con, sql, {**params, "p_path": str(path), "p_delim": "\x01",
                                  "p_comp": "gzip" if gz else "none",
                                  "p_max": (1 << 24) if CSV_BUFFER_BYTES is None else int(CSV_BUFFER_BYTES) // 2},
@@ -374,7 +391,7 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
         tbl = pa.table({"raw": pa.array([x if x != "" else None for x in lines], type=pa.string())})
         con.register("ais_lines_py", tbl)
         try:
-            _create_stage(con, typed("ais_lines_py"), params, line_from_rowid=True)
+            _create_stage(con, _csv_split_typing(index, n_fields, "ais_lines_py"), params, line_from_rowid=True)
         finally:
             con.unregister("ais_lines_py")
     _set_stage_kind(con, "csvhash", {"index": {c: index[c[2:]] + 1 for c in _TEXT_STATIC if c[2:] in index}})
@@ -384,84 +401,80 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
     return {"ignored": int(ignored), "python_fallback": fallback, "staging": "python" if fallback else "lines"}
 
 
-#: Above this share of data lines needing the exact Python typing, the raw-lines path is faster.
+#: Columns of the scanned rows kept by the fast CSV stage.
+_FAST_COLUMNS = ("hdr_like", "parse_error", "mmsi", "time_utc", *_NUM_FIELDS, "nav_status", "s_hash")
+
+#: Above this share of lines needing the line-by-line typing, the raw-lines path is as fast.
 FAST_MAX_EXACT_FRAC = 0.02
 
 
 def stage_csv_fast(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str,
-                   line_index, time_format: str) -> dict | None:
-    """Typed fast path of :func:`stage_csv` for an uncompressed DMA/NOAA file.
+                   line_index) -> dict | None:
+    """Fast path of :func:`stage_csv` for an uncompressed DMA/NOAA file.
 
-    DuckDB's parallel CSV scanner types the needed columns itself (``read_csv`` with explicit
-    column types, the day-first time format, status words as an ENUM of their usual spellings,
-    no quoting so that every record is one physical line) and keeps the rows it cannot type
-    in its rejects table with their line numbers. ``line_index`` (a
-    :class:`lanes.io.lineindex.LineIndex`, or a future of one built in a thread meanwhile)
-    gives the rest:
+    DuckDB's parallel CSV scanner splits every line into its ``n_fields`` columns (no quoting,
+    so one record is one physical line; every column VARCHAR, empty fields kept as ``''``) and
+    the statement types them with the very expressions of :func:`stage_csv`
+    (:func:`_csv_typing`). What the scanner cannot be trusted with is typed from the line's text
+    by :func:`stage_csv`'s own statement: lines with a double quote (quoted fields) and the rows
+    it rejects (another number of fields; they land in its rejects table with their line).
 
-    * the line of every accepted row: rows come out in file order, so the k-th accepted row is
-      the k-th line that is not the header, an empty line or a rejected line;
-    * the invariant ``accepted + rejected + header + empty lines == lines in the file``, checked
-      before anything is used (with a spot check of sampled rows against their text);
-    * the lines the scanner cannot be trusted with: rejected rows, lines with a double quote
-      or a ``+``, rows whose MMSI text is not canonical digits or whose number read as NaN.
-      Those are typed by :func:`lanes.io.csv_formats.type_lines`, the pure path itself.
+    ``line_index`` (a :class:`lanes.io.lineindex.LineIndex`, or a future of one built in a
+    thread meanwhile) gives the rest:
 
-    The raw text of a row is read from the index only when it is quarantined. Returns the
-    stage info, or None (nothing staged) when the file needs the exact raw-lines path: a stray
-    ``\r``, an invariant that does not hold, a scanner error, or more than
-    :data:`FAST_MAX_EXACT_FRAC` of the lines to re-type.
+    * the line of every scanned row: rows come out in file order, so the k-th row is the k-th
+      line that is not the header, an empty line or a rejected line (with none of those,
+      ``line = rowid + 2``, no mapping at all);
+    * checks before anything is used: every rejected row's text is the text of its line, and
+      ``rows + rejected + header + empty lines == lines in the file``; with a mapping, a sample
+      of rows is typed again from its line's text and compared;
+    * the raw text of a row, read from the index only when the row is quarantined.
+
+    Returns the stage info, or None (nothing staged) when the file needs the exact raw-lines
+    path: a stray ``\r``, a check that fails, a scanner error, or more than
+    :data:`FAST_MAX_EXACT_FRAC` of the lines to type line by line.
     """
     import pyarrow as pa
-
-    from lanes.io.csv_formats import NAV_STATUS_SPELLINGS, split_csv_line, type_lines
 
     con = ws.con
     _prepare(con)
     con.execute("SET preserve_insertion_order = true")
+    from lanes.io.csv_formats import split_csv_line
+
     names = [f"c{i}" for i in range(int(n_fields))]
-    col = {f: names[i] for f, i in index.items()}
-    types = dict.fromkeys(names, "VARCHAR")
-    types[col["time_utc"]] = "TIMESTAMP"
-    for f in _NUM_FIELDS:
-        if f in col:
-            types[col[f]] = "DOUBLE"
-    spellings = list(NAV_STATUS_SPELLINGS)
-    if "nav_status" in col:
-        types[col["nav_status"]] = "ENUM(" + ", ".join("'" + w.replace("'", "''") + "'" for w in spellings) + ")"
+    used = sorted({names[i] for i in index.values()}, key=names.index)
+    header_fields = header.split(",")
 
-    def c(f, cast="DOUBLE"):
-        return col[f] if f in col else f"CAST(NULL AS {cast})"
+    def fld(name):
+        return names[index[name]] if name in index else "CAST(NULL AS VARCHAR)"
 
-    canon = "CAST(mm AS VARCHAR) = m"
-    nan_any = " OR ".join(f"isnan({col[f]})" for f in _NUM_FIELDS if f in col) or "false"
-    nav = (f"CAST(list_extract($nav_codes::DOUBLE[], enum_code({col['nav_status']}) + 1) AS DOUBLE)"
-           if "nav_status" in col else "CAST(NULL AS DOUBLE)")
-    statics = [col[s] for s in C.STATIC_COLUMNS if s in col]
-    s_hash = f"hash({', '.join(statics)})" if statics else "CAST(NULL AS UBIGINT)"
-    used = sorted({col[f] for f in col}, key=names.index)
-    typed = f"""
-        SELECT '{C.KIND_POSITION}' AS kind, CAST(NULL AS VARCHAR) AS parse_error,
-            CASE WHEN mm BETWEEN 100000000 AND 999999999 AND {canon} THEN mm END AS mmsi,
-            ais_time(t) AS time_utc,
-            {", ".join(f"{c(f)} AS {f}" for f in _NUM_FIELDS)}, {nav} AS nav_status,
-            {s_hash} AS s_hash,
-            coalesce((m IS NOT NULL AND NOT coalesce({canon}, false)) OR {nan_any}, false) AS exact
-        FROM (
-            SELECT {", ".join(used)}, {c('mmsi', 'VARCHAR')} AS m, TRY_CAST({c('mmsi', 'VARCHAR')} AS BIGINT) AS mm,
-                {col['time_utc']} AS t
-            FROM read_csv($path, skip = 1, header = false, delim = ',', quote = '', escape = '', comment = '',
-                          auto_detect = false, columns = $cols, timestampformat = $tfmt, store_rejects = true,
-                          rejects_table = 'ais_rejects', rejects_scan = 'ais_reject_scans'{_buffer_option()})
-        )"""
-    params = {"path": str(path), "cols": types, "tfmt": time_format,
-              "nav_codes": [float(NAV_STATUS_SPELLINGS[w]) for w in spellings]}
+    # A line equal to the header (files concatenated) is no record. Comparing every field would
+    # make the scanner materialise all of them; rows whose time field equals the header's are
+    # flagged instead (a line equal to the header must be one) and typed from their text.
+    t_col = index.get("time_utc", min(index.values()))
+    h_field = header_fields[t_col] if len(header_fields) == len(names) else None
+    hdr = "false" if h_field is None else (f"{names[t_col]} IN ($h_t, $bom_h_t)" if t_col == 0
+                                           else f"{names[t_col]} = $h_t")
+    inner = f"""
+        SELECT CAST(NULL AS VARCHAR) AS raw, true AS is_data, true AS nf_ok, {hdr} AS hdr_like, {", ".join(used)}
+        FROM read_csv($path, skip = 1, header = false, delim = ',', quote = '', escape = '', comment = '',
+                      auto_detect = false, columns = $cols, force_not_null = $names, store_rejects = true,
+                      rejects_table = 'ais_rejects', rejects_scan = 'ais_reject_scans'{_buffer_option()})"""
+    params = {**_csv_params(spec, header), "path": str(path), "cols": dict.fromkeys(names, "VARCHAR"),
+              "names": names}
+    if h_field is not None:
+        params.update(h_t=h_field, bom_h_t="\ufeff" + h_field)
     for t in ("ais_rejects", "ais_reject_scans"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
     try:
-        _create_stage(con, typed, params, table="ais_fast")
+        # Only what varies is kept per row (every row is a position record; raw text and static
+        # values come from the line when needed): the view ais_stage adds the constant columns.
+        sql = (f"CREATE OR REPLACE TEMP TABLE ais_fast AS WITH typed AS "
+               f"({_csv_typing(index, fld, inner, passthrough='hdr_like, ')}) "
+               f"SELECT {', '.join(_FAST_COLUMNS)}, {_reason_case()} AS reason0 FROM typed")
+        con.execute(sql, _used(sql, {**_params(), **params}))
     except (duckdb.InvalidInputException, duckdb.ConversionException, duckdb.IOException) as err:
-        log.info("%s: typed CSV scan refused the file (%s); exact raw-lines path", path, str(err).split("\n")[0])
+        log.info("%s: CSV scanner refused the file (%s); exact raw-lines path", path, str(err).split("\n")[0])
         _drop_temp(con)
         return None
     n_fast = int(con.execute("SELECT count(*) FROM ais_fast").fetchone()[0])
@@ -481,52 +494,51 @@ def stage_csv_fast(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     blank = ix.blank_lines[ix.blank_lines > 1]
     excluded = np.union1d(np.union1d(np.array([1], dtype=np.int64), blank), rej)
     if len(excluded) != 1 + len(blank) + len(rej) or n_fast + len(excluded) != ix.n_lines:
-        return give_up(f"line count does not add up (typed {n_fast} + rejected {len(rej)} + header 1 + empty "
+        return give_up(f"line count does not add up (rows {n_fast} + rejected {len(rej)} + header 1 + empty "
                        f"{len(blank)} vs {ix.n_lines} lines)")
-    # The k-th accepted row (0-based) is the line L with L - #{excluded <= L} = k + 1.
+    hdr_rows = np.asarray(con.execute("SELECT rowid FROM ais_fast WHERE hdr_like ORDER BY rowid")
+                          .fetchnumpy()["rowid"], dtype=np.int64)
+    # The k-th row (0-based) is the line L with L - #{excluded <= L} = k + 1; with no empty or
+    # rejected line that is simply line = rowid + 2.
+    simple = len(excluded) == 1
     k = np.arange(n_fast, dtype=np.int64)
-    fast_line = k + 1 + np.searchsorted(excluded - 1 - np.arange(len(excluded)), k, side="right")
+    fast_line = k + 2 if simple else k + 1 + np.searchsorted(excluded - 1 - np.arange(len(excluded)), k, side="right")
     del k
-    flagged = np.asarray(con.execute("SELECT rowid FROM ais_fast WHERE exact ORDER BY rowid").fetchnumpy()["rowid"],
-                         dtype=np.int64)
-    special = np.union1d(np.union1d(rej, fast_line[flagged]), np.union1d(ix.quote_lines, ix.plus_lines))
+    special = np.union1d(np.union1d(rej, ix.quote_lines), fast_line[hdr_rows])
     special = special[special > 1]
     if len(special) > max(1000, FAST_MAX_EXACT_FRAC * ix.n_lines):
-        return give_up(f"{len(special)} of {ix.n_lines} lines need the exact typing")
-    skip = np.zeros(n_fast, dtype=bool)
+        return give_up(f"{len(special)} of {ix.n_lines} lines need the line-by-line typing")
+    skip = np.zeros(n_fast, dtype=bool)  # rows of lines typed from their text instead
     pos = np.searchsorted(fast_line, special)
     hit = pos < n_fast
     hit[hit] = fast_line[pos[hit]] == special[hit]
     skip[pos[hit]] = True
-
-    header_fields = split_csv_line(header)
-    if not _spot_check(con, ix, fast_line, skip, header, header_fields, index, spec):
+    if not _spot_check(con, ix, fast_line, skip, header, spec, index, int(n_fields)):
         return give_up("sampled rows differ from their lines")
-    exact, _ = type_lines(zip(special.tolist(), ix.text(special)), header, header_fields, index, spec)
-    _create_exact_stage(con, exact)
-    con.register("ais_fast_pos", pa.table({"line": fast_line, "skip": skip}))
-    typed_nulls = ", ".join(f"CAST(NULL AS {t}) AS {c_}" for c_, t in _STATIC_TYPES.items())
-    text_nulls = ", ".join(f"CAST(NULL AS VARCHAR) AS {c_}" for c_ in _TEXT_STATIC)
-    values = ", ".join(f"f.{v}" for v in (*_NUM_FIELDS, "nav_status"))
+    if simple:
+        con.register("ais_fast_skip", pa.table({"r": pa.array(pos[hit].astype(np.int64))}))
+        fast_sql = """SELECT rowid + 2 AS line, * EXCLUDE (hdr_like) FROM ais_fast
+                      WHERE rowid NOT IN (SELECT r FROM ais_fast_skip)"""
+    else:
+        con.register("ais_fast_pos", pa.table({"line": fast_line, "skip": skip}))
+        fast_sql = """SELECT p.line, f.* EXCLUDE (hdr_like) FROM ais_fast f POSITIONAL JOIN ais_fast_pos p
+                      WHERE NOT p.skip"""
+    _create_exact_stage(con, special, ix, spec, index, int(n_fields), header)
     con.execute(f"""CREATE OR REPLACE TEMP VIEW ais_stage AS
-        SELECT p.line, CAST(NULL AS VARCHAR) AS raw, f.kind, f.parse_error, f.mmsi, f.time_utc, {values},
-               {typed_nulls}, {text_nulls}, f.s_hash, f.reason0
-        FROM ais_fast f POSITIONAL JOIN ais_fast_pos p WHERE NOT p.skip
-        UNION ALL
-        SELECT line, raw, kind, parse_error, mmsi, time_utc, {", ".join(v for v in (*_NUM_FIELDS, "nav_status"))},
-               {", ".join(_STATIC_TYPES)}, {text_nulls}, CAST(NULL AS UBIGINT) AS s_hash, reason0
-        FROM ais_exact""")
+        SELECT * FROM ais_exact
+        UNION ALL BY NAME SELECT line, CAST(NULL AS VARCHAR) AS raw, '{C.KIND_POSITION}' AS kind, * EXCLUDE (line)
+        FROM ({fast_sql})""")
     _set_stage_kind(con, "csvfast", {"path": str(path), "header": header,
-                                     "index": {s: index[s] for s in C.STATIC_COLUMNS if s in index}})
+                                     "index": {c: index[c[2:]] + 1 for c in _TEXT_STATIC if c[2:] in index}})
     return {"ignored": int(len(blank)), "python_fallback": False, "staging": "typed", "line_index": ix,
-            "exact_lines": int(len(special))}
+            "exact_lines": int(len(special)), "line_mapping": "rowid" if simple else "ordinal"}
 
 
 def _verified_reject_lines(reported: list, ix) -> np.ndarray | None:
     """The lines of the rows DuckDB's scanner rejected, each checked against the line index.
 
     ``reported``: distinct ``(line, csv_line)`` pairs of the rejects table. A pair whose text
-    (without the empty lines DuckDB sometimes prefixes, nor a trailing ``\r``) is the text of
+    (without the empty lines DuckDB sometimes prefixes, nor a trailing ``\\r``) is the text of
     its line is kept. DuckDB 1.5 can also report an error of a row a second time under the
     number of an empty line before it; such a pair is dropped when its text is that of a
     verified rejected line. Any other mismatch returns None (the numbering cannot be trusted).
@@ -547,57 +559,55 @@ def _verified_reject_lines(reported: list, ix) -> np.ndarray | None:
     return np.unique(np.asarray(ok, dtype=np.int64))
 
 
-def _spot_check(con, ix, fast_line, skip, header, header_fields, index, spec, n: int = 64) -> bool:
-    """Type ``n`` accepted rows spread over the file (and up to ``n`` quarantined ones) again
-    from their line text with the pure rules and compare: a wrong line mapping shows here."""
-    from lanes.io.csv_formats import type_lines
+def _typed_lines(con, lines: np.ndarray, texts: list, spec, index, n_fields: int, header: str,
+                 table: str, extra: dict | None = None) -> None:
+    """Type the given lines with :func:`stage_csv`'s statement into the temp table ``table``."""
+    import pyarrow as pa
 
+    con.register("ais_lines_df", pa.table({"line": pa.array(np.asarray(lines, dtype=np.int64)),
+                                           "raw": pa.array(texts, pa.string())}))
+    try:
+        _create_stage(con, _csv_split_typing(index, n_fields, "ais_lines_df", passthrough="line, "),
+                      {**_csv_params(spec, header), **(extra or {})}, table=table)
+    finally:
+        con.unregister("ais_lines_df")
+
+
+def _spot_check(con, ix, fast_line, skip, header, spec, index, n_fields: int, n: int = 64) -> bool:
+    """Type ``n`` scanned rows spread over the file (and up to ``n`` quarantined ones) again
+    from their line's text and compare: a wrong line mapping shows here."""
     ok_rows = np.flatnonzero(~skip)
     if len(ok_rows) == 0:
         return True
     pick = ok_rows[np.unique(np.linspace(0, len(ok_rows) - 1, min(n, len(ok_rows))).astype(np.int64))]
-    bad = np.asarray(con.execute("SELECT rowid FROM ais_fast WHERE reason0 IS NOT NULL AND NOT exact LIMIT ?",
+    bad = np.asarray(con.execute("SELECT rowid FROM ais_fast WHERE reason0 IS NOT NULL LIMIT ?",
                                  [int(n)]).fetchnumpy()["rowid"], dtype=np.int64)
     bad = bad[~skip[bad]]
     rows = np.union1d(pick, bad)
-    con.register("ais_spot_df", pd.DataFrame({"r": rows}))
-    try:
-        got = con.execute(f"""SELECT rowid AS r, mmsi, epoch_us(time_utc) AS t_us, {", ".join(_NUM_FIELDS)}, nav_status
-                              FROM ais_fast WHERE rowid IN (SELECT r FROM ais_spot_df) ORDER BY rowid""").fetchdf()
-    finally:
-        con.unregister("ais_spot_df")
     lines = fast_line[rows]
-    ref, _ = type_lines(zip(lines.tolist(), ix.text(lines)), header, header_fields, index, spec)
-    if len(ref) != len(rows) or len(got) != len(rows) or not np.array_equal(ref["line"].to_numpy(), lines):
-        return False
-    ref_t = ref["time_utc"].dt.tz_convert(None).to_numpy().astype("datetime64[us]").astype(np.int64)
-    ref_t = np.where(ref["time_utc"].isna().to_numpy(), -1, ref_t)
-    if not np.array_equal(got["t_us"].fillna(-1).to_numpy(dtype=np.int64), ref_t):
-        return False
-    if not np.array_equal(got["mmsi"].fillna(-1).to_numpy(dtype=np.int64), ref["mmsi"].fillna(-1).to_numpy(dtype=np.int64)):
-        return False
-    for v in (*_NUM_FIELDS, "nav_status"):
-        if not np.array_equal(got[v].to_numpy(dtype=float), ref[v].to_numpy(dtype=float), equal_nan=True):
-            return False
-    return True
+    _typed_lines(con, lines, ix.text(lines), spec, index, n_fields, header, "ais_spot")
+    con.register("ais_spot_rows", _rows_table(rows, lines))
+    try:
+        vals = ", ".join(("parse_error", "mmsi", "time_utc", *_NUM_FIELDS, "nav_status", "s_hash", "reason0"))
+        differ = con.execute(f"""SELECT count(*) FROM (
+                SELECT r.line, '{C.KIND_POSITION}' AS kind, {vals} FROM ais_fast f JOIN ais_spot_rows r ON f.rowid = r.r
+                EXCEPT SELECT line, kind, {vals} FROM ais_spot)""").fetchone()[0]
+        n_spot = con.execute("SELECT count(*) FROM ais_spot").fetchone()[0]
+    finally:
+        con.unregister("ais_spot_rows")
+        con.execute("DROP TABLE IF EXISTS temp.ais_spot")
+    return differ == 0 and n_spot == len(rows)
 
 
-def _create_exact_stage(con, stage: pd.DataFrame) -> None:
-    """The rows typed by the pure path as the temporary table ``ais_exact`` (with ``reason0``)."""
+def _rows_table(rows: np.ndarray, lines: np.ndarray):
     import pyarrow as pa
 
-    df = C.conform_stage(stage)
-    tbl = pa.Table.from_pandas(df.assign(time_utc=df["time_utc"].dt.tz_convert(None)), preserve_index=False)
-    con.register("ais_exact_df", tbl)
-    try:
-        _create_stage(con, f"""SELECT CAST(line AS BIGINT) AS line, CAST(raw AS VARCHAR) AS raw,
-                CAST(kind AS VARCHAR) AS kind, CAST(parse_error AS VARCHAR) AS parse_error,
-                CAST(mmsi AS BIGINT) AS mmsi, CAST(time_utc AS TIMESTAMP) AS time_utc,
-                {", ".join(f"CAST({v} AS DOUBLE) AS {v}" for v in (*_NUM_FIELDS, "nav_status"))},
-                {", ".join(f"CAST({c_} AS {t}) AS {c_}" for c_, t in _STATIC_TYPES.items())}
-            FROM ais_exact_df""", table="ais_exact")
-    finally:
-        con.unregister("ais_exact_df")
+    return pa.table({"r": pa.array(rows.astype(np.int64)), "line": pa.array(lines.astype(np.int64))})
+
+
+def _create_exact_stage(con, special: np.ndarray, ix, spec, index, n_fields: int, header: str) -> None:
+    """The lines the scanner cannot be trusted with, typed from their text, as ``ais_exact``."""
+    _typed_lines(con, special, ix.text(special), spec, index, n_fields, header, "ais_exact")
 
 
 _STATIC_TYPES = {"imo": "BIGINT", "name": "VARCHAR", "callsign": "VARCHAR", "ship_type": "INTEGER",
@@ -748,37 +758,36 @@ def read_stage(ws) -> pd.DataFrame:
     cols = ["mmsi", "timezone('UTC', time_utc) AS time_utc", *_NUM_FIELDS, "nav_status", _typed_static_select()]
     source = "ais_stage"
     kind, extra = _stage_kind(ws.con)
-    if kind == "csvhash":  # the static texts, re-split from the raw lines
+    registered = False
+    if kind == "csvfast":  # rows from the scanner: the raw text from their line
+        import pyarrow as pa
+
+        from lanes.io.lineindex import LineIndex
+
+        need = np.asarray(ws.con.execute("SELECT line FROM ais_stage WHERE raw IS NULL ORDER BY line")
+                          .fetchnumpy()["line"], dtype=np.int64)
+        with LineIndex(extra["path"]) as ix:
+            ws.con.register("ais_rs_raw", pa.table({"line": pa.array(need), "raw": pa.array(ix.text(need), pa.string())}))
+        registered = True
+        source = ("(SELECT s.* REPLACE (coalesce(s.raw, r.raw) AS raw) FROM ais_stage s "
+                  "LEFT JOIN ais_rs_raw r USING (line))")
+    if kind in ("csvhash", "csvfast"):  # the static texts, re-split from the raw lines
         index = extra["index"]
         texts = ", ".join(f"f[{index[c]}] AS {c}" if c in index else f"CAST(NULL AS VARCHAR) AS {c}"
                           for c in _TEXT_STATIC)
         source = (f"(SELECT * EXCLUDE (f, {', '.join(_TEXT_STATIC)}), {texts} FROM (SELECT *, "
                   f"CASE WHEN contains(raw, '\"') THEN ais_csv_split(raw) ELSE string_split(raw, ',') END AS f "
-                  f"FROM ais_stage))")
+                  f"FROM {source}))")
     # A bad line keeps no typed field (the bulk path leaves whatever its fields typed to).
     sql = (f"SELECT line, raw, kind, parse_error, "
            f"COLUMNS(c -> c NOT IN ('line', 'raw', 'kind', 'parse_error')) FROM ("
            f"  SELECT line, raw, kind, parse_error, {', '.join(cols)} FROM {source}) s "
            f"WHERE kind <> '{C.KIND_IGNORED}' ORDER BY line")
-    df = ws.con.execute(sql, _used(sql, _params())).fetchdf()
-    if kind == "csvfast":  # rows typed by the scanner: raw text and static values from their lines
-        from lanes.io.csv_formats import split_csv_line, type_static
-        from lanes.io.lineindex import LineIndex
-
-        fast = df["raw"].isna().to_numpy()
-        if fast.any():
-            with LineIndex(extra["path"]) as ix:
-                raw = ix.text(df.loc[fast, "line"].to_numpy(dtype=np.int64))
-            texts = [split_csv_line(x) for x in raw]
-            index = extra["index"]
-            fields = pd.DataFrame({c: [f[index[c]].strip(WS) if c in index else "" for f in texts]
-                                   for c in C.STATIC_COLUMNS})
-            typed = type_static(fields)
-            df["raw"] = df["raw"].astype(object)
-            df.loc[fast, "raw"] = raw
-            for c in C.STATIC_COLUMNS:
-                df[c] = df[c].astype(object)
-                df.loc[fast, c] = typed[c].astype(object).where(typed[c].notna(), None).to_numpy()
+    try:
+        df = ws.con.execute(sql, _used(sql, _params())).fetchdf()
+    finally:
+        if registered:
+            ws.con.unregister("ais_rs_raw")
     bad = df["parse_error"] == C.BAD_LINE
     keep = {"line", "raw", "kind", "parse_error"}
     df.loc[bad, [c for c in df.columns if c not in keep]] = None
@@ -1137,32 +1146,37 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
     typing every row.
     """
     kind, extra = _stage_kind(con)
+    registered = []
     key = "{'t': coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'), 'l': line}"
     rows = (f"FROM ais_stage WHERE kind <> '{C.KIND_IGNORED}' AND mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} "
             f"AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'")
-    if kind == "csvfast":
-        if not _fast_vessel_combos(con, meta or {}, rows, key):
-            return
-        combos = ""
-        typed = f"""typed AS (
-            SELECT CAST(mmsi AS BIGINT) AS mmsi,
-                   {{'t': make_timestamp(CAST(k_t AS BIGINT)), 'l': CAST(k_l AS BIGINT)}} AS k,
-                   make_timestamp(CAST(tmax AS BIGINT)) AS tmax,
-                   {", ".join(f"CAST({c} AS {_STATIC_TYPES[c]}) AS {c}" for c in C.STATIC_COLUMNS)}
-            FROM ais_combos_df),"""
-    elif kind == "csvhash":
+    if kind in ("csvhash", "csvfast"):
         # Distinct static field tuples by hash (a 64-bit collision inside one MMSI would merge two
-        # tuples: odds ~1e-19 per pair); their texts come from re-splitting the latest raw line.
+        # tuples: odds ~1e-19 per pair); their texts come from re-splitting the latest raw line
+        # (fast CSV stage: the line's text from the line index).
         index = extra["index"]
         texts = ", ".join(f"f[{index[c]}] AS {c}" if c in index else f"CAST(NULL AS VARCHAR) AS {c}"
                           for c in _TEXT_STATIC)
+        latest = f"SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax, arg_max(line, {key}) AS l {rows} " \
+                 "GROUP BY mmsi, s_hash"
+        raw_source = "ais_stage"
+        if kind == "csvfast":
+            import pyarrow as pa
+
+            con.execute(f"CREATE OR REPLACE TEMP TABLE ais_latest AS {latest}")
+            need = np.asarray(con.execute("SELECT DISTINCT l FROM ais_latest ORDER BY l").fetchnumpy()["l"],
+                              dtype=np.int64)
+            ix = _line_index(con, meta or {})
+            con.register("ais_latest_raw", pa.table({"line": pa.array(need),
+                                                     "raw": pa.array(ix.text(need), pa.string())}))
+            registered.append("ais_latest_raw")
+            latest, raw_source = "SELECT * FROM ais_latest", "ais_latest_raw"
         combos = f"""
-            latest AS (SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax, arg_max(line, {key}) AS l
-                       {rows} GROUP BY mmsi, s_hash),
+            latest AS ({latest}),
             split AS (
                 SELECT latest.mmsi, latest.k, latest.tmax,
                        CASE WHEN contains(s.raw, '"') THEN ais_csv_split(s.raw) ELSE string_split(s.raw, ',') END AS f
-                FROM latest JOIN ais_stage s ON s.line = latest.l
+                FROM latest JOIN {raw_source} s ON s.line = latest.l
             ),
             combos AS (SELECT mmsi, k, tmax, {texts} FROM split),"""
         typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
@@ -1193,56 +1207,18 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
     try:
         con.execute(sql, _used(sql, {**_params(), "file_id": file_id}))
     finally:
-        if kind == "csvfast":
-            con.unregister("ais_combos_df")
-
-
-def _fast_vessel_combos(con, meta: dict, rows: str, key: str) -> bool:
-    """Register ``ais_combos_df``: the typed static values of a fast-staged CSV file, one row per
-    (MMSI, static fields) combination with its latest (time, line) and latest time.
-
-    Rows typed by the scanner carry a hash of their static fields; only the latest line of each
-    (MMSI, hash) is split again (from the line index) and typed with
-    :func:`lanes.io.csv_formats.type_static`. Rows typed by the pure path bring their values.
-    Returns False when there is nothing to merge."""
-    from lanes.io.csv_formats import split_csv_line, type_static
-
-    sentinel = "TIMESTAMP '1677-09-22 00:00:00'"
-    fast = con.execute(
-        f"""SELECT mmsi, arg_max(line, {key}) AS k_l, epoch_us(max(coalesce(time_utc, {sentinel}))) AS k_t,
-                   epoch_us(max(time_utc)) AS tmax
-            {rows} AND raw IS NULL GROUP BY mmsi, s_hash""").fetchdf()
-    exact = con.execute(
-        f"""SELECT mmsi, line AS k_l, epoch_us(coalesce(time_utc, {sentinel})) AS k_t, epoch_us(time_utc) AS tmax,
-                   {", ".join(C.STATIC_COLUMNS)}
-            {rows} AND raw IS NOT NULL""").fetchdf()
-    if len(fast):
-        kind, extra = _stage_kind(con)
-        index = extra["index"]
-        ix = _line_index(con, meta)
-        texts = [split_csv_line(x) for x in ix.text(fast["k_l"].to_numpy(dtype=np.int64))]
-        fields = pd.DataFrame({c: [f[index[c]].strip(WS) if c in index else "" for f in texts]
-                               for c in C.STATIC_COLUMNS})
-        typed = type_static(fields)
-        for c in C.STATIC_COLUMNS:
-            fast[c] = typed[c] if c in typed else None
-    combos = pd.concat([f for f in (fast, exact) if len(f)], ignore_index=True) if len(fast) or len(exact) else None
-    if combos is None:
-        return False
-    for c in ("k_t", "tmax"):
-        combos[c] = combos[c].astype("Int64")
-    con.register("ais_combos_df", combos)
-    return True
+        for name in registered:
+            con.unregister(name)
 
 
 def _drop_temp(con) -> None:
     con.execute("DROP VIEW IF EXISTS temp.ais_stage")
-    for name in ("ais_fast_pos", "ais_raw_df", "ais_combos_df"):
+    for name in ("ais_fast_pos", "ais_fast_skip", "ais_raw_df", "ais_latest_raw", "ais_lines_df", "ais_spot_rows"):
         try:
             con.unregister(name)
         except Exception:  # noqa: BLE001 - not registered
             pass
-    for t in ("ais_stage_t", "ais_dup", "ais_out", "ais_q", "ais_stage_info", "ais_fast", "ais_exact", "ais_rejects",
+    for t in ("ais_stage_t", "ais_dup", "ais_out", "ais_q", "ais_stage_info", "ais_fast", "ais_exact", "ais_spot", "ais_latest", "ais_rejects",
               "ais_reject_scans"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
 
