@@ -26,8 +26,11 @@ from thresholds.errors import StormlaneError
 
 log = logging.getLogger(__name__)
 
-#: CSV files from this size on take the typed fast path (smaller ones: one exact pass is cheaper).
-FAST_CSV_MIN_BYTES = 0
+#: Uncompressed CSV files from this size on take the scanner-split fast path
+#: (:func:`pipelines.storage.ais.stage_csv_fast`); below it the raw-lines path costs less, its
+#: fixed cost per file being lower (measured on the demo's 2-3 MB files: 10 s CPU for 60 files
+#: against 14 s; on 846 MB the fast path takes ~35 % less CPU).
+FAST_CSV_MIN_BYTES = 16 << 20
 
 SUMMARY_KEYS = ("files", "read", "loaded", "quarantined", "duplicates", "reasons", "static", "ignored", "already_loaded")
 

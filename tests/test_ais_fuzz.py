@@ -11,6 +11,7 @@ from ais_fixtures import DMA_HEADER, dma_row
 from lanes.clean import clean_positions
 from lanes.io.csv_formats import read_csv_stage
 from lanes.io.nmea import parse_fast, parse_lines
+from pipelines import ingest as ingest_mod
 from pipelines.ingest import ingest_file
 from pipelines.storage import Workspace
 from pipelines.storage import ais as store
@@ -100,14 +101,20 @@ def test_mutated_csv_lines(tmp_path_factory, lines, crlf):
     text = body.join([DMA_HEADER] + lines) + body
     path = d / ("f" + hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:12] + ".csv")
     path.write_bytes(text.encode("utf-8", "surrogatepass"))
-    with memory_ws() as ws:
-        counts = ingest_file(ws, path, fmt="dma")
-        sql_q = outcome_sql(ws, counts["file_id"])
     stage, meta = read_csv_stage(path)
     pure = clean_positions(stage)
-    check(counts, pure)
-    assert sql_q == dict(zip(pure.quarantine.line, pure.quarantine.reason))
-    assert counts["ignored"] == meta["ignored"]
+    # Both staging paths: the raw-lines one and the scanner-split one (forced on this small file).
+    for min_bytes in (1 << 62, 0):
+        old, ingest_mod.FAST_CSV_MIN_BYTES = ingest_mod.FAST_CSV_MIN_BYTES, min_bytes
+        try:
+            with memory_ws() as ws:
+                counts = ingest_file(ws, path, fmt="dma")
+                sql_q = outcome_sql(ws, counts["file_id"])
+        finally:
+            ingest_mod.FAST_CSV_MIN_BYTES = old
+        check(counts, pure)
+        assert sql_q == dict(zip(pure.quarantine.line, pure.quarantine.reason))
+        assert counts["ignored"] == meta["ignored"]
 
 
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
@@ -118,10 +125,15 @@ def test_random_bytes_after_a_valid_header(tmp_path_factory, junk):
     data = (DMA_HEADER + "\n").encode() + junk
     path = d / ("b" + hashlib.sha1(data).hexdigest()[:12] + ".csv")
     path.write_bytes(data)
-    with memory_ws() as ws:
-        counts = ingest_file(ws, path, fmt="dma")
     pure = clean_positions(read_csv_stage(path)[0])
-    check(counts, pure)
+    for min_bytes in (1 << 62, 0):  # raw-lines path, then the scanner-split one
+        old, ingest_mod.FAST_CSV_MIN_BYTES = ingest_mod.FAST_CSV_MIN_BYTES, min_bytes
+        try:
+            with memory_ws() as ws:
+                counts = ingest_file(ws, path, fmt="dma")
+        finally:
+            ingest_mod.FAST_CSV_MIN_BYTES = old
+        check(counts, pure)
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,

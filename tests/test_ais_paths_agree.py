@@ -63,7 +63,8 @@ def test_dma_fixture_same_in_sql_and_pandas(tmp_path):
     assert meta["ignored"] == s["ignored"]
 
 
-def test_csv_typing_same_in_sql_and_pandas(tmp_path):
+@pytest.mark.parametrize("staging", ["lines", "fast"])
+def test_csv_typing_same_in_sql_and_pandas(tmp_path, staging):
     lines = list(DMA_LINES) + [
         dma_row(" 01/01/2025 00:20:00 ", " 219000005 ", " 55.5 ", "\t11.5", sog="nan", cog="1e2", hdg="+90",
                 status="5", imo="IMO1234567", ship="70", width="0", length="-3", draught="abc", dest="Unknown"),
@@ -76,9 +77,19 @@ def test_csv_typing_same_in_sql_and_pandas(tmp_path):
     src = write_dma(tmp_path / "edge.csv", lines)
     pure, _ = read_csv_stage(src)
     header = split_csv_line(DMA_LINES[0])
+    index = resolve_columns(DMA_SPEC, header, src)
     with open_workspace(tmp_path / "ws.duckdb") as ws:
-        store.stage_csv(ws, src, False, DMA_SPEC, resolve_columns(DMA_SPEC, header, src), len(header), DMA_LINES[0])
-        sql = store.read_stage(ws)
+        if staging == "lines":
+            store.stage_csv(ws, src, False, DMA_SPEC, index, len(header), DMA_LINES[0])
+        else:  # the scanner-split stage (rows rejected for their field count typed from their text)
+            from lanes.io.lineindex import LineIndex
+
+            with LineIndex(src) as ix:
+                info = store.stage_csv_fast(ws, src, DMA_SPEC, index, len(header), DMA_LINES[0], ix)
+                assert info is not None and info["staging"] == "typed"
+                sql = store.read_stage(ws)
+        if staging == "lines":
+            sql = store.read_stage(ws)
     assert_frames_equal(sql, conform_stage(pure))
     # A few of the edge cases, spelled out.
     row = pure.set_index("line")

@@ -439,7 +439,6 @@ def stage_csv_fast(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     con = ws.con
     _prepare(con)
     con.execute("SET preserve_insertion_order = true")
-    from lanes.io.csv_formats import split_csv_line
 
     names = [f"c{i}" for i in range(int(n_fields))]
     used = sorted({names[i] for i in index.values()}, key=names.index)
