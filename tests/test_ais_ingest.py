@@ -173,11 +173,21 @@ def test_cli_json_contract_and_errors(tmp_path):
 def test_flow_returns_the_same_summary(tmp_path, prefect_harness):
     from pipelines.ingest import ingest_flow
 
+    import pipelines.ingest as ingest_mod
+
     src = write_dma(tmp_path / "day.csv")
-    plain = ingest_paths([src], tmp_path / "plain.duckdb")
-    flowed = ingest_flow([str(src)], str(tmp_path / "flow.duckdb"))
+    # A second file overlapping the first: the flow's file tasks share one connection.
+    second = write_dma(tmp_path / "day2.csv", list(DMA_LINES) + [dma_row("01/01/2025 00:30:00", "219000009",
+                                                                         "55.0", "11.0")])
+    plain = ingest_paths([src, second], tmp_path / "plain.duckdb")
+    flowed = ingest_flow([str(src), str(second)], str(tmp_path / "flow.duckdb"))
     for k in ("files", "read", "loaded", "quarantined", "duplicates", "reasons", "static", "ignored"):
         assert flowed[k] == plain[k]
+    assert flowed["files"] == 2 and flowed["duplicates"] > 0
+    # The flow closed its workspace: another process can open it.
+    assert ingest_mod._FLOW_WORKSPACES == {}
+    code = "import sys, duckdb; duckdb.connect(sys.argv[1]).close()"
+    assert subprocess.run([sys.executable, "-c", code, str(tmp_path / "flow.duckdb")], timeout=60).returncode == 0
 
 
 def test_read_positions_filters(tmp_path, workspace_path):
