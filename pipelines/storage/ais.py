@@ -884,55 +884,6 @@ def _track_sql(has_old: bool) -> str:
     """
 
 
-def _track_merged_sql() -> str:
-    """Without stored positions: every clean row of the tracks that hold a repeated (mmsi, time)
-    or a candidate jump (> 0.999 x the limit), sorted by (mmsi, time, line), with the
-    normalised values needed to tell exact from conflicting duplicates."""
-    r = float(EARTH_RADIUS_NMI)
-    return f"""
-    WITH t AS (SELECT line, mmsi, time_utc, {_norm()} FROM ais_stage WHERE {_OK}),
-    l AS (
-        SELECT *, lag(time_utc) OVER w AS t0_, lag(lat_deg) OVER w AS lat0, lag(lon_deg) OVER w AS lon0
-        FROM t WINDOW w AS (PARTITION BY mmsi ORDER BY time_utc, line)
-    ),
-    b AS MATERIALIZED (
-        SELECT *, coalesce(time_utc = t0_ OR
-            2.0 * {r} * asin(sqrt(least(1.0,
-                pow(sin(radians(lat_deg - lat0) / 2.0), 2)
-                + cos(radians(lat0)) * cos(radians(lat_deg)) * pow(sin(radians(lon_deg - lon0) / 2.0), 2))))
-            > 0.999 * $vmax * (epoch_us(time_utc) - epoch_us(t0_)) / 3.6e9, false) AS brk
-        FROM l
-    ),
-    cm AS (SELECT DISTINCT mmsi FROM b WHERE brk)
-    SELECT line, mmsi, epoch_us(time_utc) AS t_us, {", ".join(_VALUES)} FROM b SEMI JOIN cm USING (mmsi)
-    ORDER BY mmsi, time_utc, line
-    """
-
-
-def _split_duplicates(tr: dict) -> tuple[np.ndarray, np.ndarray, list]:
-    """Rows sorted by (mmsi, time, line): a row with the (mmsi, time) of the row before it is a
-    duplicate of the first row of its run - ``duplicate`` when every normalised value equals
-    that row's (NULL = NULL), else ``duplicate_time``. Returns (keep mask, lines, reasons)."""
-    mmsi = np.asarray(tr["mmsi"])
-    t = np.asarray(tr["t_us"])
-    n = len(mmsi)
-    same = np.zeros(n, dtype=bool)
-    same[1:] = (mmsi[1:] == mmsi[:-1]) & (t[1:] == t[:-1])
-    if not same.any():
-        return np.ones(n, dtype=bool), np.empty(0, dtype=np.int64), []
-    first = np.maximum.accumulate(np.where(~same, np.arange(n), 0))
-    equal = np.ones(n, dtype=bool)
-    for v in _VALUES:
-        col = tr[v]
-        x = np.asarray(col.filled(np.nan) if np.ma.isMaskedArray(col) else col, dtype=float)
-        a, b = x, x[first]
-        equal &= (a == b) | (np.isnan(a) & np.isnan(b))
-    idx = np.flatnonzero(same)
-    lines = np.asarray(tr["line"], dtype=np.int64)[idx]
-    reasons = [C.DUPLICATE if e else C.DUPLICATE_TIME for e in equal[idx]]
-    return ~same, lines, reasons
-
-
 def _track_order(mmsi: np.ndarray, t_us: np.ndarray, line: np.ndarray) -> np.ndarray:
     """Permutation sorting fixes by track, then time, then line.
 
