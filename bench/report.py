@@ -13,6 +13,9 @@ import tempfile
 import time
 from pathlib import Path
 
+# `python bench/report.py` puts bench/ first on sys.path, where bench/routing.py would shadow the
+# `routing` package: drop it
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import _report_fixtures as fx  # noqa: E402
