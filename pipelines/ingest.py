@@ -22,7 +22,7 @@ from typing import Callable, Iterable, Optional
 
 from lanes.clean import DEFAULT_MAX_SPEED_KN
 from lanes.io.files import AisFile, expand_paths, inspect
-from thresholds.errors import StormlaneError
+from pipelines.runners import retry_transient
 
 log = logging.getLogger(__name__)
 
@@ -195,17 +195,6 @@ def total_bytes(paths: Iterable) -> int:
 # Prefect flow (thin: discovery -> per file: stage, clean + commit -> summary). Built on first
 # access so that the CLI and ``ingest_paths`` do not pay Prefect's import time.
 # ---------------------------------------------------------------------------------------------
-def _retry_io_only(task_, task_run, state) -> bool:
-    """Retry transient I/O failures (e.g. the workspace lock), never bad input."""
-    try:
-        state.result()
-    except StormlaneError:
-        return False
-    except Exception:  # noqa: BLE001
-        return True
-    return False
-
-
 def _discover(paths: list[str]) -> list[str]:
     return [str(p) for p in expand_paths(paths)]
 
@@ -252,7 +241,7 @@ def _build_flow() -> dict:
 
     discover_task = task(_discover, name="discover-ais-files")
     ingest_file_task = task(_ingest_one, name="ingest-ais-file", retries=2, retry_delay_seconds=[2, 5],
-                            retry_condition_fn=_retry_io_only)
+                            retry_condition_fn=retry_transient)
     summarise_task = task(_summarise, name="summarise-ingest")
 
     @flow(name="ingest-ais")
