@@ -237,13 +237,19 @@ def search(
             f"({g.dlat_deg * 60:.3g} nmi, {mesh.edges} edges, bbox {tuple(round(x, 4) for x in g.bbox)}): "
             f"searched {expanded:,} reachable nodes; widen the bbox or refine the mesh"
         )
+    nodes = _path_nodes(parent, start, goal)
+    total = float(gvals[goal]) - (0.0 if distance_mode else float(t_start_h))
+    return SearchResult(nodes, total, int(expanded), int(scanned), seconds,
+                        time_h=None if distance_mode else total)
+
+
+def _path_nodes(parent: np.ndarray, start: int, goal: int) -> np.ndarray:
+    """Node indices from ``start`` to ``goal`` by following the search's parent links back."""
     nodes = [int(goal)]
     while nodes[-1] != start:
         nodes.append(int(parent[nodes[-1]]))
     nodes.reverse()
-    total = float(gvals[goal]) - (0.0 if distance_mode else float(t_start_h))
-    return SearchResult(np.asarray(nodes, dtype=np.int64), total, int(expanded), int(scanned), seconds,
-                        time_h=None if distance_mode else total)
+    return np.asarray(nodes, dtype=np.int64)
 
 
 def _search_safe(mesh, wx, ship, start, goal, safety: SafetyFlags, *, t_start_h: float, heuristic: bool) -> SearchResult:
@@ -272,12 +278,9 @@ def _search_safe(mesh, wx, ship, start, goal, safety: SafetyFlags, *, t_start_h:
             f"no route from ({lat_s:.4f}, {lon_s:.4f}) to ({lat_g:.4f}, {lon_g:.4f}) keeps within the vessel's limits on this "
             f"mesh ({g.dlat_deg * 60:.3g} nmi, {mesh.edges} edges): searched {expanded:,} nodes reachable over safe edges"
         )
-    nodes = [int(goal)]
-    while nodes[-1] != start:
-        nodes.append(int(parent[nodes[-1]]))
-    nodes.reverse()
+    nodes = _path_nodes(parent, start, goal)
     return SearchResult(
-        np.asarray(nodes, dtype=np.int64), float(gvals[goal]) - float(t_start_h), int(expanded), int(scanned), seconds,
+        nodes, float(gvals[goal]) - float(t_start_h), int(expanded), int(scanned), seconds,
         time_h=float(tarr[goal]) - float(t_start_h), exposure_h=float(expo[goal]), horizon_hit=bool(hit),
     )  # fmt: skip
 

@@ -286,13 +286,7 @@ class Mesh:
         object.__setattr__(self, "cell_ok", cell_ok)
         object.__setattr__(self, "cell_clean", clean)
         object.__setattr__(self, "steps", steps)
-        offsets = [_cells_touched(int(di), int(dj)) for di, dj in steps]
-        m = max(len(o) for o in offsets)
-        cells = np.zeros((len(steps), m, 2), dtype=np.int64)
-        counts = np.zeros(len(steps), dtype=np.int64)
-        for k, o in enumerate(offsets):
-            cells[k, : len(o)] = o
-            counts[k] = len(o)
+        cells, counts = self.stencil_cells  # cached: the safe search reuses it
         px = self._px()
         allowed = _kernels.allowed_edges(
             sea, cell_ok, clean, cells, counts, steps[:, 0].copy(), steps[:, 1].copy(),
