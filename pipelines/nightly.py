@@ -148,16 +148,30 @@ class NightlyParams(BaseModel):
             raise NightlyError(f"invalid nightly parameters: {problems}") from None
 
 
-def preflight(params: NightlyParams) -> None:
-    """What a person can fix before a night starts, checked before Prefect starts: the
-    workspace, the weather paths and the planned voyages file exist (the flow checks them too)."""
-    if not Path(params.db).exists():
-        raise NightlyError(f"workspace {params.db} does not exist (run `stormlane demo`, or ingest-ais and lanes, first)")
-    missing = [str(w) for w in params.weather if not Path(w).exists()]
+def _require_workspace(db) -> None:
+    if not Path(db).exists():
+        raise NightlyError(f"workspace {db} does not exist (run `stormlane demo`, or ingest-ais and lanes, first)")
+
+
+def _require_weather_files(files) -> None:
+    missing = [str(f) for f in files if not Path(f).exists()]
     if missing:
         raise NightlyWeatherError(f"weather file(s) not found: {', '.join(missing)}")
-    if params.voyages and not Path(params.voyages).is_file():
-        raise NightlyError(f"planned voyages file not found: {params.voyages}")
+
+
+def _require_voyages_file(path) -> None:
+    if not Path(path).is_file():
+        raise NightlyError(f"planned voyages file not found: {path}")
+
+
+def preflight(params: NightlyParams) -> None:
+    """What a person can fix before a night starts, checked before Prefect starts: the
+    workspace, the weather paths and the planned voyages file exist (the flow's steps run the
+    same checks)."""
+    _require_workspace(params.db)
+    _require_weather_files(params.weather)
+    if params.voyages:
+        _require_voyages_file(params.voyages)
 
 
 class _UserErrorsWithoutTraceback(logging.Filter):
@@ -313,8 +327,7 @@ def read_planned_voyages(path) -> pd.DataFrame:
         Missing file or column, empty field or bad time, naming the file, line and field.
     """
     path = Path(path)
-    if not path.is_file():
-        raise NightlyError(f"planned voyages file not found: {path}")
+    _require_voyages_file(path)
     rows = []
     with path.open(newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
@@ -372,8 +385,7 @@ def load_paths(db, *, voyages: str | None = None, lanes: list[str] | None = None
     from pipelines.storage.lanes import read_lane_centroids, read_lane_voyages, read_lanes, read_ports, read_voyages
 
     db = Path(db)
-    if not db.exists():
-        raise NightlyError(f"workspace {db} does not exist (run `stormlane demo`, or ingest-ais and lanes, first)")
+    _require_workspace(db)
     with open_workspace(db) as ws:
         all_lanes = read_lanes(ws)
         centroids = read_lane_centroids(ws)
@@ -496,9 +508,7 @@ def read_weather_source(source: str, files, db, start: pd.Timestamp, end: pd.Tim
     if source in ("files", "fetch"):
         from weather.io import read_local
 
-        missing = [str(f) for f in files if not Path(f).exists()]
-        if missing:
-            raise NightlyWeatherError(f"weather file(s) not found: {', '.join(missing)}")
+        _require_weather_files(files)
         if not files:
             raise NightlyWeatherError("no weather files to read")
         ds, meta = read_local([str(f) for f in files])
