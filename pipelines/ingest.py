@@ -16,12 +16,14 @@ counts AIS messages after multipart assembly plus sentences that could not form 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from pathlib import Path
 from typing import Callable, Iterable, Optional
 
 from lanes.clean import DEFAULT_MAX_SPEED_KN
 from lanes.io.files import AisFile, expand_paths, inspect
+from pipelines.ingest_partitioned import skipped_counts
 from pipelines.runners import retry_transient
 
 log = logging.getLogger(__name__)
@@ -123,8 +125,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         log.info("%s: already loaded as file %s (%s), skipped", f.path, done["file_id"], done["path"])
         if progress is not None:
             progress(f.size_bytes)
-        return {"path": str(f.path), "format": f.format, "read": 0, "loaded": 0, "quarantined": 0, "duplicates": 0,
-                "static": 0, "ignored": 0, "reasons": {}, "already_loaded": True, "file_id": done["file_id"]}
+        return skipped_counts(f.path, f.format, done["file_id"])
     info = None
     try:
         info = stage_file(ws, f, progress)
@@ -205,13 +206,8 @@ _FLOW_WORKSPACES: dict = {}
 
 
 def _ingest_one(db: str, path: str, fmt: str | None, max_speed_kn: float) -> dict:
-    from pipelines.storage import open_workspace
-
-    ws = _FLOW_WORKSPACES.get(db)
-    if ws is None:
-        ws = _FLOW_WORKSPACES[db] = open_workspace(db)
     try:
-        return ingest_file(ws, path, fmt=fmt, max_speed_kn=max_speed_kn)
+        return ingest_file(_flow_workspace(db), path, fmt=fmt, max_speed_kn=max_speed_kn)
     except BaseException:
         _close_flow_workspace(db)  # a retry starts from a fresh connection
         raise
@@ -232,37 +228,112 @@ def _summarise(per_file: list[dict]) -> dict:
 
 
 _FLOW_OBJECTS: dict = {}
+_TASKS = ("ingest_flow", "discover_task", "ingest_file_task", "stage_task", "commit_task", "summarise_task")
+
+
+def _plan(db: str, files: list[str], fmt: str | None) -> tuple[list[str], dict]:
+    from pipelines.ingest_partitioned import plan_files
+
+    return plan_files(_flow_workspace(db), files, fmt)
+
+
+def _commit_one(db: str, staged: dict, max_speed_kn: float) -> dict:
+    from pipelines.ingest_partitioned import commit_spooled
+
+    try:
+        return commit_spooled(_flow_workspace(db), staged, max_speed_kn)
+    except BaseException:
+        _close_flow_workspace(db)
+        raise
+
+
+def _flow_workspace(db: str):
+    from pipelines.storage import open_workspace
+
+    ws = _FLOW_WORKSPACES.get(db)
+    if ws is None:
+        ws = _FLOW_WORKSPACES[db] = open_workspace(db)
+    return ws
 
 
 def _build_flow() -> dict:
     if _FLOW_OBJECTS:
         return _FLOW_OBJECTS
     from prefect import flow, task
+    from prefect.cache_policies import NO_CACHE
+
+    from pipelines.ingest_partitioned import stage_to_spool
+    from pipelines.runners import make_task_runner
 
     discover_task = task(_discover, name="discover-ais-files")
     ingest_file_task = task(_ingest_one, name="ingest-ais-file", retries=2, retry_delay_seconds=[2, 5],
                             retry_condition_fn=retry_transient)
+    plan_task = task(_plan, name="skip-loaded-ais-files", cache_policy=NO_CACHE)
+    stage_task = task(stage_to_spool, name="stage-ais-file", retries=2, retry_delay_seconds=[2, 5],
+                      retry_condition_fn=retry_transient, cache_policy=NO_CACHE,
+                      task_run_name="stage-{path}")
+    commit_task = task(_commit_one, name="commit-ais-file", retries=2, retry_delay_seconds=[2, 5],
+                       retry_condition_fn=retry_transient, cache_policy=NO_CACHE)
     summarise_task = task(_summarise, name="summarise-ingest")
 
-    @flow(name="ingest-ais")
+    @flow(name="ingest-ais", task_runner=make_task_runner("sequential"))
     def ingest_flow(paths: list[str], db: str, fmt: Optional[str] = None,
-                    max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> dict:
+                    max_speed_kn: float = DEFAULT_MAX_SPEED_KN, spool_dir: Optional[str] = None) -> dict:
         """Prefect flow: ingest AIS files into the workspace ``db``; returns the same summary
-        as :func:`ingest_paths`."""
+        as :func:`ingest_paths`.
+
+        Without ``spool_dir`` each file is staged and committed in this process. With it the
+        files are partitioned: each is staged by a task submitted to the flow's task runner
+        (e.g. Dask workers, see :mod:`pipelines.ingest_partitioned`) while this process commits
+        them one by one in the same order, so the workspace ends the same."""
         files = discover_task(paths)
         try:
-            per_file = [ingest_file_task(db, p, fmt, max_speed_kn) for p in files]
+            if spool_dir is None:
+                per_file = [ingest_file_task(db, p, fmt, max_speed_kn) for p in files]
+            else:
+                todo, skipped = plan_task(db, files, fmt)
+                staged = {p: stage_task.submit(p, fmt, spool_dir) for p in todo}
+                per_file = [skipped[p] if p in skipped else _committed(commit_task(db, staged[p], max_speed_kn))
+                            for p in files]
         finally:
             _close_flow_workspace(db)
         return summarise_task(per_file)
 
     _FLOW_OBJECTS.update(ingest_flow=ingest_flow, discover_task=discover_task, ingest_file_task=ingest_file_task,
-                         summarise_task=summarise_task)
+                         stage_task=stage_task, commit_task=commit_task, summarise_task=summarise_task)
     return _FLOW_OBJECTS
 
 
+#: Called with each committed file's counts by the partitioned flow (the CLI's progress bar).
+_COMMIT_CALLBACKS: list = []
+
+
+def _committed(counts: dict) -> dict:
+    for cb in _COMMIT_CALLBACKS:
+        cb(counts)
+    return counts
+
+
+@contextlib.contextmanager
+def commit_progress(callback):
+    """Call ``callback(counts)`` as the partitioned ingest flow commits each file."""
+    _COMMIT_CALLBACKS.append(callback)
+    try:
+        yield
+    finally:
+        _COMMIT_CALLBACKS.remove(callback)
+
+
+def flow_with_runner(task_runner: str | None = None):
+    """The ingest flow with the chosen task runner (:func:`pipelines.runners.make_task_runner`);
+    pass ``spool_dir`` to partition it by file."""
+    from pipelines.runners import make_task_runner
+
+    return _build_flow()["ingest_flow"].with_options(task_runner=make_task_runner(task_runner))
+
+
 def __getattr__(name: str):
-    if name in ("ingest_flow", "discover_task", "ingest_file_task", "summarise_task"):
+    if name in _TASKS:
         return _build_flow()[name]
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

@@ -692,12 +692,18 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
 
 def stage_frame(ws, stage: pd.DataFrame) -> dict:
     """Put a typed stage built in Python (NMEA, or any reader) into ``ais_stage``."""
-    _prepare(ws.con)
     import pyarrow as pa
 
     df = C.conform_stage(stage) if list(stage.dtypes.astype(str)) != list(C.STAGE_COLUMNS.values()) else stage
     # Arrow keeps NULLs as NULLs (nullable ints, NaT, None) and scans faster than object columns.
-    tbl = pa.Table.from_pandas(df.assign(time_utc=df["time_utc"].dt.tz_convert(None)), preserve_index=False)
+    return stage_arrow(ws, pa.Table.from_pandas(df.assign(time_utc=df["time_utc"].dt.tz_convert(None)),
+                                                preserve_index=False))
+
+
+def stage_arrow(ws, tbl) -> dict:
+    """Put an Arrow table with the columns of :data:`lanes.clean.STAGE_COLUMNS` (``time_utc``
+    naive UTC) into ``ais_stage`` - what :func:`stage_frame` does after its conversion."""
+    _prepare(ws.con)
     ws.con.register("ais_stage_df", tbl)
     try:
         typed = f"""SELECT

@@ -1,0 +1,140 @@
+"""AIS ingest partitioned by file: files staged in parallel, committed one by one in order.
+
+The work of :func:`pipelines.ingest.ingest_file` split in two so that a cluster can take the
+expensive half:
+
+1. :func:`stage_to_spool` (any process, e.g. a Dask worker): detect the format, hash the file,
+   run the same reader as the sequential ingest (:func:`pipelines.ingest.stage_file`) into a
+   private in-memory DuckDB and write the typed stage - every row with its line, raw text, kind
+   and parse error - to ``SPOOL/<sha256>.parquet``.
+2. :func:`commit_spooled` (the process that owns the workspace, always one writer): load that
+   stage back (:func:`pipelines.storage.ais.stage_frame`) and apply the cross-row and
+   cross-file rules (duplicates, speed jumps against the stored tracks) with the same
+   :func:`pipelines.storage.ais.classify_and_commit`, one transaction per file.
+
+Files are committed in the sequential ingest's order, so the workspace ends identical to a
+sequential run (tested). :func:`plan_files` skips files already loaded before anything is
+staged (quick key, then the full SHA-256 only when the quick key is known). The spool needs
+room for one Parquet copy of each staged file (removed once committed); with a remote Dask
+scheduler the input files and the spool folder must be visible to the workers at the same path.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from lanes.clean import DEFAULT_MAX_SPEED_KN
+
+log = logging.getLogger(__name__)
+
+
+def skipped_counts(path, fmt: str, file_id: int) -> dict:
+    """Per-file counts of a file whose bytes are already loaded (nothing read, nothing added)."""
+    return {"path": str(path), "format": fmt, "read": 0, "loaded": 0, "quarantined": 0, "duplicates": 0,
+            "static": 0, "ignored": 0, "reasons": {}, "already_loaded": True, "file_id": int(file_id)}
+
+
+def plan_files(ws, files: list, fmt: str | None = None) -> tuple[list[str], dict[str, dict]]:
+    """Split ``files`` into those to stage and those already loaded (their skipped counts)."""
+    from lanes.io.files import fingerprint, inspect, quick_key
+    from pipelines.storage import ais as store
+
+    todo, skipped = [], {}
+    for p in files:
+        f = inspect(p, fmt, with_fingerprint=False)
+        done = store.file_record(ws, fingerprint(f.path)) if store.quick_key_known(ws, quick_key(f.path)) else None
+        if done is None:
+            todo.append(str(p))
+        else:
+            log.info("%s: already loaded as file %s (%s), skipped", f.path, done["file_id"], done["path"])
+            skipped[str(p)] = skipped_counts(f.path, f.format, done["file_id"])
+    return todo, skipped
+
+
+def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
+    """Stage one file into ``spool_dir`` (no workspace needed); returns what the commit needs."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from lanes.io.files import fingerprint, inspect, quick_key
+    import duckdb
+
+    from pipelines.ingest import stage_file
+    from pipelines.storage import ais as store
+
+    f = inspect(path, fmt, with_fingerprint=False)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        full = pool.submit(fingerprint, f.path)  # hashlib releases the GIL: overlaps the staging
+        mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
+        try:
+            info = stage_file(mem, f)
+            try:
+                stage = store.read_stage(mem)
+            finally:
+                if info.get("line_index") is not None:
+                    info["line_index"].close()
+        finally:
+            mem.con.close()
+        fp = full.result()
+    out = Path(spool_dir) / f"{fp.replace(':', '-')}.parquet"
+    tmp = out.with_suffix(f".{os.getpid()}.part")
+    # the columns stage_arrow reads, time as naive UTC
+    table = pa.Table.from_pandas(stage.assign(time_utc=stage["time_utc"].dt.tz_convert(None)), preserve_index=False)
+    pq.write_table(table, tmp, compression="zstd")
+    tmp.replace(out)  # a retried or concurrent stage of the same bytes writes the same content
+    return {"path": str(f.path), "format": f.format, "fingerprint": fp, "quick_key": quick_key(f.path),
+            "size_bytes": f.size_bytes, "ignored": int(info["ignored"]), "spool": str(out),
+            "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping"),
+            "rows": table.num_rows}
+
+
+def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> dict:
+    """Clean and commit one spooled stage into the open workspace (one transaction)."""
+    import pyarrow.parquet as pq
+
+    from pipelines.storage import ais as store
+
+    done = store.file_record(ws, staged["fingerprint"])
+    if done is not None:  # the same bytes twice in one batch: the first commit wins
+        _remove(staged["spool"])
+        return skipped_counts(staged["path"], staged["format"], done["file_id"])
+    try:
+        store.stage_arrow(ws, pq.read_table(staged["spool"]))
+        meta = {k: staged[k] for k in ("fingerprint", "quick_key", "path", "format", "size_bytes", "ignored")}
+        counts = store.classify_and_commit(ws, {**meta, "line_index": None}, max_speed_kn=max_speed_kn)
+    except BaseException:
+        store.discard_stage(ws)
+        raise
+    _remove(staged["spool"])
+    log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", staged["path"], staged["format"],
+             counts["read"], counts["loaded"], counts["quarantined"], counts["duplicates"])
+    return {"path": staged["path"], "format": staged["format"], **counts, "already_loaded": False,
+            "staging": staged["staging"], "line_mapping": staged["line_mapping"]}
+
+
+class _Scratch:
+    """A private in-memory DuckDB in the place of a workspace (the readers only use ``con``)."""
+
+    def __init__(self, con):
+        self.con = con
+
+
+def _remove(path: str) -> None:
+    try:
+        Path(path).unlink()
+    except FileNotFoundError:
+        pass
+
+
+def _stage_threads() -> int:
+    """DuckDB threads of one staging: all cores, or one per core a Dask worker was given (a
+    worker process per core staging with every core would oversubscribe the machine)."""
+    try:
+        from distributed import get_worker
+
+        return max(1, int(get_worker().state.nthreads))
+    except (ImportError, ValueError, AttributeError):
+        return os.cpu_count() or 1
