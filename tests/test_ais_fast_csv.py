@@ -75,30 +75,44 @@ def _snapshot(db):
     return files, pos, quar, ves
 
 
+#: The fast CSV stages and the ``staging`` label each reports.
+ENGINES = {"scan": "scan", "arrow": "arrow", "duckdb": "typed"}
+
+
 def _both_paths(tmp_path, monkeypatch, data: bytes, name: str):
+    """Ingest ``data`` through every fast stage alone and through the exact raw-lines path;
+    every workspace must be the same. Returns ``{engine: (counts, snapshot)}``."""
     path = tmp_path / f"{name}.csv"
     path.write_bytes(data)
-    # A small scanner buffer: even these files are read as many parallel chunks.
+    # A small scanner buffer / block: even these files are read as many parallel chunks.
     monkeypatch.setattr(store, "CSV_BUFFER_BYTES", 1 << 14)
     out = {}
-    for label, min_bytes in (("fast", 0), ("exact", 1 << 62)):
+    runs = [(engine, 0, (engine,)) for engine in ENGINES] + [("exact", 1 << 62, ())]
+    for label, min_bytes, engines in runs:
         monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", min_bytes)
+        monkeypatch.setattr(ingest_mod, "FAST_CSV_ENGINES", engines)
         db = tmp_path / f"{name}-{label}.duckdb"
         with open_workspace(db) as ws:
             counts = ingest_file(ws, path, fmt="dma")
         out[label] = (counts, _snapshot(db))
-    (cf, sf), (ce, se) = out["fast"], out["exact"]
+    ce, se = out.pop("exact")
     assert ce["staging"] in ("lines", "python")
-    for k in ("read", "loaded", "quarantined", "duplicates", "ignored", "reasons"):
-        assert cf[k] == ce[k], k
-    assert cf["read"] == cf["loaded"] + cf["quarantined"] + cf["duplicates"]
-    for part, a, b in zip(("files", "positions", "quarantine", "vessels"), sf, se):
-        assert a == b, part
-    # Every quarantined row keeps its line and raw text: the text of that physical line.
     lines = data.decode("utf-8", errors="replace").split("\n")
-    for line, _reason, raw, _m, _t in sf[2]:
-        assert raw == lines[line - 1].removesuffix("\r")
-    return cf, sf
+    for engine, (cf, sf) in out.items():
+        for k in ("read", "loaded", "quarantined", "duplicates", "ignored", "reasons"):
+            assert cf[k] == ce[k], (engine, k)
+        assert cf["read"] == cf["loaded"] + cf["quarantined"] + cf["duplicates"]
+        for part, a, b in zip(("files", "positions", "quarantine", "vessels"), sf, se):
+            assert a == b, (engine, part)
+        # Every quarantined row keeps its line and raw text: the text of that physical line.
+        for line, _reason, raw, _m, _t in sf[2]:
+            assert raw == lines[line - 1].removesuffix("\r")
+    return out
+
+
+def _used_fast(out, engine):
+    """Whether ``engine``'s run staged through its own fast path (not a fallback)."""
+    return out[engine][0]["staging"] == ENGINES[engine]
 
 
 DIRTY = list(DMA_LINES[1:])  # every kind of dirty row, a quoted name, a blank line
@@ -140,10 +154,14 @@ def test_fast_path_equals_exact_path(tmp_path, monkeypatch, case):
     lines = [DMA_HEADER] + _mix(_rows(), DIRTY + extra)
     text = newline.join(lines) + newline
     data = (("\ufeff" if bom else "") + text).encode("utf-8")
-    counts, snap = _both_paths(tmp_path, monkeypatch, data, case)
-    assert counts["staging"] == "typed"  # the invariant held: the fast path was used
-    assert counts["line_mapping"] == "ordinal"  # rejected rows (other field counts) / empty lines
+    out = _both_paths(tmp_path, monkeypatch, data, case)
+    for engine in ENGINES:  # the invariants held: every fast path was used
+        assert _used_fast(out, engine), engine
+    # rejected rows (other field counts) / empty lines: the scanners' rows are mapped to lines
+    assert out["duckdb"][0]["line_mapping"] == out["arrow"][0]["line_mapping"] == "ordinal"
+    counts = out["scan"][0]
     assert counts["loaded"] > 1000 and counts["quarantined"] >= 14
+    assert counts["line_mapping"] == "scan"
 
 
 def test_fast_path_without_rejects_numbers_rows_by_rowid(tmp_path, monkeypatch):
@@ -155,8 +173,11 @@ def test_fast_path_without_rejects_numbers_rows_by_rowid(tmp_path, monkeypatch):
               dma_row("02/01/2025 00:00:07", " 219200003", "54.15", "8.0", sog="nan", hdg="+90")]
     lines = [DMA_HEADER] + _mix(_rows(), same_width + quoted + [DMA_HEADER])
     data = ("\r\n".join(lines) + "\r\n").encode()
-    counts, snap = _both_paths(tmp_path, monkeypatch, data, "rowid")
-    assert counts["staging"] == "typed" and counts["line_mapping"] == "rowid"
+    out = _both_paths(tmp_path, monkeypatch, data, "rowid")
+    for engine in ENGINES:
+        assert _used_fast(out, engine), engine
+    assert out["duckdb"][0]["line_mapping"] == out["arrow"][0]["line_mapping"] == "rowid"
+    counts = out["scan"][0]
     assert counts["reasons"]["bad_mmsi"] >= 3 and counts["reasons"]["bad_lon"] == 1
 
 
@@ -166,8 +187,10 @@ def test_embedded_newline_is_two_bad_lines_on_both_paths(tmp_path, monkeypatch):
     rows = _rows(n_vessels=6, n_steps=60)
     rows.insert(50, dma_row("02/01/2025 00:05:00", "219200001", "54.05", "8.0", name='"TWO\nLINES"'))
     data = ("\n".join([DMA_HEADER] + rows) + "\n").encode()
-    counts, _ = _both_paths(tmp_path, monkeypatch, data, "embedded")
-    assert counts["staging"] == "typed" and counts["reasons"]["bad_line"] == 2
+    out = _both_paths(tmp_path, monkeypatch, data, "embedded")
+    for engine in ENGINES:
+        assert _used_fast(out, engine), engine
+    assert out["scan"][0]["reasons"]["bad_line"] == 2
 
 
 def test_reject_lines_are_checked_against_the_text():
@@ -197,14 +220,19 @@ def test_fast_path_falls_back_when_the_line_invariant_fails(tmp_path, monkeypatc
         rows = [r.replace("ALPHA", '"ALPHA"') for r in rows] * 1
         rows += [r.replace(",GPS,", ',"GPS",') for r in _rows(n_vessels=6, n_steps=200, seed=9)]
     data = ("\n".join([DMA_HEADER] + rows) + "\n").encode()
-    counts, _ = _both_paths(tmp_path, monkeypatch, data, case)
-    assert counts["staging"] in ("lines", "python")
+    out = _both_paths(tmp_path, monkeypatch, data, case)
+    for engine in ("arrow", "duckdb"):
+        assert out[engine][0]["staging"] in ("lines", "python")
+    # The scan splits on \n only: a stray \r just makes its line one typed from its text.
+    assert out["scan"][0]["staging"] == ("scan" if case == "stray_cr" else "lines")
 
 
 def test_fast_path_raw_text_of_invalid_utf8_line(tmp_path, monkeypatch):
     rows = _rows(n_vessels=4, n_steps=30)
     data = ("\n".join([DMA_HEADER] + rows) + "\n").encode() + dma_row(
         "02/01/2025 01:00:00", "219200001", "95.0", "8.0", name="N\xd8RD").encode("latin-1") + b"\n"
-    counts, snap = _both_paths(tmp_path, monkeypatch, data, "latin1")
+    out = _both_paths(tmp_path, monkeypatch, data, "latin1")
+    counts, snap = out["scan"]
+    assert _used_fast(out, "scan")
     assert counts["reasons"].get("bad_lat") == 1
     assert [q[2] for q in snap[2] if q[1] == "bad_lat"][0].count("\ufffd") == 1

@@ -63,7 +63,7 @@ def test_dma_fixture_same_in_sql_and_pandas(tmp_path):
     assert meta["ignored"] == s["ignored"]
 
 
-@pytest.mark.parametrize("staging", ["lines", "fast"])
+@pytest.mark.parametrize("staging", ["lines", "fast", "arrow", "scan"])
 def test_csv_typing_same_in_sql_and_pandas(tmp_path, staging):
     lines = list(DMA_LINES) + [
         dma_row(" 01/01/2025 00:20:00 ", " 219000005 ", " 55.5 ", "\t11.5", sog="nan", cog="1e2", hdg="+90",
@@ -81,12 +81,20 @@ def test_csv_typing_same_in_sql_and_pandas(tmp_path, staging):
     with open_workspace(tmp_path / "ws.duckdb") as ws:
         if staging == "lines":
             store.stage_csv(ws, src, False, DMA_SPEC, index, len(header), DMA_LINES[0])
-        else:  # the scanner-split stage (rows rejected for their field count typed from their text)
+        elif staging == "scan":  # the compiled scan (non-canonical lines typed from their text)
+            info = store.stage_csv_scan(ws, src, DMA_SPEC, index, len(header), DMA_LINES[0])
+            assert info is not None and info["staging"] == "scan" and info["exact_lines"] >= 10
+            try:
+                sql = store.read_stage(ws)
+            finally:
+                info["line_index"].close()
+        else:  # a scanner-split stage (rows rejected for their field count typed from their text)
             from lanes.io.lineindex import LineIndex
 
+            stager, label = {"fast": (store.stage_csv_fast, "typed"), "arrow": (store.stage_csv_arrow, "arrow")}[staging]
             with LineIndex(src) as ix:
-                info = store.stage_csv_fast(ws, src, DMA_SPEC, index, len(header), DMA_LINES[0], ix)
-                assert info is not None and info["staging"] == "typed"
+                info = stager(ws, src, DMA_SPEC, index, len(header), DMA_LINES[0], ix)
+                assert info is not None and info["staging"] == label
                 sql = store.read_stage(ws)
         if staging == "lines":
             sql = store.read_stage(ws)

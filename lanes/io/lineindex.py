@@ -53,7 +53,10 @@ class LineIndex:
         True when a ``\\r`` is not immediately followed by ``\\n``.
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, offsets_from=None):
+        """``offsets_from`` (optional): a function of the file's bytes (uint8 array over the map)
+        returning ``(starts, ends, quote_lines, stray_cr)`` found by another scan of the same
+        rules (e.g. :func:`lanes.io.csv_scan.scan_csv`), or None to let the index find them."""
         self.path = Path(path)
         self._fh = open(self.path, "rb")
         size = self.path.stat().st_size
@@ -65,6 +68,13 @@ class LineIndex:
             self.stray_cr = False
             return
         buf = np.frombuffer(self._mm, dtype=np.uint8)
+        found = offsets_from(buf) if offsets_from is not None else None
+        if found is not None:
+            self.starts, self.ends, self.quote_lines, self.stray_cr = found
+            self.n_lines = len(self.starts)
+            self.blank_lines = np.flatnonzero(self.ends == self.starts) + 1
+            del buf
+            return
         nl = _positions(buf, self._mm, _NL)
         last_open = buf[-1] != _NL
         self.n_lines = len(nl) + int(last_open)
@@ -91,6 +101,28 @@ class LineIndex:
         if len(offsets) == 0:
             return np.empty(0, dtype=np.int64)
         return np.unique(np.searchsorted(self.starts, offsets, side="right")).astype(np.int64)
+
+    def lines_equal_to(self, texts) -> np.ndarray:
+        """1-based numbers (sorted) of the lines whose bytes (without ``\\n`` and one trailing
+        ``\\r``) are one of ``texts`` (a set of ``bytes``). Only lines of a matching length are
+        compared."""
+        texts = set(texts)
+        if not texts or self._mm is None:
+            return np.empty(0, dtype=np.int64)
+        lengths = self.ends - self.starts
+        cand = np.flatnonzero(np.isin(lengths, np.fromiter((len(b) for b in texts), dtype=np.int64)))
+        mm = self._mm
+        found = [k + 1 for k, s, e in zip(cand.tolist(), self.starts[cand].tolist(), self.ends[cand].tolist())
+                 if mm[s:e] in texts]
+        return np.asarray(found, dtype=np.int64)
+
+    def raw(self, lines) -> list[bytes]:
+        """The bytes of the 1-based ``lines`` (without ``\\n`` and one trailing ``\\r``)."""
+        lines = np.asarray(lines, dtype=np.int64)
+        if len(lines) and (lines.min() < 1 or lines.max() > self.n_lines):
+            raise IndexError(f"{self.path}: line out of range 1..{self.n_lines}")
+        mm = self._mm
+        return [mm[s:e] for s, e in zip(self.starts[lines - 1].tolist(), self.ends[lines - 1].tolist())]
 
     def text(self, lines) -> list[str]:
         """The text of the 1-based ``lines`` (UTF-8, undecodable bytes replaced)."""

@@ -408,9 +408,40 @@ _FAST_COLUMNS = ("hdr_like", "parse_error", "mmsi", "time_utc", *_NUM_FIELDS, "n
 FAST_MAX_EXACT_FRAC = 0.02
 
 
+def _fast_names(index: dict[str, int], n_fields: int, header: str) -> tuple[list, list, str, dict]:
+    """Column names ``c0..c{n-1}``, the used ones, the "looks like the header" test and its
+    parameters, shared by the scanners of the fast CSV stages.
+
+    A line equal to the header (files concatenated) is no record. Comparing every field would
+    make the scanner materialise all of them; rows whose time field equals the header's are
+    flagged instead (a line equal to the header must be one) and typed from their text."""
+    names = [f"c{i}" for i in range(int(n_fields))]
+    used = sorted({names[i] for i in index.values()}, key=names.index)
+    header_fields = header.split(",")
+    t_col = index.get("time_utc", min(index.values()))
+    h_field = header_fields[t_col] if len(header_fields) == len(names) else None
+    hdr = "false" if h_field is None else (f"{names[t_col]} IN ($h_t, $bom_h_t)" if t_col == 0
+                                           else f"{names[t_col]} = $h_t")
+    params = {} if h_field is None else {"h_t": h_field, "bom_h_t": "\ufeff" + h_field}
+    return names, used, hdr, params
+
+
+def _fast_stage_sql(index: dict[str, int], names: list, inner: str) -> str:
+    """The statement typing the scanned rows into ``ais_fast`` (only what varies per row is
+    kept: every row is a position record; raw text and static values come from the line when
+    needed, and the view ``ais_stage`` adds the constant columns)."""
+
+    def fld(name):
+        return names[index[name]] if name in index else "CAST(NULL AS VARCHAR)"
+
+    return (f"CREATE OR REPLACE TEMP TABLE ais_fast AS WITH typed AS "
+            f"({_csv_typing(index, fld, inner, passthrough='hdr_like, ')}) "
+            f"SELECT {', '.join(_FAST_COLUMNS)}, {_reason_case()} AS reason0 FROM typed")
+
+
 def stage_csv_fast(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str,
                    line_index) -> dict | None:
-    """Fast path of :func:`stage_csv` for an uncompressed DMA/NOAA file.
+    """Fast path of :func:`stage_csv` for an uncompressed DMA/NOAA file, DuckDB's scanner.
 
     DuckDB's parallel CSV scanner splits every line into its ``n_fields`` columns (no quoting,
     so one record is one physical line; every column VARCHAR, empty fields kept as ``''``) and
@@ -420,81 +451,325 @@ def stage_csv_fast(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     it rejects (another number of fields; they land in its rejects table with their line).
 
     ``line_index`` (a :class:`lanes.io.lineindex.LineIndex`, or a future of one built in a
-    thread meanwhile) gives the rest:
-
-    * the line of every scanned row: rows come out in file order, so the k-th row is the k-th
-      line that is not the header, an empty line or a rejected line (with none of those,
-      ``line = rowid + 2``, no mapping at all);
-    * checks before anything is used: every rejected row's text is the text of its line, and
-      ``rows + rejected + header + empty lines == lines in the file``; with a mapping, a sample
-      of rows is typed again from its line's text and compared;
-    * the raw text of a row, read from the index only when the row is quarantined.
-
-    Returns the stage info, or None (nothing staged) when the file needs the exact raw-lines
-    path: a stray ``\r``, a check that fails, a scanner error, or more than
-    :data:`FAST_MAX_EXACT_FRAC` of the lines to type line by line.
+    thread meanwhile) gives the rest (see :func:`_finish_fast_stage`). Returns the stage info,
+    or None (nothing staged) when the file needs the exact raw-lines path: a stray ``\r``, a
+    check that fails, a scanner error, or more than :data:`FAST_MAX_EXACT_FRAC` of the lines to
+    type line by line.
     """
-    import pyarrow as pa
-
     con = ws.con
     _prepare(con)
     con.execute("SET preserve_insertion_order = true")
-
-    names = [f"c{i}" for i in range(int(n_fields))]
-    used = sorted({names[i] for i in index.values()}, key=names.index)
-    header_fields = header.split(",")
-
-    def fld(name):
-        return names[index[name]] if name in index else "CAST(NULL AS VARCHAR)"
-
-    # A line equal to the header (files concatenated) is no record. Comparing every field would
-    # make the scanner materialise all of them; rows whose time field equals the header's are
-    # flagged instead (a line equal to the header must be one) and typed from their text.
-    t_col = index.get("time_utc", min(index.values()))
-    h_field = header_fields[t_col] if len(header_fields) == len(names) else None
-    hdr = "false" if h_field is None else (f"{names[t_col]} IN ($h_t, $bom_h_t)" if t_col == 0
-                                           else f"{names[t_col]} = $h_t")
+    names, used, hdr, hparams = _fast_names(index, n_fields, header)
     inner = f"""
         SELECT CAST(NULL AS VARCHAR) AS raw, true AS is_data, true AS nf_ok, {hdr} AS hdr_like, {", ".join(used)}
         FROM read_csv($path, skip = 1, header = false, delim = ',', quote = '', escape = '', comment = '',
                       auto_detect = false, columns = $cols, force_not_null = $names, store_rejects = true,
                       rejects_table = 'ais_rejects', rejects_scan = 'ais_reject_scans'{_buffer_option()})"""
     params = {**_csv_params(spec, header), "path": str(path), "cols": dict.fromkeys(names, "VARCHAR"),
-              "names": names}
-    if h_field is not None:
-        params.update(h_t=h_field, bom_h_t="\ufeff" + h_field)
+              "names": names, **hparams}
     for t in ("ais_rejects", "ais_reject_scans"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
     try:
-        # Only what varies is kept per row (every row is a position record; raw text and static
-        # values come from the line when needed): the view ais_stage adds the constant columns.
-        sql = (f"CREATE OR REPLACE TEMP TABLE ais_fast AS WITH typed AS "
-               f"({_csv_typing(index, fld, inner, passthrough='hdr_like, ')}) "
-               f"SELECT {', '.join(_FAST_COLUMNS)}, {_reason_case()} AS reason0 FROM typed")
+        sql = _fast_stage_sql(index, names, inner)
         con.execute(sql, _used(sql, {**_params(), **params}))
     except (duckdb.InvalidInputException, duckdb.ConversionException, duckdb.IOException) as err:
         log.info("%s: CSV scanner refused the file (%s); exact raw-lines path", path, str(err).split("\n")[0])
         _drop_temp(con)
         return None
-    n_fast = int(con.execute("SELECT count(*) FROM ais_fast").fetchone()[0])
     reported = con.execute("SELECT DISTINCT line, csv_line FROM ais_rejects").fetchall()
     ix = line_index.result() if hasattr(line_index, "result") else line_index
-
-    def give_up(why: str):
-        log.info("%s: %s; exact raw-lines path", path, why)
-        _drop_temp(con)
-        return None
-
     if ix.stray_cr:
-        return give_up("a carriage return inside a line")
+        return _give_up(con, path, "a carriage return inside a line")
     rej = _verified_reject_lines(reported, ix)
     if rej is None:
-        return give_up("a rejected row does not match the text of its line")
+        return _give_up(con, path, "a rejected row does not match the text of its line")
+    return _finish_fast_stage(con, path, spec, index, n_fields, header, ix, rej, "typed")
+
+
+#: Bytes per block of pyarrow's CSV reader (one block is parsed by one thread).
+ARROW_BLOCK_BYTES = 16 << 20
+
+
+def stage_csv_arrow(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str,
+                    line_index) -> dict | None:
+    """Fast path of :func:`stage_csv` for an uncompressed DMA/NOAA file, pyarrow's CSV reader.
+
+    Like :func:`stage_csv_fast`, but the lines are split by pyarrow's multithreaded CSV reader
+    (quoting off, so one record is one physical line; only the used columns, all as text, empty
+    fields kept as ``''``, empty lines skipped), which is several times faster than DuckDB's
+    scanner here. DuckDB then types the Arrow table with the very expressions of
+    :func:`stage_csv` (:func:`_csv_typing`). Rows with another number of fields are skipped by
+    pyarrow's ``invalid_row_handler``, which only knows their text: their lines are the lines
+    of the file with that text (found through the line index; every line with a rejected text
+    must have been rejected as often as reported, else the fast path is given up), and they
+    are typed from their text by :func:`stage_csv`'s own statement, as are quoted lines and
+    repeated headers. The checks of :func:`_finish_fast_stage` follow.
+
+    Returns the stage info (``staging`` = ``"arrow"``), or None (nothing staged) when another
+    path is needed: a file pyarrow refuses (e.g. invalid UTF-8), a stray ``\r``, a check that
+    fails, or too many lines to type line by line.
+    """
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    con = ws.con
+    _prepare(con)
+    con.execute("SET preserve_insertion_order = true")
+    names, used, hdr, hparams = _fast_names(index, n_fields, header)
+    rejected: list[str] = []
+
+    def on_invalid(row):
+        rejected.append(row.text)
+        return "skip"
+
+    try:
+        tbl = pcsv.read_csv(
+            str(path),
+            pcsv.ReadOptions(block_size=int(CSV_BUFFER_BYTES or ARROW_BLOCK_BYTES), column_names=names, skip_rows=1,
+                             use_threads=True),
+            pcsv.ParseOptions(delimiter=",", quote_char=False, double_quote=False, escape_char=False,
+                              newlines_in_values=False, ignore_empty_lines=True, invalid_row_handler=on_invalid),
+            pcsv.ConvertOptions(include_columns=used, column_types=dict.fromkeys(used, pa.string()),
+                                strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[],
+                                check_utf8=True))
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError, OSError, UnicodeDecodeError) as err:
+        log.info("%s: pyarrow's CSV reader refused the file (%s)", path, str(err).split("\n")[0])
+        return None
+    ix = line_index.result() if hasattr(line_index, "result") else line_index
+    if ix.stray_cr:
+        return _give_up(con, path, "a carriage return inside a line")
+    rej = _reject_lines_by_text(rejected, ix)
+    if rej is None:
+        return _give_up(con, path, "the rejected rows' texts do not match whole lines")
+    if len(rej) > max(1000, FAST_MAX_EXACT_FRAC * ix.n_lines):
+        return _give_up(con, path, f"{len(rej)} of {ix.n_lines} lines have another number of fields")
+    inner = (f"SELECT CAST(NULL AS VARCHAR) AS raw, true AS is_data, true AS nf_ok, {hdr} AS hdr_like, "
+             f"{', '.join(used)} FROM ais_arrow_src")
+    params = {**_csv_params(spec, header), **hparams}
+    con.register("ais_arrow_src", tbl)
+    try:
+        sql = _fast_stage_sql(index, names, inner)
+        con.execute(sql, _used(sql, {**_params(), **params}))
+    finally:
+        con.unregister("ais_arrow_src")
+    del tbl
+    return _finish_fast_stage(con, path, spec, index, n_fields, header, ix, rej, "arrow")
+
+
+def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_fields: int, header: str,
+                   line_index=None) -> dict | None:
+    """Fast path of :func:`stage_csv` for an uncompressed DMA/NOAA file, one compiled pass.
+
+    :func:`lanes.io.csv_scan.scan_csv` reads the memory-mapped file once (one range per core)
+    and finds every line's offsets (the line index) and, for the lines whose used fields are
+    all written canonically, their typed values, which are by construction those of
+    :func:`stage_csv`'s rules. Every other line (quotes, another number of fields, a ``\r``,
+    non-canonical numbers or times, repeated headers) is typed from its text by
+    :func:`stage_csv`'s own statement. A sample of the scanned rows is typed again from its
+    text and compared before anything is used. ``line_index`` is ignored (the scan builds it).
+
+    Returns the stage info (``staging`` = ``"scan"``), or None (nothing staged) when another
+    path is needed: a time format without a canonical layout, more than
+    :data:`FAST_MAX_EXACT_FRAC` of the lines to type from their text, or a failed check.
+    """
+    import pyarrow as pa
+
+    from lanes.io.csv_scan import KIND_ROW, KIND_SPECIAL, NULL_TIME, TIME_LAYOUTS, scan_csv
+    from lanes.io.lineindex import LineIndex
+
+    if tuple(spec.time_formats) not in TIME_LAYOUTS:
+        return None
+    con = ws.con
+    _prepare(con)
+    res = {}
+    statics = tuple(c[2:] for c in _TEXT_STATIC)
+
+    def offsets(buf):
+        r = scan_csv(buf, index, int(n_fields), tuple(spec.time_formats), NAV_STATUS_WORDS, statics)
+        res["scan"] = r
+        return None if r is None else (r.starts, r.ends, r.quote_lines, r.stray_cr)
+
+    times = {}
+    t0 = time.perf_counter()
+    ix = LineIndex(path, offsets_from=offsets)
+    times["scan"] = time.perf_counter() - t0
+    r = res.get("scan")
+    if r is None:
+        ix.close()
+        return None
+    kind = r.kind.copy()
+    if len(kind):
+        kind[0] = 255  # the header line
+    rows = np.flatnonzero(kind == KIND_ROW)
+    special = np.flatnonzero(kind == KIND_SPECIAL) + 1
+    if len(special) > max(1000, FAST_MAX_EXACT_FRAC * ix.n_lines):
+        ix.close()
+        log.info("%s: %d of %d lines not canonical; leaving the scan path", path, len(special), ix.n_lines)
+        return None
+    tbl = _scan_table(con, r, rows)
+    del r, res["scan"]
+    times["arrow"] = time.perf_counter() - t0 - times["scan"]
+    # The scanned rows stay in Arrow memory (no copy into DuckDB); the stage view reads them.
+    con.register("ais_scan_src", tbl)
+    del tbl
+    times["typed_table"] = time.perf_counter() - t0 - times["scan"] - times["arrow"]
+    if not _spot_check_lines(con, "ais_scan_src", ix, rows + 1, header, spec, index, int(n_fields)):
+        ix.close()
+        return _give_up(con, path, "sampled rows differ from their lines")
+    _create_exact_stage(con, special, ix, spec, index, int(n_fields), header)
+    con.execute(f"""CREATE OR REPLACE TEMP VIEW ais_stage AS
+        SELECT * FROM ais_exact
+        UNION ALL BY NAME SELECT line, CAST(NULL AS VARCHAR) AS raw, '{C.KIND_POSITION}' AS kind, * EXCLUDE (line)
+        FROM ais_scan_src""")
+    _set_stage_kind(con, "csvfast", {"path": str(path), "header": header,
+                                     "index": {c: index[c[2:]] + 1 for c in _TEXT_STATIC if c[2:] in index}})
+    blank = ix.blank_lines[ix.blank_lines > 1]
+    times["total"] = time.perf_counter() - t0
+    log.info("%s: scan stage %s", path, {k: round(v, 2) for k, v in times.items()})
+    return {"ignored": int(len(blank)), "python_fallback": False, "staging": "scan", "line_index": ix,
+            "exact_lines": int(len(special)), "line_mapping": "scan", "timings": times}
+
+
+def _scan_table(con, r, rows: np.ndarray):
+    """The Arrow table of the canonical rows of a scan (columns of ``ais_fast``).
+
+    ``reason0`` (rules 1-6): a row that clearly passes every check of :func:`_reason_case`'s
+    clean-row conjunction (tested in numpy with no value near a bound: exact integer and float
+    comparisons, sentinel tolerances not needed) has none; the few others get the CASE itself,
+    evaluated by DuckDB on just those rows."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from lanes.io.csv_scan import NULL_TIME
+
+    n = len(rows)
+    mm = r.mmsi[rows]
+    t_us = r.t_us[rows]
+    cols = {"line": pa.array(rows + 1), "parse_error": pa.nulls(n, pa.string()),
+            "mmsi": pa.array(mm, mask=mm < 0),
+            "time_utc": pa.array(t_us.view("datetime64[us]"), mask=t_us == NULL_TIME)}
+    vals = {}
+    for name in (*_NUM_FIELDS, "nav_status"):
+        if name in r.fields:
+            v = np.ascontiguousarray(r.vals[rows, r.fields.index(name)])
+            vals[name] = v
+            cols[name] = pa.array(v, mask=np.isnan(v))
+        else:
+            cols[name] = pa.nulls(n, pa.float64())
+    cols["s_hash"] = pa.array(r.shash[rows])
+    tmin = int(C.TIME_MIN_UTC.value // 1000)
+    tmax = int(C.TIME_MAX_UTC.value // 1000)
+    clean = (mm >= C.MMSI_MIN) & (mm <= C.MMSI_MAX) & (t_us >= tmin) & (t_us < tmax)
+    del mm, t_us
+    with np.errstate(invalid="ignore"):
+        for name, ok in (("lat_deg", lambda x: (x >= -90.0) & (x <= 90.0)),
+                         ("lon_deg", lambda x: (x >= -180.0) & (x <= 180.0)),
+                         ("sog_kn", lambda x: np.isnan(x) | ((x >= 0.0) & (x <= C.SOG_NA_KN))),
+                         ("cog_deg", lambda x: np.isnan(x) | ((x >= 0.0) & (x <= C.COG_NA_DEG))),
+                         ("heading_deg", lambda x: np.isnan(x) | ((x >= 0.0) & (x < 360.0)) | (x == C.HEADING_NA_DEG)),
+                         ("nav_status", lambda x: np.isnan(x) | ((x >= 0) & (x <= C.NAV_STATUS_MAX) & (x == np.floor(x))))):
+            if name in vals:
+                clean &= ok(vals[name])
+            elif name in ("lat_deg", "lon_deg"):
+                clean[:] = False
+    del vals
+    tbl = pa.table(cols)
+    del cols
+    other = np.flatnonzero(~clean)
+    reason = pa.nulls(n, pa.string())
+    if len(other):
+        con.register("ais_scan_other", tbl.take(pa.array(other)))
+        try:
+            sql = (f"SELECT {_reason_case()} AS reason0 FROM (SELECT *, '{C.KIND_POSITION}' AS kind "
+                   f"FROM ais_scan_other)")
+            got = con.execute(sql, _used(sql, _params())).to_arrow_table().column("reason0")
+        finally:
+            con.unregister("ais_scan_other")
+        codes = sorted({x for x in got.to_pylist() if x is not None})
+        if codes:
+            code_of = {c: i for i, c in enumerate(codes)}
+            idx = np.full(n, -1, dtype=np.int32)
+            idx[other] = [code_of.get(x, -1) if x is not None else -1 for x in got.to_pylist()]
+            reason = pa.DictionaryArray.from_arrays(pa.array(idx, mask=idx < 0), pa.array(codes, pa.string())) \
+                .cast(pa.string())
+    return tbl.append_column("reason0", reason)
+
+
+def _spot_check_lines(con, table: str, ix, lines_all: np.ndarray, header, spec, index, n_fields: int,
+                      n: int = 64) -> bool:
+    """Type ``n`` rows of ``table`` (the scanned rows) spread over the file (and up to ``n`` quarantined ones)
+    again from their line's text and compare every typed value (not the static hash, which the
+    scan computes its own way)."""
+    if len(lines_all) == 0:
+        return True
+    pick = lines_all[np.unique(np.linspace(0, len(lines_all) - 1, min(n, len(lines_all))).astype(np.int64))]
+    bad = np.asarray(con.execute(f"SELECT line FROM {_q(table)} WHERE reason0 IS NOT NULL LIMIT ?",
+                                 [int(n)]).fetchnumpy()["line"], dtype=np.int64)
+    lines = np.union1d(pick, bad)
+    _typed_lines(con, lines, ix.text(lines), spec, index, n_fields, header, "ais_spot")
+    try:
+        vals = ", ".join(("parse_error", "mmsi", "time_utc", *_NUM_FIELDS, "nav_status", "reason0"))
+        differ = con.execute(f"""SELECT count(*) FROM (
+                SELECT line, '{C.KIND_POSITION}' AS kind, {vals} FROM {_q(table)} WHERE line IN (SELECT line FROM ais_spot)
+                EXCEPT SELECT line, kind, {vals} FROM ais_spot)""").fetchone()[0]
+        n_spot = con.execute("SELECT count(*) FROM ais_spot").fetchone()[0]
+    finally:
+        con.execute("DROP TABLE IF EXISTS temp.ais_spot")
+    return differ == 0 and n_spot == len(lines)
+
+
+def _reject_lines_by_text(texts: list, ix) -> np.ndarray | None:
+    """The lines of rows a scanner rejected, given only their texts (pyarrow does not number
+    them when it reads in parallel).
+
+    A rejected row has another number of fields than the header, so every line with the same
+    text is rejected as well: the rejected lines are all lines whose text is one of ``texts``,
+    and each text must occur on exactly as many lines as it was reported. Candidates are the
+    lines of the same byte length (from the line index), compared byte by byte. None when the
+    texts do not match the file that way (the caller then leaves the fast path)."""
+    from collections import Counter
+
+    if not texts:
+        return np.empty(0, dtype=np.int64)
+    want = Counter()
+    for t in texts:
+        if t is None:
+            return None
+        b = t.encode("utf-8", errors="surrogateescape")
+        want[b[:-1] if b.endswith(b"\r") else b] += 1
+    found = ix.lines_equal_to(set(want))
+    seen = Counter(ix.raw(found))
+    if seen != want:
+        return None
+    return found
+
+
+def _give_up(con, path, why: str):
+    log.info("%s: %s; leaving the fast CSV path", path, why)
+    _drop_temp(con)
+    return None
+
+
+def _finish_fast_stage(con, path, spec, index, n_fields: int, header: str, ix, rej: np.ndarray,
+                       label: str) -> dict | None:
+    """The common tail of the fast CSV stages, once ``ais_fast`` holds the scanned rows in file
+    order and ``rej`` the (verified) lines the scanner rejected:
+
+    * the line of every scanned row: rows come out in file order, so the k-th row is the k-th
+      line that is not the header, an empty line or a rejected line (with none of those,
+      ``line = rowid + 2``, no mapping at all);
+    * checks before anything is used: ``rows + rejected + header + empty lines == lines in the
+      file``; a sample of rows is typed again from its line's text and compared;
+    * the raw text of a row, read from the index only when the row is quarantined.
+    """
+    import pyarrow as pa
+
+    n_fast = int(con.execute("SELECT count(*) FROM ais_fast").fetchone()[0])
     blank = ix.blank_lines[ix.blank_lines > 1]
     excluded = np.union1d(np.union1d(np.array([1], dtype=np.int64), blank), rej)
     if len(excluded) != 1 + len(blank) + len(rej) or n_fast + len(excluded) != ix.n_lines:
-        return give_up(f"line count does not add up (rows {n_fast} + rejected {len(rej)} + header 1 + empty "
-                       f"{len(blank)} vs {ix.n_lines} lines)")
+        return _give_up(con, path, f"line count does not add up (rows {n_fast} + rejected {len(rej)} + header 1 + "
+                                   f"empty {len(blank)} vs {ix.n_lines} lines)")
     hdr_rows = np.asarray(con.execute("SELECT rowid FROM ais_fast WHERE hdr_like ORDER BY rowid")
                           .fetchnumpy()["rowid"], dtype=np.int64)
     # The k-th row (0-based) is the line L with L - #{excluded <= L} = k + 1; with no empty or
@@ -506,14 +781,14 @@ def stage_csv_fast(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     special = np.union1d(np.union1d(rej, ix.quote_lines), fast_line[hdr_rows])
     special = special[special > 1]
     if len(special) > max(1000, FAST_MAX_EXACT_FRAC * ix.n_lines):
-        return give_up(f"{len(special)} of {ix.n_lines} lines need the line-by-line typing")
+        return _give_up(con, path, f"{len(special)} of {ix.n_lines} lines need the line-by-line typing")
     skip = np.zeros(n_fast, dtype=bool)  # rows of lines typed from their text instead
     pos = np.searchsorted(fast_line, special)
     hit = pos < n_fast
     hit[hit] = fast_line[pos[hit]] == special[hit]
     skip[pos[hit]] = True
     if not _spot_check(con, ix, fast_line, skip, header, spec, index, int(n_fields)):
-        return give_up("sampled rows differ from their lines")
+        return _give_up(con, path, "sampled rows differ from their lines")
     if simple:
         con.register("ais_fast_skip", pa.table({"r": pa.array(pos[hit].astype(np.int64))}))
         fast_sql = """SELECT rowid + 2 AS line, * EXCLUDE (hdr_like) FROM ais_fast
@@ -529,7 +804,7 @@ def stage_csv_fast(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
         FROM ({fast_sql})""")
     _set_stage_kind(con, "csvfast", {"path": str(path), "header": header,
                                      "index": {c: index[c[2:]] + 1 for c in _TEXT_STATIC if c[2:] in index}})
-    return {"ignored": int(len(blank)), "python_fallback": False, "staging": "typed", "line_index": ix,
+    return {"ignored": int(len(blank)), "python_fallback": False, "staging": label, "line_index": ix,
             "exact_lines": int(len(special)), "line_mapping": "rowid" if simple else "ordinal"}
 
 
@@ -1169,7 +1444,7 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
 
 def _drop_temp(con) -> None:
     con.execute("DROP VIEW IF EXISTS temp.ais_stage")
-    for name in ("ais_fast_pos", "ais_fast_skip", "ais_raw_df", "ais_latest_raw", "ais_lines_df", "ais_spot_rows"):
+    for name in ("ais_scan_src", "ais_fast_pos", "ais_fast_skip", "ais_raw_df", "ais_latest_raw", "ais_lines_df", "ais_spot_rows"):
         try:
             con.unregister(name)
         except Exception:  # noqa: BLE001 - not registered
