@@ -1169,21 +1169,96 @@ def _track_order(mmsi: np.ndarray, t_us: np.ndarray, line: np.ndarray) -> np.nda
     """Permutation sorting fixes by track, then time, then line.
 
     Tracks are grouped by MMSI (in order of first appearance, which is all the duplicate and
-    jump rules need); one stable sort of a packed 64-bit (track, time) key when it fits, else
-    a lexicographic sort."""
+    jump rules need). AIS files are mostly in time order: a stable radix sort of the track codes
+    (numpy sorts 16-bit keys by radix) then keeps every track in file order, and when that order
+    is already by time (then line) nothing else is needed. Otherwise one stable sort of a packed
+    64-bit (track, time) key when it fits, else a lexicographic sort."""
     n = len(mmsi)
     base = None
     if n > 1 and not (line[1:] > line[:-1]).all():
         base = np.argsort(line, kind="stable")
         mmsi, t_us = mmsi[base], t_us[base]
     codes, uniq = pd.factorize(mmsi)
-    t_rel = t_us - t_us.min() if n else t_us
-    bits_t = int(t_rel.max()).bit_length() if n else 0
-    if bits_t + max(len(uniq), 1).bit_length() <= 62:
-        order = np.argsort((codes.astype(np.int64) << bits_t) | t_rel, kind="stable")
-    else:
-        order = np.lexsort((t_us, codes))
+    order = None
+    if n and len(uniq) <= (1 << 16):
+        order = np.argsort(codes.astype(np.uint16), kind="stable")
+        c, t = codes[order], t_us[order]
+        if not ((c[1:] != c[:-1]) | (t[1:] >= t[:-1])).all():
+            order = None  # a track is not in time order
+        del c, t
+    if order is None:
+        t_rel = t_us - t_us.min() if n else t_us
+        bits_t = int(t_rel.max()).bit_length() if n else 0
+        if bits_t + max(len(uniq), 1).bit_length() <= 62:
+            order = np.argsort((codes.astype(np.int64) << bits_t) | t_rel, kind="stable")
+        else:
+            order = np.lexsort((t_us, codes))
     return base[order] if base is not None else order
+
+
+def _first_load_fetch(con) -> dict:
+    """The fixes that passed rules 1-6, as numpy arrays (line, mmsi, t_us, lat, lon)."""
+    d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, {_NORM['lon_deg']} AS lon_deg "
+                    f"FROM ais_stage WHERE {_OK}").fetchnumpy()
+    return {"line": np.asarray(d["line"], dtype=np.int64), "mmsi": np.asarray(d["mmsi"], dtype=np.int64),
+            "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat_deg"], dtype=float),
+            "lon": np.asarray(d["lon_deg"], dtype=float)}
+
+
+def _first_load_kernel(d: dict, max_speed_kn: float) -> dict:
+    """The numpy part of :func:`_first_load_outcomes` (no database: it runs in a thread while
+    DuckDB inserts): sorted by (track, time, line), the rows repeating the key of the row
+    before them (``dup``, with the first row of their run ``ref``) and the speed jumps among
+    the others (:func:`lanes.clean.speed_jump_mask`)."""
+    line, mmsi, t_us = d["line"], d["mmsi"], d["t_us"]
+    if len(line) == 0:
+        return {"dup": np.empty(0, np.int64), "ref": np.empty(0, np.int64), "jump": np.empty(0, np.int64)}
+    order = _track_order(mmsi, t_us, line)
+    line, mmsi, t_us = line[order], mmsi[order], t_us[order]
+    lat, lon = d["lat"][order], d["lon"][order]
+    del order
+    n = len(line)
+    same = np.zeros(n, dtype=bool)
+    same[1:] = (mmsi[1:] == mmsi[:-1]) & (t_us[1:] == t_us[:-1])
+    dup_lines = ref_lines = np.empty(0, np.int64)
+    if same.any():
+        first = np.maximum.accumulate(np.where(~same, np.arange(n), 0))
+        dup = np.flatnonzero(same)
+        dup_lines, ref_lines = line[dup], line[first[dup]]
+        keep = ~same
+        line, mmsi, t_us, lat, lon = line[keep], mmsi[keep], t_us[keep], lat[keep], lon[keep]
+    # Seconds as the pure path computes them (nanoseconds / 1e9), so float ties agree.
+    mask = C.speed_jump_mask(mmsi, (t_us * 1000) / 1e9, lat, lon, max_speed_kn)
+    return {"dup": dup_lines, "ref": ref_lines, "jump": line[mask]}
+
+
+def _first_load_finish(con, k: dict) -> tuple[np.ndarray, list]:
+    """(lines, reasons) from :func:`_first_load_kernel`'s result: a repeated key is
+    ``duplicate`` when all normalised values equal those of the first row of its run (compared
+    on those few rows only), else ``duplicate_time``."""
+    out_lines, out_reasons = [], []
+    if len(k["dup"]):
+        dup, ref = k["dup"], k["ref"]
+        need = np.union1d(dup, ref)
+        con.register("ais_need_df", pd.DataFrame({"line": need}))
+        try:
+            vals = con.execute(f"SELECT line, {_norm()} FROM ais_stage SEMI JOIN ais_need_df USING (line) "
+                               f"WHERE {_OK} ORDER BY line").fetchnumpy()
+        finally:
+            con.unregister("ais_need_df")
+        at = np.searchsorted(np.asarray(vals["line"], dtype=np.int64), dup)
+        at_ref = np.searchsorted(np.asarray(vals["line"], dtype=np.int64), ref)
+        equal = np.ones(len(dup), dtype=bool)
+        for v in _VALUES:
+            col = vals[v]
+            x = np.asarray(col.filled(np.nan) if np.ma.isMaskedArray(col) else col, dtype=float)
+            a, b = x[at], x[at_ref]
+            equal &= (a == b) | (np.isnan(a) & np.isnan(b))
+        out_lines.append(dup)
+        out_reasons += [C.DUPLICATE if e else C.DUPLICATE_TIME for e in equal]
+    out_lines.append(k["jump"])
+    out_reasons += [C.SPEED_JUMP] * len(k["jump"])
+    return np.concatenate(out_lines), out_reasons
 
 
 def _first_load_outcomes(con, max_speed_kn: float) -> tuple[np.ndarray, list]:
@@ -1193,50 +1268,7 @@ def _first_load_outcomes(con, max_speed_kn: float) -> tuple[np.ndarray, list]:
     The accepted fixes come to numpy once, sorted by (track, time, line); a row with the key of
     the row before it duplicates the first row of its run (values compared on those few rows
     only), and the kept fixes go through :func:`lanes.clean.speed_jump_mask`."""
-    d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, {_NORM['lon_deg']} AS lon_deg "
-                    f"FROM ais_stage WHERE {_OK}").fetchnumpy()
-    line = np.asarray(d["line"], dtype=np.int64)
-    if len(line) == 0:
-        return np.empty(0, dtype=np.int64), []
-    mmsi = np.asarray(d["mmsi"], dtype=np.int64)
-    t_us = np.asarray(d["t_us"], dtype=np.int64)
-    order = _track_order(mmsi, t_us, line)
-    line, mmsi, t_us = line[order], mmsi[order], t_us[order]
-    lat = np.asarray(d["lat_deg"], dtype=float)[order]
-    lon = np.asarray(d["lon_deg"], dtype=float)[order]
-    del d, order
-    n = len(line)
-    same = np.zeros(n, dtype=bool)
-    same[1:] = (mmsi[1:] == mmsi[:-1]) & (t_us[1:] == t_us[:-1])
-    out_lines, out_reasons = [], []
-    if same.any():
-        first = np.maximum.accumulate(np.where(~same, np.arange(n), 0))
-        dup = np.flatnonzero(same)
-        ref = first[dup]
-        need = np.union1d(line[dup], line[ref])
-        con.register("ais_need_df", pd.DataFrame({"line": need}))
-        try:
-            vals = con.execute(f"SELECT line, {_norm()} FROM ais_stage SEMI JOIN ais_need_df USING (line) "
-                               f"WHERE {_OK} ORDER BY line").fetchnumpy()
-        finally:
-            con.unregister("ais_need_df")
-        at = np.searchsorted(np.asarray(vals["line"], dtype=np.int64), line[dup])
-        at_ref = np.searchsorted(np.asarray(vals["line"], dtype=np.int64), line[ref])
-        equal = np.ones(len(dup), dtype=bool)
-        for v in _VALUES:
-            col = vals[v]
-            x = np.asarray(col.filled(np.nan) if np.ma.isMaskedArray(col) else col, dtype=float)
-            a, b = x[at], x[at_ref]
-            equal &= (a == b) | (np.isnan(a) & np.isnan(b))
-        out_lines.append(line[dup])
-        out_reasons += [C.DUPLICATE if e else C.DUPLICATE_TIME for e in equal]
-        keep = ~same
-        line, mmsi, t_us, lat, lon = line[keep], mmsi[keep], t_us[keep], lat[keep], lon[keep]
-    # Seconds as the pure path computes them (nanoseconds / 1e9), so float ties agree.
-    mask = C.speed_jump_mask(mmsi, (t_us * 1000) / 1e9, lat, lon, max_speed_kn)
-    out_lines.append(line[mask])
-    out_reasons += [C.SPEED_JUMP] * int(mask.sum())
-    return np.concatenate(out_lines), out_reasons
+    return _first_load_finish(con, _first_load_kernel(_first_load_fetch(con), max_speed_kn))
 
 
 def _line_index(con, meta: dict):
@@ -1301,6 +1333,9 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         else:
             # First load of these positions: the accepted fixes go to numpy once, sorted by
             # track; repeated (mmsi, time) keys and the jump kernel run there.
+            # (Overlapping the kernel with DuckDB's insert in a thread was measured slower: the
+            # Arrow-backed stage scan and the kernel's Python parts contend for the GIL, and
+            # deleting the flagged rows after the insert makes the commit far costlier.)
             con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
             lines, reasons = _first_load_outcomes(con, float(max_speed_kn))
             out_lines.append(lines)
@@ -1378,7 +1413,9 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
     """
     kind, extra = _stage_kind(con)
     registered = []
-    key = "{'t': coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'), 'l': line}"
+    # The (time, line) order of rows as one 128-bit integer (lines are below 2^32), far cheaper
+    # to aggregate than a struct.
+    key = "(epoch_us(coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'))::HUGEINT * 4294967296 + line)"
     rows = (f"FROM ais_stage WHERE kind <> '{C.KIND_IGNORED}' AND mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} "
             f"AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'")
     if kind in ("csvhash", "csvfast"):
@@ -1388,8 +1425,8 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
         index = extra["index"]
         texts = ", ".join(f"f[{index[c]}] AS {c}" if c in index else f"CAST(NULL AS VARCHAR) AS {c}"
                           for c in _TEXT_STATIC)
-        latest = f"SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax, arg_max(line, {key}) AS l {rows} " \
-                 "GROUP BY mmsi, s_hash"
+        latest = (f"SELECT mmsi, s_hash, k, tmax, CAST(((k % 4294967296) + 4294967296) % 4294967296 AS BIGINT) AS l "
+                  f"FROM (SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax {rows} GROUP BY mmsi, s_hash)")
         raw_source = "ais_stage"
         if kind == "csvfast":
             import pyarrow as pa
