@@ -573,7 +573,8 @@ def _decode(obj):
         frame = pd.DataFrame(spec["data"], index=spec["index"], columns=spec["columns"])
         for col in frame.columns:
             if str(col).endswith("_utc"):
-                frame[col] = pd.to_datetime(frame[col], utc=True)
+                # isoformat() drops a zero fraction: mixed "…:00+00:00" / "…:00.5+00:00" strings
+                frame[col] = pd.to_datetime(frame[col], utc=True, format="ISO8601")
         return frame
     if "__time__" in obj:
         return pd.Timestamp(obj["__time__"])

@@ -438,8 +438,11 @@ def _target(path) -> Path:
 
 
 def _write(text: str, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    except OSError as err:
+        raise ReportError(f"{path}: cannot write the report ({err.strerror or err})") from None
     return path
 
 

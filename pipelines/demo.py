@@ -168,8 +168,9 @@ def run_demo(workdir: Path | str, *, seed: int = DEMO_SEED, days: float = DEMO_D
              echo: Callable[[str], None] = print,
              steps: list[tuple[str, Callable[[DemoContext], dict]]] | None = None) -> dict:
     """Run the demo steps in ``workdir`` (created) and return each step's result by name."""
-    workdir = Path(workdir)
-    workdir.mkdir(parents=True, exist_ok=True)
+    from pipelines.scenario import make_out_dir
+
+    workdir = make_out_dir(workdir, "--workdir")
     ctx = DemoContext(workdir=workdir, seed=seed, days=days, echo=echo)
     for name, step in STEPS if steps is None else steps:
         echo(f"== {name}")

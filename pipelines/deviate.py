@@ -63,6 +63,7 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         v = float(np.nanmedian(lane["speed_kn"])) if np.isfinite(lane["speed_kn"]).any() else 10.0
         window_end = t0 + pd.Timedelta(hours=2.0 * d / max(v, 1.0) + 6.0)
         files = [str(p) for p in weather]
+        span = None  # the whole weather's time span, for the error message
         if files:
             from weather.io import read_local
 
@@ -72,13 +73,17 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
                 ds, meta = weather_from_workspace(ws, t0, window_end)
             except AuditError as err:
                 raise DeviationInputError(str(err)) from None
+            from pipelines.storage.weather import get_grid
+
+            g = get_grid(ws)
+            span = (pd.Timestamp(g["start_utc"]), pd.Timestamp(g["end_utc"]))
     vessel_name = vessel or DEFAULT_VESSEL
     ves = load_vessel(vessel_name)
     limits = load_operator_profile(profile)
     sampler = PointSampler.from_field(field_from_dataset(ds))
     if t0 < sampler.start_utc or t0 > sampler.end_utc:
-        raise DeviationInputError(f"departure {t0.isoformat()} is outside the weather {sampler.start_utc.isoformat()} .. "
-                                  f"{sampler.end_utc.isoformat()}")
+        first, last = span or (sampler.start_utc, sampler.end_utc)
+        raise DeviationInputError(f"departure {t0.isoformat()} is outside the weather {first.isoformat()} .. {last.isoformat()}")
     weather_at, check, cells = threshold_inputs(sampler, ves, limits)
     lat, lon, spd = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy()
     dev = deviate_lane(lat, lon, spd, t0, weather_at=weather_at, check=check, cells=cells, leg_at_sea=lane_land_check(lane),

@@ -47,6 +47,7 @@ import csv
 import dataclasses
 import functools
 import hashlib
+import io
 import json
 import logging
 import math
@@ -166,12 +167,12 @@ def _require_voyages_file(path) -> None:
 
 def preflight(params: NightlyParams) -> None:
     """What a person can fix before a night starts, checked before Prefect starts: the
-    workspace, the weather paths and the planned voyages file exist (the flow's steps run the
-    same checks)."""
+    workspace and the weather paths exist and the planned voyages file reads (the flow's steps
+    run the same checks)."""
     _require_workspace(params.db)
     _require_weather_files(params.weather)
     if params.voyages:
-        _require_voyages_file(params.voyages)
+        read_planned_voyages(params.voyages)  # file, columns, times and vessel profiles, by line
 
 
 class _UserErrorsWithoutTraceback(logging.Filter):
@@ -324,12 +325,22 @@ def read_planned_voyages(path) -> pd.DataFrame:
     Raises
     ------
     NightlyError
-        Missing file or column, empty field or bad time, naming the file, line and field.
+        Missing file or column, empty field, unknown vessel profile or bad time, naming the
+        file, line and field.
     """
+    from pipelines.config import VesselProfileError, load_vessel
+
     path = Path(path)
     _require_voyages_file(path)
     rows = []
-    with path.open(newline="", encoding="utf-8") as fh:
+    known_vessels: set = set()
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = raw[: err.start].count(b"\n") + 1
+        raise NightlyError(f"{path}: line {line}: not UTF-8 text (byte {err.object[err.start]:#04x})") from None
+    with io.StringIO(text, newline="") as fh:
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]
         missing = [c for c in VOYAGE_COLUMNS if c not in header]
@@ -347,6 +358,12 @@ def read_planned_voyages(path) -> pd.DataFrame:
                 t = parse_utc(rec["depart_utc"], "depart_utc")
             except NightlyError:
                 raise NightlyError(f"{path}: line {k}: field 'depart_utc': {rec['depart_utc']!r} is not an ISO 8601 time") from None
+            if rec["vessel"] not in known_vessels:
+                try:
+                    load_vessel(rec["vessel"])
+                except VesselProfileError as err:
+                    raise NightlyError(f"{path}: line {k}: field 'vessel': {err}") from None
+                known_vessels.add(rec["vessel"])
             vid = rec.get("voyage_id") or f"V{k - 1:03d}"
             rows.append({"voyage_id": vid, "vessel": rec["vessel"], "origin": rec["origin"],
                          "destination": rec["destination"], "depart_utc": t, "line": k})

@@ -245,6 +245,19 @@ def write_weather(ctx: ScenarioContext) -> dict:
 SCENARIO_WRITERS: list[tuple[str, ScenarioWriter]] = [("ais", write_ais), ("weather", write_weather)]
 
 
+def make_out_dir(path, option: str = "--out") -> Path:
+    """Create the output folder ``path`` (and its parents); a path that is a file, or a folder
+    that cannot be created, is a :class:`ScenarioConfigError` naming it."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ScenarioConfigError(f"{option} {path}: exists and is not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ScenarioConfigError(f"{option} {path}: cannot create the folder ({err.strerror or err})") from None
+    return path
+
+
 def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | None = None,
                    days: float = DEFAULT_DAYS, gzip: bool = False, config: Path | None = None,
                    ports: Path | None = None, writers: list[tuple[str, ScenarioWriter]] | None = None,
@@ -264,8 +277,9 @@ def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | 
     **settings
         Further :class:`lanes.scenario.ScenarioSettings` fields.
     """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if int(seed) < 0:
+        raise ScenarioConfigError(f"--seed {seed}: the seed must be a non-negative integer")
+    out_dir = make_out_dir(out_dir)
     spec = load_scenario_spec(config, ports)
     try:
         start_ts = pd.Timestamp(start) if start is not None else DEFAULT_START_UTC

@@ -189,6 +189,16 @@ def test_deviate_cli(workspace):
     assert res.exit_code != 0 and "no lane 'L9'" in str(res.exception)
 
 
+def test_deviate_outside_the_weather_names_the_whole_span(workspace):
+    """The workspace weather is read for the lane's window only; a departure after the data ends
+    must be reported against the grid's whole span (it said the window's: 10:00 .. 14:00)."""
+    from pipelines.deviate import DeviationInputError, deviate_in_workspace
+
+    with pytest.raises(DeviationInputError, match=r"^departure 2025-01-15T16:00:00\+00:00 is outside the weather "
+                                                    r"2025-01-14T18:00:00\+00:00 \.\. 2025-01-15T14:00:00\+00:00$"):
+        deviate_in_workspace(workspace, "L1", "2025-01-15T16:00Z", store=False)
+
+
 def test_audit_flow_under_prefect(workspace, prefect_harness):
     from pipelines.audit import audit_flow
 

@@ -44,9 +44,17 @@ def exceedance_by_time(ds: xr.Dataset, vessel, profile, headings_deg=None, missi
         Index ``time_utc`` (tz-aware UTC); columns ``n_sea``, ``n_unsafe``, ``unsafe_frac`` and
         ``n_<rule>`` per evaluated rule plus ``n_no_data`` (sea cells lacking
         an input of an evaluated rule); and the rules that were skipped, with the reason.
+
+    Raises
+    ------
+    weather.errors.CoverageError
+        The data lack ``hs_m``.
     """
     if "hs_m" not in ds:
-        raise ValueError("exceedance needs hs_m (significant wave height) to tell sea from land")
+        from weather.errors import CoverageError
+
+        raise CoverageError(f"{ds.attrs.get('product', 'the weather')}: variable hs_m (significant wave height) is missing; "
+                            f"exceedance needs it to tell sea from land (the data hold {', '.join(map(str, ds.data_vars)) or 'nothing'})")
     sea = np.isfinite(ds["hs_m"].values)
     f = _fields(ds)
     if headings_deg is None:

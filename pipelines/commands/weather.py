@@ -141,12 +141,56 @@ def _departures(depart: list[str], every_h: float | None, count: int):
 
     if not depart:
         raise WeatherError("give at least one --depart time")
-    times = list(pd.to_datetime(depart, utc=True))
+    times = []
+    for text in depart:
+        try:
+            t = pd.Timestamp(text)
+        except (ValueError, TypeError):
+            t = pd.NaT
+        if t is pd.NaT:
+            raise WeatherError(f"--depart {text!r} is not an ISO 8601 time")
+        times.append(t.tz_localize("UTC") if t.tzinfo is None else t.tz_convert("UTC"))
     if every_h is not None:
         if len(times) != 1:
             raise WeatherError("--every needs exactly one --depart (the first departure)")
+        if not every_h > 0:
+            raise WeatherError(f"--every {every_h:g}: hours between departures must be > 0")
+        if count < 1:
+            raise WeatherError(f"--count {count}: need at least one departure")
         times = list(pd.date_range(times[0], periods=count, freq=pd.Timedelta(hours=every_h)))
     return times
+
+
+#: Columns of a ``weather join --points`` CSV that must hold numbers.
+POINT_NUMBERS = ("seq", "lat_deg", "lon_deg", "speed_kn")
+
+
+def _read_points(path: Path):
+    """The ``--points`` CSV; a value that is not a number (or a speed that is not > 0) is
+    reported by file, line and field."""
+    import numpy as np
+    import pandas as pd
+
+    from weather.errors import WeatherError
+
+    try:
+        pts = pd.read_csv(path, skip_blank_lines=False)
+    except (OSError, ValueError) as err:
+        raise WeatherError(f"{path}: cannot read points CSV ({err})") from None
+    pts.index = pts.index + 2  # file line of each row (header = line 1)
+    pts = pts.dropna(how="all")
+    for col in POINT_NUMBERS:
+        if col not in pts:
+            continue  # join_points_weather names every missing column
+        num = pd.to_numeric(pts[col], errors="coerce").astype(float)
+        bad = ~np.isfinite(num) | ((num <= 0) if col == "speed_kn" else False)
+        if bad.any():
+            line = int(pts.index[np.flatnonzero(bad.to_numpy())[0]])
+            what = "a speed > 0 kn" if col == "speed_kn" else "a number"
+            raw = pts[col].loc[line]
+            raise WeatherError(f"{path}: line {line}: field {col!r} " + ("is empty" if pd.isna(raw) else f"{str(raw)!r} is not {what}"))
+        pts[col] = num
+    return pts.reset_index(drop=True)
 
 
 @weather_app.command("join")
@@ -170,13 +214,9 @@ def join(
     from weather.errors import WeatherError
 
     deps = _departures(depart, every_h, count)
+    pts = None if points is None else _read_points(points)
     with open_workspace(db) as ws:
-        if points is not None:
-            try:
-                pts = pd.read_csv(points)
-            except (OSError, ValueError) as err:
-                raise WeatherError(f"{points}: cannot read points CSV ({err})") from None
-        else:
+        if pts is None:
             pts = lane_points(ws)
         g = None if grid is None else (int(grid) if grid.isdigit() else grid)
         res = join_points_weather(ws, pts, deps, grid=g, on_missing="flag" if flag_missing else "raise")

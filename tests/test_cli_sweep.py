@@ -1,0 +1,175 @@
+"""Regressions found by playing the reviewer on the CLI contracts (helper "cli-sweep").
+
+Each test failed before its fix: a traceback or a silent wrong answer where the contract asks for
+one clear line naming the file / line / field and exit status 2 (or for a working command).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import _report_fixtures as fx
+
+
+def _cli_error(capsys, argv) -> str:
+    """Run ``stormlane argv``; assert exit status 2 and return the single error line."""
+    from pipelines.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert "Traceback" not in err
+    lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+# --- stormlane report: re-render a stored model ---------------------------------------------------
+
+
+def test_report_model_with_mixed_iso_times_round_trips(tmp_path):
+    """``Timestamp.isoformat()`` drops a zero fraction, so a stored frame mixes
+    "...:00+00:00" and "...:00.500000+00:00"; ``stormlane report --model`` on the demo's
+    report.json failed to parse them (pandas inferred one format from the first value)."""
+    from dashboards.model import report_from_json, report_to_json
+    from dashboards.report import render_report
+
+    model = fx.nightly(n_adverse=1)
+    ev = model.departures[0].routes.events
+    ev.loc[1, "start_utc"] = ev.loc[1, "start_utc"] + pd.Timedelta(milliseconds=500)
+    back = report_from_json(report_to_json(model))
+    got = back.departures[0].routes.events
+    assert got.loc[1, "start_utc"] == pd.Timestamp("2025-01-31T10:30:00.5Z")
+    assert got.loc[0, "start_utc"] == pd.Timestamp("2025-01-31T10:00Z")
+    assert render_report(back, tmp_path / "a.html").read_text() == render_report(model, tmp_path / "b.html").read_text()
+
+
+def test_report_cli_unwritable_out_is_one_line(tmp_path, capsys):
+    from dashboards.model import report_to_json
+
+    model = tmp_path / "m.json"
+    model.write_text(report_to_json(fx.nightly(n_adverse=0)))
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    line = _cli_error(capsys, ["report", "--model", str(model), "--out", str(blocker / "r.html")])
+    assert str(blocker / "r.html") in line and "cannot write" in line
+
+
+# --- stormlane weather join / exceedance -----------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("extra", "expect"),
+    [
+        (["--depart", "garbage"], "--depart 'garbage' is not an ISO 8601 time"),
+        (["--depart", "2025-01-14T00:00Z", "--every", "0", "--count", "3"], "--every 0: hours between departures must be > 0"),
+        (["--depart", "2025-01-14T00:00Z", "--every", "-3", "--count", "2"], "--every -3"),
+        (["--depart", "2025-01-14T00:00Z", "--every", "3", "--count", "0"], "--count 0: need at least one departure"),
+    ],
+)
+def test_weather_join_bad_departures(tmp_path, capsys, extra, expect):
+    db = tmp_path / "ws.duckdb"
+    line = _cli_error(capsys, ["weather", "join", "--db", str(db), *extra])
+    assert expect in line
+
+
+@pytest.mark.parametrize(
+    ("body", "expect"),
+    [
+        ("A,0,41.2,abc,12\n", "line 2: field 'lon_deg' 'abc' is not a number"),
+        ("A,0,41.2,2.5,12\n\nA,1,40.0,x,12\n", "line 4: field 'lon_deg' 'x' is not a number"),
+        ("A,0,41.2,,12\n", "line 2: field 'lon_deg' is empty"),
+        ("A,0,41.2,2.5,12\nA,1,40.0,3.0,0\n", "line 3: field 'speed_kn' '0' is not a speed > 0 kn"),
+    ],
+)
+def test_weather_join_points_csv_names_line_and_field(tmp_path, capsys, body, expect):
+    pts = tmp_path / "points.csv"
+    pts.write_text("path_id,seq,lat_deg,lon_deg,speed_kn\n" + body)
+    line = _cli_error(capsys, ["weather", "join", "--db", str(tmp_path / "ws.duckdb"), "--depart", "2025-01-14T00:00Z",
+                               "--points", str(pts)])
+    assert line == f"error: {pts}: {expect}"
+
+
+def test_weather_join_points_csv_reads_good_values(tmp_path):
+    from pipelines.commands.weather import _read_points
+
+    pts = tmp_path / "points.csv"
+    pts.write_text("path_id,seq,lat_deg,lon_deg,speed_kn\nA,0,41.2,2.5,12\n\nA,1,40.0,3.0,11.5\n")
+    got = _read_points(pts)
+    assert got["lon_deg"].tolist() == [2.5, 3.0] and got["speed_kn"].tolist() == [12.0, 11.5]
+    assert got["path_id"].tolist() == ["A", "A"]
+
+
+def test_exceedance_without_wave_height_is_a_coverage_error():
+    """A wind-only file (e.g. the ERA5 tws/twd zarr) has no hs_m: a user error naming the
+    product and the variable, not a ValueError traceback."""
+    import xarray as xr
+
+    from pipelines.config import load_operator_profile, load_vessel
+    from weather.errors import CoverageError
+    from weather.exposure import exceedance_by_time
+
+    t = pd.date_range("2022-01-01", periods=2, freq="h").values
+    u = np.ones((2, 2, 3))
+    ds = xr.Dataset({"wind_u_ms": (("time_utc", "lat", "lon"), u), "wind_v_ms": (("time_utc", "lat", "lon"), u)},
+                    coords={"time_utc": t, "lat": [0.0, 1.0], "lon": [0.0, 1.0, 2.0]}, attrs={"product": "ERA5 wind test"})
+    with pytest.raises(CoverageError, match=r"ERA5 wind test: variable hs_m .* missing.*wind_u_ms, wind_v_ms"):
+        exceedance_by_time(ds, load_vessel("container-large"), load_operator_profile(None))
+
+
+# --- stormlane scenario / demo ---------------------------------------------------------------------
+
+
+def test_scenario_negative_seed_and_file_as_out(tmp_path, capsys):
+    line = _cli_error(capsys, ["scenario", "--out", str(tmp_path / "sc"), "--seed", "-1", "--days", "1"])
+    assert line == "error: --seed -1: the seed must be a non-negative integer"
+    assert not (tmp_path / "sc").exists()
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    line = _cli_error(capsys, ["scenario", "--out", str(blocker), "--days", "1"])
+    assert line == f"error: --out {blocker}: exists and is not a folder"
+    line = _cli_error(capsys, ["demo", "--workdir", str(blocker), "--days", "1"])
+    assert line == f"error: --workdir {blocker}: exists and is not a folder"
+
+
+# --- stormlane nightly --voyages CSV ---------------------------------------------------------------
+
+
+def test_planned_voyages_unknown_vessel_names_file_line_field(tmp_path):
+    from pipelines.nightly import NightlyError, read_planned_voyages
+
+    csv = tmp_path / "voyages.csv"
+    csv.write_text("vessel,origin,destination,depart_utc\nro-pax,ESBCN,ESPMI,2025-01-31T03:00Z\n"
+                   "no-such-ship,ESBCN,ITGOA,2025-01-31T06:00Z\n")
+    with pytest.raises(NightlyError, match=rf"^{csv}: line 3: field 'vessel': unknown vessel profile 'no-such-ship'"):
+        read_planned_voyages(csv)
+
+
+def test_planned_voyages_not_utf8_and_bom(tmp_path):
+    from pipelines.nightly import NightlyError, read_planned_voyages
+
+    bad = tmp_path / "bad.csv"
+    bad.write_bytes(b"vessel,origin,destination,depart_utc\nro-pax,ESBCN,\xff\xfeITGOA,2025-01-31T03:00Z\n")
+    with pytest.raises(NightlyError, match=rf"^{bad}: line 2: not UTF-8 text \(byte 0xff\)"):
+        read_planned_voyages(bad)
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbfvessel,origin,destination,depart_utc\r\nro-pax,ESBCN,ESPMI,2025-01-31T03:00Z\r\n")
+    got = read_planned_voyages(bom)
+    assert got[["vessel", "origin", "destination", "line"]].values.tolist() == [["ro-pax", "ESBCN", "ESPMI", 2]]
+    assert got["depart_utc"].iloc[0] == pd.Timestamp("2025-01-31T03:00Z")
+
+
+def test_nightly_bad_planned_voyage_fails_before_the_flow(tmp_path, capsys):
+    """The CSV is read in the preflight: one line, exit 2, before any Prefect server starts."""
+    db = tmp_path / "ws.duckdb"
+    from pipelines.storage import open_workspace
+
+    with open_workspace(db):
+        pass
+    csv = tmp_path / "voyages.csv"
+    csv.write_text("vessel,origin,destination,depart_utc\nro-pax,ESBCN,ESPMI,31/01/2025 03:00 tomorrow\n")
+    line = _cli_error(capsys, ["nightly", "--db", str(db), "--voyages", str(csv), "--now", "2025-01-31T00:00Z", "--no-report"])
+    assert line.startswith(f"error: {csv}: line 2: field 'depart_utc'")
