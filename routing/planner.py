@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from routing.astar import ShipModel, WeatherArrays, evaluate_path, path_exposure, reachable, search, smooth
-from routing.errors import LandPointError, NoRouteError, WeatherCoverageError
+from routing.errors import LandPointError, NoRouteError, OutsideMeshError, WeatherCoverageError
 from routing.field import NS_PER_HOUR, MeshWeather, WeatherField
 from routing.mesh import Mesh, MeshGrid, build_mesh, global_land_mask_window
 from routing.route import Route
@@ -145,7 +145,8 @@ def default_bbox(start, goal, margin_deg: float | None = None) -> tuple:
     lat = np.asarray(lat)
     lon = np.asarray(lon)
     if lon.max() - lon.min() > 180.0:
-        raise ValueError("routes across the antimeridian are not supported")
+        raise OutsideMeshError(f"the great circle {tuple(start)} -> {tuple(goal)} crosses the antimeridian: routes across "
+                               "it are not supported (the mesh spans lon -180..180)")
     span = max(lat.max() - lat.min(), lon.max() - lon.min())
     m = max(1.0, 0.15 * span) if margin_deg is None else margin_deg
     return (

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.conftest import shared_file
+from conftest import shared_file
 
 DEPART = pd.Timestamp("2020-01-20T09:00Z")
 START, GOAL = (39.225, 2.900), (41.500, 2.775)

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import duckdb
 
+from thresholds.errors import StormlaneError
+
 DEFAULT_DB = "stormlane.duckdb"
 
 _SCHEMA_TABLE_SQL = """
@@ -70,6 +72,28 @@ def migrate(con: duckdb.DuckDBPyConnection) -> dict[str, int]:
     return versions
 
 
+class WorkspaceError(StormlaneError):
+    """The ``--db`` path is not a DuckDB workspace (another kind of file)."""
+
+
+#: Bytes 8..11 of every DuckDB database file (its main header's magic).
+_DUCKDB_MAGIC = b"DUCK"
+
+
+def _check_is_duckdb(path: Path) -> None:
+    """A file that exists must be a DuckDB database: say so in one line instead of DuckDB's
+    IOException (a lock held by another process stays an IOException: that one is transient)."""
+    if not path.is_file():
+        if path.exists():
+            raise WorkspaceError(f"workspace {path} is not a file (give --db a DuckDB file)")
+        return
+    with path.open("rb") as fh:
+        head = fh.read(12)
+    if head[8:12] != _DUCKDB_MAGIC:
+        raise WorkspaceError(f"workspace {path} is not a DuckDB database file ({'empty' if not head else 'other content'}); "
+                             "give --db a stormlane workspace or a new file name")
+
+
 class Workspace:
     """An open DuckDB workspace. Use as a context manager; ``con`` is the DuckDB connection."""
 
@@ -77,6 +101,7 @@ class Workspace:
         self.path = Path(path)
         if read_only and not self.path.exists():
             raise FileNotFoundError(f"workspace {self.path} does not exist (run `stormlane ingest-ais` or `stormlane demo` first)")
+        _check_is_duckdb(self.path)
         if not read_only:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         self.con = duckdb.connect(str(self.path), read_only=read_only)
