@@ -174,6 +174,14 @@ def write_routes(routes, path, fmt: str | None = None, *, rtz_version: str = RTZ
     kind = _format_for(path, fmt)
     for route in routes:
         _check_route(route)
+    try:
+        return _write_kind(routes, path, kind, rtz_version)
+    except OSError as err:
+        where = f": {err.filename}" if err.filename and str(err.filename) != str(path) else ""
+        raise ExportError(f"{path}: cannot write the export ({err.strerror or err}{where})") from None
+
+
+def _write_kind(routes: list, path: Path, kind: str, rtz_version: str) -> list[Path]:
     path.parent.mkdir(parents=True, exist_ok=True)
     if kind == "geojson":
         path.write_text(json.dumps(routes_to_geojson(routes), indent=1, allow_nan=False), encoding="utf-8")

@@ -442,7 +442,8 @@ def _write(text: str, path: Path) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text, encoding="utf-8")
     except OSError as err:
-        raise ReportError(f"{path}: cannot write the report ({err.strerror or err})") from None
+        where = f": {err.filename}" if err.filename and str(err.filename) != str(path) else ""
+        raise ReportError(f"{path}: cannot write the report ({err.strerror or err}{where})") from None
     return path
 
 

@@ -61,6 +61,17 @@ def _utc(t) -> pd.Timestamp:
     return ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
 
 
+def _option_utc(t, option: str) -> pd.Timestamp:
+    """:func:`_utc` of a user-given time; a bad one is an :class:`AuditError` naming the option."""
+    try:
+        ts = pd.Timestamp(t)
+    except (ValueError, TypeError):
+        ts = pd.NaT
+    if ts is pd.NaT:
+        raise AuditError(f"{option} {t!r} is not an ISO 8601 time")
+    return _utc(ts)
+
+
 def default_vessel_profile(static: dict) -> str:
     """Vessel profile for an AIS ship when none is given: by AIS ship type and length.
 
@@ -147,7 +158,7 @@ def load_audit_inputs(db, *, voyage_id: str | None = None, mmsi: int | None = No
             voyage = row.iloc[0].to_dict()
             mmsi = int(voyage["mmsi"])
             start, end = voyage["depart_utc"], voyage["arrive_utc"]
-        start_utc, end_utc = _utc(start), _utc(end)
+        start_utc, end_utc = _option_utc(start, "--start"), _option_utc(end, "--end")
         if not end_utc > start_utc:
             raise AuditError(f"--end {end_utc.isoformat()} must be after --start {start_utc.isoformat()}")
         positions = read_positions(ws, mmsi=int(mmsi), start=start_utc, end=end_utc + pd.Timedelta(seconds=1))

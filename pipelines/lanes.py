@@ -138,8 +138,12 @@ def export_geojson(db: str | Path, out: str | Path) -> Path:
     with open_workspace(db) as ws:
         fc = lanes_geojson(read_ports(ws), read_lanes(ws), read_lane_centroids(ws))
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(fc, separators=(",", ":")), encoding="utf-8")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(fc, separators=(",", ":")), encoding="utf-8")
+    except OSError as err:
+        where = f": {err.filename}" if err.filename and str(err.filename) != str(out) else ""
+        raise LanesInputError(f"{out}: cannot write the lanes GeoJSON ({err.strerror or err}{where})") from None
     return out
 
 

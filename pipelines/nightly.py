@@ -165,14 +165,32 @@ def _require_voyages_file(path) -> None:
         raise NightlyError(f"planned voyages file not found: {path}")
 
 
+def _require_out_dir(path) -> None:
+    """The report folder can be created: its nearest existing ancestor is a writable folder."""
+    import os
+
+    p = Path(path)
+    for q in (p, *p.parents):
+        if q.exists():
+            if not q.is_dir():
+                raise NightlyError(f"--out {path}: {q} exists and is not a folder")
+            if not os.access(q, os.W_OK | os.X_OK):
+                raise NightlyError(f"--out {path}: folder {q} is not writable")
+            return
+
+
 def preflight(params: NightlyParams) -> None:
     """What a person can fix before a night starts, checked before Prefect starts: the
-    workspace and the weather paths exist and the planned voyages file reads (the flow's steps
-    run the same checks)."""
+    workspace and the weather paths exist, the planned voyages file reads and the report folder
+    can be created (the flow's steps run the same checks)."""
     _require_workspace(params.db)
     _require_weather_files(params.weather)
     if params.voyages:
         read_planned_voyages(params.voyages)  # file, columns, times and vessel profiles, by line
+    if params.report:
+        for out in (params.out, params.out_root):
+            if out:
+                _require_out_dir(out)
 
 
 class _UserErrorsWithoutTraceback(logging.Filter):
@@ -1053,6 +1071,7 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
     from pipelines.reporting import lane_departure_model, provenance, speed_loss_curve
 
     out = Path(night.out)
+    _require_out_dir(out)
     out.mkdir(parents=True, exist_ok=True)
     departures, n_files = [], 0
     for case in result.cases:

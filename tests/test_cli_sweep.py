@@ -173,3 +173,70 @@ def test_nightly_bad_planned_voyage_fails_before_the_flow(tmp_path, capsys):
     csv.write_text("vessel,origin,destination,depart_utc\nro-pax,ESBCN,ESPMI,31/01/2025 03:00 tomorrow\n")
     line = _cli_error(capsys, ["nightly", "--db", str(db), "--voyages", str(csv), "--now", "2025-01-31T00:00Z", "--no-report"])
     assert line.startswith(f"error: {csv}: line 2: field 'depart_utc'")
+
+
+# --- --db that is not a workspace; route across the antimeridian -----------------------------------
+
+
+@pytest.mark.parametrize("content", [b"garbage\n", b""])
+def test_db_that_is_not_duckdb_is_one_line(tmp_path, capsys, content):
+    bad = tmp_path / "notes.duckdb"
+    bad.write_bytes(content)
+    line = _cli_error(capsys, ["workspace", "--db", str(bad), "--json"])
+    assert line.startswith(f"error: workspace {bad} is not a DuckDB database file")
+    assert bad.read_bytes() == content  # left alone
+    line = _cli_error(capsys, ["lanes", "--db", str(tmp_path), "--json"])
+    assert line == f"error: workspace {tmp_path} is not a file (give --db a DuckDB file)"
+
+
+def test_route_across_the_antimeridian_is_a_user_error(capsys):
+    line = _cli_error(capsys, ["route", "--from", "10,170", "--to", "10,-170", "--depart", "2020-01-20T09:00Z",
+                               "--mesh-deg", "0.5", "--ignore-land", "--json"])
+    assert line == ("error: the great circle (10.0, 170.0) -> (10.0, -170.0) crosses the antimeridian: routes across it are "
+                    "not supported (the mesh spans lon -180..180)")
+    assert capsys.readouterr().out == ""
+
+
+# --- audit options; outputs that cannot be written --------------------------------------------------
+
+
+def _empty_workspace(tmp_path):
+    from pipelines.storage import open_workspace
+
+    db = tmp_path / "ws.duckdb"
+    with open_workspace(db):
+        pass
+    return db
+
+
+def test_audit_bad_time_and_speed_loss_are_one_line(tmp_path, capsys):
+    db = _empty_workspace(tmp_path)
+    line = _cli_error(capsys, ["audit", "--db", str(db), "--mmsi", "219000123", "--start", "garbage", "--end", "2025-01-04T00:00Z"])
+    assert line == "error: --start 'garbage' is not an ISO 8601 time"
+    line = _cli_error(capsys, ["audit", "--db", str(db), "--mmsi", "219000123", "--start", "2025-01-03T00:00Z", "--end", "soon"])
+    assert line == "error: --end 'soon' is not an ISO 8601 time"
+    from pipelines.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["audit", "--db", str(db), "--voyage", "v1", "--speed-loss", "foo"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "Invalid value for --speed-loss: 'foo' is not one of" in " ".join(err.split()) and "Traceback" not in err
+
+
+def test_unwritable_outputs_are_user_errors(tmp_path, capsys):
+    from dashboards.errors import ExportError
+    from dashboards.exports import write_routes
+    from pipelines.lanes import LanesInputError, export_geojson
+
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    route = fx.routes()["optimal"]
+    for suffix in ("geojson", "gpx", "rtz"):
+        with pytest.raises(ExportError, match=rf"^{blocker}/r\.{suffix}: cannot write the export"):
+            write_routes([route], blocker / f"r.{suffix}")
+    db = _empty_workspace(tmp_path)
+    with pytest.raises(LanesInputError, match=rf"^{blocker}/l\.geojson: cannot write the lanes GeoJSON"):
+        export_geojson(db, blocker / "l.geojson")
+    line = _cli_error(capsys, ["nightly", "--db", str(db), "--out", str(blocker / "night"), "--now", "2025-01-31T00:00Z"])
+    assert line == f"error: --out {blocker / 'night'}: {blocker} exists and is not a folder"

@@ -51,6 +51,10 @@ def register(app: typer.Typer) -> None:
             raise StormlaneError("give --voyage ID, or --mmsi N with --start ISO and --end ISO")
         if voyage is not None and mmsi is not None:
             raise StormlaneError("give either --voyage or --mmsi/--start/--end, not both")
+        from routing.speed_loss import MODELS
+
+        if speed_loss not in MODELS:
+            raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}", param_hint="--speed-loss")
         summary = run_audit(db, voyage_id=voyage, mmsi=mmsi, start=start, end=end, weather=[str(p) for p in weather or []],
                             vessel=vessel, profile=profile, report=report, speed_loss_model=speed_loss)
         if json_out:
