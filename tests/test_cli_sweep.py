@@ -240,3 +240,43 @@ def test_unwritable_outputs_are_user_errors(tmp_path, capsys):
         export_geojson(db, blocker / "l.geojson")
     line = _cli_error(capsys, ["nightly", "--db", str(db), "--out", str(blocker / "night"), "--now", "2025-01-31T00:00Z"])
     assert line == f"error: --out {blocker / 'night'}: {blocker} exists and is not a folder"
+
+
+# --- weather fetch without credentials: no prompt, stdout clean ----------------------------------------
+
+
+class _PromptingClient:
+    """Like copernicusmarine without credentials: asks for a username on stdin (click.prompt ->
+    input) and, when stdin has nothing, prints "Abort" and returns None."""
+
+    def __init__(self):
+        self.answers = []
+
+    def subset(self, **kw):
+        try:
+            self.answers.append(input("Copernicus Marine username: "))
+        except EOFError:
+            print("Abort")
+            return None
+        return None
+
+
+def test_cmems_fetch_never_waits_for_a_username_and_keeps_stdout_clean(tmp_path, monkeypatch, capsys):
+    """Before: on a terminal `stormlane weather fetch` (or nightly --fetch) waited for a typed
+    username, and the prompt landed on stdout in front of the --json object."""
+    import io
+    import sys
+
+    from weather.errors import FetchError
+    from weather.io.cache import DownloadCache
+    from weather.io.cmems import get_cmems
+
+    fake = _PromptingClient()
+    monkeypatch.setitem(sys.modules, "copernicusmarine", fake)
+    monkeypatch.setattr(sys, "stdin", io.StringIO("someone\n"))  # a person at the keyboard
+    with pytest.raises(FetchError, match="copernicusmarine client returned nothing"):
+        get_cmems((2, 39, 3, 40), "2025-01-14", "2025-01-15", cache=DownloadCache(tmp_path))
+    assert fake.answers == []  # never read the person's input
+    out, err = capsys.readouterr()
+    assert out == "" and "Copernicus Marine username: Abort" in err
+    assert sys.stdin.read() == "someone\n"  # stdin given back untouched

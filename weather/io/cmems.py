@@ -3,8 +3,9 @@
 * :func:`get_cmems` downloads a subset with the official ``copernicusmarine`` client into the
   download cache (:mod:`weather.io.cache`). Credentials come only from the client's own
   mechanisms (``copernicusmarine login`` credentials file or its environment variables); we never
-  read, log or store them. Without credentials the client prints "Abort" and **returns None
-  without raising** (STACK.md): that is turned into a :class:`~weather.errors.FetchError` at once
+  read, log or store them. Without credentials the client would prompt for a username on stdin;
+  it is given an empty stdin (and its prints go to stderr), so it prints "Abort" and **returns
+  None without raising** (STACK.md): that is turned into a :class:`~weather.errors.FetchError` at once
   (no retry: credentials do not appear by retrying). Network failures are retried a bounded
   number of times with the client's own HTTP retries and timeout set low.
 * :func:`read_cmems` reads a local file (the path every test takes), see :mod:`weather.io.netcdf`.
@@ -170,6 +171,24 @@ def _client_limits(timeout_s: float, http_retries: int):
                 os.environ[k] = v
 
 
+@contextlib.contextmanager
+def _no_prompt():
+    """Without credentials the client asks for a username on stdin (``click.prompt``): during a
+    download stdin reads as empty, so it gives up at once ("Abort", returns None) instead of
+    waiting for a person (nightly runs are unattended), and what it prints goes to stderr so
+    stdout keeps only the ``--json`` object."""
+    import io
+    import sys
+
+    saved = sys.stdin
+    sys.stdin = io.StringIO("")
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stdin = saved
+
+
 def get_cmems(
     bbox,
     start,
@@ -226,7 +245,7 @@ def get_cmems(
     last_err: Exception | None = None
     for attempt in range(1, attempts + 1):
         try:
-            with _client_limits(timeout_s, 1):
+            with _client_limits(timeout_s, 1), _no_prompt():
                 result = copernicusmarine.subset(
                     dataset_id=dataset_id,
                     variables=list(variables),
