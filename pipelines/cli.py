@@ -47,6 +47,20 @@ def main(argv: list[str] | None = None) -> None:
     except StormlaneError as err:
         typer.echo(f"error: {err}", err=True)
         sys.exit(2)
+    except Exception as err:
+        # A workspace locked by another process: the flows' I/O tasks retry it (transient), so it
+        # stays DuckDB's exception down there; here, once retries are spent, it is one line.
+        if not _workspace_locked(err):
+            raise
+        typer.echo(f"error: the workspace is in use by another process ({str(err).splitlines()[0]}); "
+                   "retry when it has finished", err=True)
+        sys.exit(2)
+
+
+def _workspace_locked(err: BaseException) -> bool:
+    import duckdb
+
+    return isinstance(err, duckdb.IOException) and "Could not set lock" in str(err)
 
 
 if __name__ == "__main__":

@@ -280,3 +280,23 @@ def test_cmems_fetch_never_waits_for_a_username_and_keeps_stdout_clean(tmp_path,
     out, err = capsys.readouterr()
     assert out == "" and "Copernicus Marine username: Abort" in err
     assert sys.stdin.read() == "someone\n"  # stdin given back untouched
+
+
+def test_workspace_locked_by_another_process_is_one_line(tmp_path, capsys):
+    """Another stormlane (or any DuckDB) process writing the workspace: one line, exit 2."""
+    import subprocess
+    import sys
+
+    db = _empty_workspace(tmp_path)
+    holder = subprocess.Popen(
+        [sys.executable, "-c", f"import duckdb, sys, time; c = duckdb.connect({str(db)!r}); print('ready', flush=True); time.sleep(60)"],
+        stdout=subprocess.PIPE, text=True,
+    )
+    try:
+        assert holder.stdout.readline().strip() == "ready"
+        line = _cli_error(capsys, ["workspace", "--db", str(db), "--json"])
+    finally:
+        holder.kill()
+        holder.wait()
+    assert line.startswith("error: the workspace is in use by another process (IO Error: Could not set lock on file")
+    assert capsys.readouterr().out == ""
