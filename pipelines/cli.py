@@ -41,12 +41,26 @@ _register_commands()
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point: user errors print one clear line on stderr and exit 2."""
+    """Console entry point: user errors print one clear line on stderr and exit 2.
+
+    That holds for the option parser's errors too (bad or missing option value, unknown option or
+    command): one ``error: ...`` line naming the option, instead of a usage box whose message
+    rich wraps over several lines.
+    """
     try:
-        app(args=argv, standalone_mode=True)
+        code = app(args=argv, prog_name="stormlane", standalone_mode=False)
     except StormlaneError as err:
         typer.echo(f"error: {err}", err=True)
         sys.exit(2)
+    except typer.Abort:
+        typer.echo("Aborted!", err=True)
+        sys.exit(1)
+    except typer.TyperException as err:  # click's usage errors (typer vendors click)
+        if type(err).__name__ != "NoArgsIsHelpError":  # that one has printed the help already
+            ctx = getattr(err, "ctx", None)
+            hint = f" (see `{ctx.command_path} --help`)" if ctx is not None else ""
+            typer.echo(f"error: {' '.join(err.format_message().split())}{hint}", err=True)
+        sys.exit(getattr(err, "exit_code", 2))
     except Exception as err:
         # A workspace locked by another process: the flows' I/O tasks retry it (transient), so it
         # stays DuckDB's exception down there; here, once retries are spent, it is one line.
@@ -55,6 +69,8 @@ def main(argv: list[str] | None = None) -> None:
         typer.echo(f"error: the workspace is in use by another process ({str(err).splitlines()[0]}); "
                    "retry when it has finished", err=True)
         sys.exit(2)
+    if isinstance(code, int) and code:
+        sys.exit(code)
 
 
 def _workspace_locked(err: BaseException) -> bool:

@@ -300,3 +300,36 @@ def test_workspace_locked_by_another_process_is_one_line(tmp_path, capsys):
         holder.wait()
     assert line.startswith("error: the workspace is in use by another process (IO Error: Could not set lock on file")
     assert capsys.readouterr().out == ""
+
+
+@pytest.mark.parametrize(
+    ("argv", "expect"),
+    [
+        (["route", "--from", "39.2,2.9", "--to", "41.5,2.7", "--depart", "2020-01-20T09:00Z", "--speed-loss", "foo"],
+         "error: Invalid value for --speed-loss: 'foo' is not one of bowditch, aertssen, khokhlov, none (see `stormlane route --help`)"),
+        (["route", "--from", "39.2,2.9", "--to", "41.5,2.7", "--depart", "2020-01-20T09:00Z", "--edges", "12"],
+         "error: Invalid value for --edges: 12 is not one of 8, 16, 24, 48 (see `stormlane route --help`)"),
+        (["route", "--to", "41.5,2.7"], "error: Missing option '--from'. (see `stormlane route --help`)"),
+        (["nightly", "--window-h", "0"],
+         "error: Invalid value for '--window-h': Input should be greater than or equal to 0.1 (see `stormlane nightly --help`)"),
+        (["weather", "join", "--depart-at", "x"], "error: No such option: --depart-at (Possible options: --depart) (see `stormlane weather join --help`)"),
+        (["no-such-command"], "error: No such command 'no-such-command'. (see `stormlane --help`)"),
+    ],
+)
+def test_option_parser_errors_are_one_line(capsys, argv, expect):
+    """Bad option values used to print typer's usage box, the message wrapped over several lines
+    at 80 columns; now one `error:` line like every other user error (exit status 2)."""
+    assert _cli_error(capsys, argv) == expect
+
+
+def test_help_and_no_arguments_still_print_the_help(capsys):
+    from pipelines.cli import main
+
+    try:
+        main(["route", "--help"])
+    except SystemExit as exc:
+        assert exc.code in (0, None)
+    assert "--speed-loss" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:
+        main([])
+    assert exc.value.code == 2 and "route" in capsys.readouterr().out
