@@ -61,6 +61,14 @@ def main(argv: list[str] | None = None) -> None:
             hint = f" (see `{ctx.command_path} --help`)" if ctx is not None else ""
             typer.echo(f"error: {' '.join(err.format_message().split())}{hint}", err=True)
         sys.exit(getattr(err, "exit_code", 2))
+    except OSError as err:
+        # a path the user gave cannot be read or written (a file where a folder is needed, no
+        # permission, a full disk ...): one line naming it
+        if err.filename is None:
+            raise
+        other = f" -> {err.filename2}" if err.filename2 else ""
+        typer.echo(f"error: {err.filename}{other}: {err.strerror or err}", err=True)
+        sys.exit(2)
     except Exception as err:
         # A workspace locked by another process: the flows' I/O tasks retry it (transient), so it
         # stays DuckDB's exception down there; here, once retries are spent, it is one line.

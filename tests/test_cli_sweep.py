@@ -333,3 +333,35 @@ def test_help_and_no_arguments_still_print_the_help(capsys):
     with pytest.raises(SystemExit) as exc:
         main([])
     assert exc.value.code == 2 and "route" in capsys.readouterr().out
+
+
+# --- file-system errors on paths the user gave -------------------------------------------------------
+
+
+def test_db_in_a_folder_that_cannot_exist_is_one_line(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    line = _cli_error(capsys, ["workspace", "--db", str(blocker / "ws.duckdb"), "--json"])
+    assert line == f"error: workspace {blocker / 'ws.duckdb'}: cannot create its folder (File exists: {blocker})"
+
+
+def test_os_errors_on_user_paths_are_one_line(tmp_path, capsys, monkeypatch):
+    """The safety net of the entry point: an OSError naming a path (here the screenshot's folder
+    under a file, as `stormlane report --screenshot` hit it) is one line, exit 2."""
+    from pathlib import Path
+
+    import dashboards.browser
+    from dashboards.model import report_to_json
+
+    def fake_screenshot(report_path, png_path, **kw):  # the real one opens Chromium first
+        Path(png_path).parent.mkdir(parents=True, exist_ok=True)
+        return Path(png_path)
+
+    monkeypatch.setattr(dashboards.browser, "screenshot", fake_screenshot)
+    model = tmp_path / "m.json"
+    model.write_text(report_to_json(fx.nightly(n_adverse=0)))
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    line = _cli_error(capsys, ["report", "--model", str(model), "--out", str(tmp_path / "r.html"),
+                               "--screenshot", str(blocker / "shot.png")])
+    assert line == f"error: {blocker}: File exists"

@@ -103,7 +103,10 @@ class Workspace:
             raise FileNotFoundError(f"workspace {self.path} does not exist (run `stormlane ingest-ais` or `stormlane demo` first)")
         _check_is_duckdb(self.path)
         if not read_only:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as err:
+                raise WorkspaceError(f"workspace {self.path}: cannot create its folder ({err.strerror or err}: {err.filename})") from None
         self.con = duckdb.connect(str(self.path), read_only=read_only)
         self.read_only = read_only
         if not read_only:
