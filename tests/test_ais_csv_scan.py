@@ -34,7 +34,7 @@ def _epoch_us(y, mo, d, h, mi, s):
 def test_canonical_numbers_are_exactly_pythons_float(text, value):
     r, _ = _scan([f"01/01/2025 00:00:00,219000001,{text},,N"])
     assert r.kind.tolist() == [KIND_ROW]
-    got = r.vals[0, r.fields.index("lat_deg")]
+    got = r.vals[r.fields.index("lat_deg"), 0]
     if value is None:
         assert np.isnan(got)
     else:
@@ -62,7 +62,7 @@ def test_random_decimals_round_like_float():
         want.append(float(text))
     r, _ = _scan(lines, n_threads=2)
     assert (r.kind == KIND_ROW).all()
-    assert r.vals[:, r.fields.index("lat_deg")].tolist() == want
+    assert r.vals[r.fields.index("lat_deg")].tolist() == want
 
 
 @pytest.mark.parametrize("text, expect", [
@@ -111,7 +111,7 @@ def test_mmsi_status_and_line_rules():
     assert r.kind.tolist() == [KIND_ROW, KIND_ROW, KIND_ROW, KIND_SPECIAL, KIND_SPECIAL, KIND_BLANK, KIND_SPECIAL,
                                KIND_SPECIAL, KIND_SPECIAL, KIND_ROW, KIND_SPECIAL]
     assert r.mmsi[:3].tolist() == [219000001, -1, -1]
-    nav = r.vals[:, r.fields.index("nav_status")]
+    nav = r.vals[r.fields.index("nav_status")]
     assert nav[0] == 5.0 and nav[1] == 5.0 and np.isnan(nav[2])
     assert r.quote_lines.tolist() == [8] and r.stray_cr
     # offsets: line k is data[starts:ends]

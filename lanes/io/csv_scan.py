@@ -176,7 +176,7 @@ def scan(buf, pos, end, n_fields, roles, slots, layout, words, woff, wcode,
     """Scan lines from ``pos`` (a line start) until ``end`` or until the outputs are full, in
     one pass over the bytes. Returns (lines written, position reached)."""
     cap = len(starts)
-    nvals = vals.shape[1]
+    nvals = vals.shape[0]
     prime = np.uint64(1099511628211)
     n = 0
     while pos < end and n < cap:
@@ -185,7 +185,7 @@ def scan(buf, pos, end, n_fields, roles, slots, layout, words, woff, wcode,
         h = np.uint64(14695981039346656037)
         special = False
         for v in range(nvals):
-            vals[n, v] = np.nan
+            vals[v, n] = np.nan
         f = 0
         fs = pos
         last_cr = -2
@@ -228,7 +228,7 @@ def scan(buf, pos, end, n_fields, roles, slots, layout, words, woff, wcode,
                                 special = True
                         else:
                             special = True
-                    vals[n, slots[f]] = x
+                    vals[slots[f], n] = x
                 elif r == 2:
                     tt = parse_time(buf, fs, fe, layout)
                     if tt == NULL_TIME:
@@ -274,7 +274,7 @@ def _compile():
 class ScanResult:
     """What :func:`scan_csv` found: per physical line ``starts``, ``ends``, ``kind``; per line
     of kind :data:`KIND_ROW` the typed values (``mmsi`` -1 = missing, ``t_us`` NULL_TIME =
-    missing, ``vals`` NaN = missing, columns in ``fields`` order, ``shash``)."""
+    missing, ``vals`` NaN = missing, one row per name in ``fields``, ``shash``)."""
 
     def __init__(self, starts, ends, kind, mmsi, t_us, vals, shash, fields, stray_cr, quote_lines):
         self.starts, self.ends, self.kind = starts, ends, kind
@@ -340,9 +340,9 @@ def scan_csv(buf: np.ndarray, index: dict[str, int], n_fields: int, time_formats
             # room for the lines expected in the rest of the range (one call for most files)
             cap = int(min(max((b - pos) / per_line * 1.02 + 1024, 1024), b - pos + 1, max(chunk_lines, 1 << 26)))
             out = (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.uint8), np.empty(cap, np.int64),
-                   np.empty(cap, np.int64), np.empty((cap, nv), np.float64), np.empty(cap, np.uint64))
+                   np.empty(cap, np.int64), np.empty((nv, cap), np.float64), np.empty(cap, np.uint64))
             n, pos = scan(buf, pos, b, n_fields, roles, slots, layout, words, woff, wcode, *out)
-            parts.append(tuple(x[:n] for x in out))
+            parts.append(tuple(x[..., :n] for x in out))
         return parts
 
     ranges = [(cuts[i], cuts[i + 1]) for i in range(len(cuts) - 1) if cuts[i + 1] > cuts[i]]
@@ -354,9 +354,10 @@ def scan_csv(buf: np.ndarray, index: dict[str, int], n_fields: int, time_formats
     parts = [p for res in results for p in res]
     if not parts:
         e64 = np.empty(0, np.int64)
-        return ScanResult(e64, e64, np.empty(0, np.uint8), e64, e64, np.empty((0, nv)), np.empty(0, np.uint64),
+        return ScanResult(e64, e64, np.empty(0, np.uint8), e64, e64, np.empty((nv, 0)), np.empty(0, np.uint64),
                           num_fields, False, e64)
-    cat = [np.concatenate([p[j] for p in parts]) for j in range(7)]
+    cat = [p0 if len(parts) == 1 else np.concatenate([p[j] for p in parts], axis=-1)
+           for j, p0 in enumerate(parts[0])]
     starts, ends, kind = cat[0], cat[1], cat[2]
     # Lines with a quote or a \r were marked special; which of them hold a quote / a stray \r
     # (the line index's flags) is found on those few lines only.

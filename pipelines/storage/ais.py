@@ -574,7 +574,7 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     """
     import pyarrow as pa
 
-    from lanes.io.csv_scan import KIND_ROW, KIND_SPECIAL, NULL_TIME, TIME_LAYOUTS, scan_csv
+    from lanes.io.csv_scan import KIND_ROW, KIND_SPECIAL, TIME_LAYOUTS, scan_csv
     from lanes.io.lineindex import LineIndex
 
     if tuple(spec.time_formats) not in TIME_LAYOUTS:
@@ -600,20 +600,19 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     kind = r.kind.copy()
     if len(kind):
         kind[0] = 255  # the header line
-    rows = np.flatnonzero(kind == KIND_ROW)
+    is_row = kind == KIND_ROW
     special = np.flatnonzero(kind == KIND_SPECIAL) + 1
     if len(special) > max(1000, FAST_MAX_EXACT_FRAC * ix.n_lines):
         ix.close()
         log.info("%s: %d of %d lines not canonical; leaving the scan path", path, len(special), ix.n_lines)
         return None
-    tbl = _scan_table(con, r, rows)
+    tbl = _scan_table(con, r, is_row)
     del r, res["scan"]
     times["arrow"] = time.perf_counter() - t0 - times["scan"]
     # The scanned rows stay in Arrow memory (no copy into DuckDB); the stage view reads them.
     con.register("ais_scan_src", tbl)
     del tbl
-    times["typed_table"] = time.perf_counter() - t0 - times["scan"] - times["arrow"]
-    if not _spot_check_lines(con, "ais_scan_src", ix, rows + 1, header, spec, index, int(n_fields)):
+    if not _spot_check_lines(con, "ais_scan_src", ix, np.flatnonzero(is_row) + 1, header, spec, index, int(n_fields)):
         ix.close()
         return _give_up(con, path, "sampled rows differ from their lines")
     _create_exact_stage(con, special, ix, spec, index, int(n_fields), header)
@@ -630,28 +629,28 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
             "exact_lines": int(len(special)), "line_mapping": "scan", "timings": times}
 
 
-def _scan_table(con, r, rows: np.ndarray):
-    """The Arrow table of the canonical rows of a scan (columns of ``ais_fast``).
+def _scan_table(con, r, is_row: np.ndarray):
+    """The Arrow table of the canonical rows of a scan (the columns of ``ais_fast``). (A table
+    of every line filtered by a view was measured slower: DuckDB filters the Arrow scan on
+    every read of the stage.)
 
     ``reason0`` (rules 1-6): a row that clearly passes every check of :func:`_reason_case`'s
     clean-row conjunction (tested in numpy with no value near a bound: exact integer and float
     comparisons, sentinel tolerances not needed) has none; the few others get the CASE itself,
     evaluated by DuckDB on just those rows."""
     import pyarrow as pa
-    import pyarrow.compute as pc
 
     from lanes.io.csv_scan import NULL_TIME
 
+    rows = np.flatnonzero(is_row)
     n = len(rows)
-    mm = r.mmsi[rows]
-    t_us = r.t_us[rows]
-    cols = {"line": pa.array(rows + 1), "parse_error": pa.nulls(n, pa.string()),
-            "mmsi": pa.array(mm, mask=mm < 0),
+    mm, t_us = r.mmsi[rows], r.t_us[rows]
+    cols = {"line": pa.array(rows + 1), "parse_error": pa.nulls(n, pa.string()), "mmsi": pa.array(mm, mask=mm < 0),
             "time_utc": pa.array(t_us.view("datetime64[us]"), mask=t_us == NULL_TIME)}
     vals = {}
     for name in (*_NUM_FIELDS, "nav_status"):
         if name in r.fields:
-            v = np.ascontiguousarray(r.vals[rows, r.fields.index(name)])
+            v = r.vals[r.fields.index(name)][rows]
             vals[name] = v
             cols[name] = pa.array(v, mask=np.isnan(v))
         else:
@@ -660,7 +659,6 @@ def _scan_table(con, r, rows: np.ndarray):
     tmin = int(C.TIME_MIN_UTC.value // 1000)
     tmax = int(C.TIME_MAX_UTC.value // 1000)
     clean = (mm >= C.MMSI_MIN) & (mm <= C.MMSI_MAX) & (t_us >= tmin) & (t_us < tmax)
-    del mm, t_us
     with np.errstate(invalid="ignore"):
         for name, ok in (("lat_deg", lambda x: (x >= -90.0) & (x <= 90.0)),
                          ("lon_deg", lambda x: (x >= -180.0) & (x <= 180.0)),
@@ -682,14 +680,14 @@ def _scan_table(con, r, rows: np.ndarray):
         try:
             sql = (f"SELECT {_reason_case()} AS reason0 FROM (SELECT *, '{C.KIND_POSITION}' AS kind "
                    f"FROM ais_scan_other)")
-            got = con.execute(sql, _used(sql, _params())).to_arrow_table().column("reason0")
+            got = con.execute(sql, _used(sql, _params())).to_arrow_table().column("reason0").to_pylist()
         finally:
             con.unregister("ais_scan_other")
-        codes = sorted({x for x in got.to_pylist() if x is not None})
+        codes = sorted({x for x in got if x is not None})
         if codes:
             code_of = {c: i for i, c in enumerate(codes)}
             idx = np.full(n, -1, dtype=np.int32)
-            idx[other] = [code_of.get(x, -1) if x is not None else -1 for x in got.to_pylist()]
+            idx[other] = [code_of[x] if x is not None else -1 for x in got]
             reason = pa.DictionaryArray.from_arrays(pa.array(idx, mask=idx < 0), pa.array(codes, pa.string())) \
                 .cast(pa.string())
     return tbl.append_column("reason0", reason)
