@@ -236,3 +236,28 @@ def test_fast_path_raw_text_of_invalid_utf8_line(tmp_path, monkeypatch):
     assert _used_fast(out, "scan")
     assert counts["reasons"].get("bad_lat") == 1
     assert [q[2] for q in snap[2] if q[1] == "bad_lat"][0].count("\ufffd") == 1
+
+
+def test_scan_stage_spot_check_catches_a_wrong_value(tmp_path, monkeypatch):
+    # Corrupt the first scanned row's latitude: the sample typed again from the text (it always
+    # holds the first row) differs, so the scan stage is given up for the next engine.
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    real = store._scan_table
+
+    def corrupt(con, r, is_row):
+        tbl = real(con, r, is_row)
+        lat = tbl.column("lat_deg").combine_chunks()
+        bad = pc.if_else(pa.array(np.arange(len(lat)) == 0), pa.scalar(1.5), lat)
+        return tbl.set_column(tbl.column_names.index("lat_deg"), "lat_deg", bad)
+
+    monkeypatch.setattr(store, "_scan_table", corrupt)
+    monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", 0)
+    monkeypatch.setattr(ingest_mod, "FAST_CSV_ENGINES", ("scan", "duckdb"))
+    path = tmp_path / "c.csv"
+    path.write_bytes(("\n".join([DMA_HEADER] + _rows(n_vessels=4, n_steps=30)) + "\n").encode())
+    with open_workspace(tmp_path / "c.duckdb") as ws:
+        counts = ingest_file(ws, path, fmt="dma")
+        lat = ws.con.execute("SELECT lat_deg FROM ais_positions WHERE source_line = 2").fetchone()[0]
+    assert counts["staging"] == "typed" and lat != 1.5

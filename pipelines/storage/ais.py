@@ -609,13 +609,16 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     tbl = _scan_table(con, r, is_row)
     del r, res["scan"]
     times["arrow"] = time.perf_counter() - t0 - times["scan"]
+    t1 = time.perf_counter()
+    if not _spot_check_lines(con, tbl, ix, header, spec, index, int(n_fields)):
+        ix.close()
+        return _give_up(con, path, "sampled rows differ from their lines")
+    times["spot_check"] = time.perf_counter() - t1
     # The scanned rows stay in Arrow memory (no copy into DuckDB); the stage view reads them.
     con.register("ais_scan_src", tbl)
     del tbl
-    if not _spot_check_lines(con, "ais_scan_src", ix, np.flatnonzero(is_row) + 1, header, spec, index, int(n_fields)):
-        ix.close()
-        return _give_up(con, path, "sampled rows differ from their lines")
     _create_exact_stage(con, special, ix, spec, index, int(n_fields), header)
+    times["exact_lines"] = time.perf_counter() - t1 - times["spot_check"]
     con.execute(f"""CREATE OR REPLACE TEMP VIEW ais_stage AS
         SELECT * FROM ais_exact
         UNION ALL BY NAME SELECT line, CAST(NULL AS VARCHAR) AS raw, '{C.KIND_POSITION}' AS kind, * EXCLUDE (line)
@@ -693,27 +696,32 @@ def _scan_table(con, r, is_row: np.ndarray):
     return tbl.append_column("reason0", reason)
 
 
-def _spot_check_lines(con, table: str, ix, lines_all: np.ndarray, header, spec, index, n_fields: int,
-                      n: int = 64) -> bool:
-    """Type ``n`` rows of ``table`` (the scanned rows) spread over the file (and up to ``n`` quarantined ones)
-    again from their line's text and compare every typed value (not the static hash, which the
-    scan computes its own way)."""
-    if len(lines_all) == 0:
+def _spot_check_lines(con, tbl, ix, header, spec, index, n_fields: int, n: int = 64) -> bool:
+    """Type ``n`` rows of the scanned Arrow table ``tbl`` spread over the file (and up to ``n``
+    quarantined ones) again from their line's text and compare every typed value (not the
+    static hash, which the scan computes its own way)."""
+    import pyarrow as pa
+
+    m = tbl.num_rows
+    if m == 0:
         return True
-    pick = lines_all[np.unique(np.linspace(0, len(lines_all) - 1, min(n, len(lines_all))).astype(np.int64))]
-    bad = np.asarray(con.execute(f"SELECT line FROM {_q(table)} WHERE reason0 IS NOT NULL LIMIT ?",
-                                 [int(n)]).fetchnumpy()["line"], dtype=np.int64)
-    lines = np.union1d(pick, bad)
+    pick = np.unique(np.linspace(0, m - 1, min(n, m)).astype(np.int64))
+    bad = np.flatnonzero(tbl.column("reason0").is_valid().to_numpy(zero_copy_only=False))[:n]
+    rows = np.union1d(pick, bad)
+    sample = tbl.take(pa.array(rows))
+    lines = np.asarray(sample.column("line").to_numpy(), dtype=np.int64)
     _typed_lines(con, lines, ix.text(lines), spec, index, n_fields, header, "ais_spot")
+    con.register("ais_spot_fast", sample)
     try:
         vals = ", ".join(("parse_error", "mmsi", "time_utc", *_NUM_FIELDS, "nav_status", "reason0"))
         differ = con.execute(f"""SELECT count(*) FROM (
-                SELECT line, '{C.KIND_POSITION}' AS kind, {vals} FROM {_q(table)} WHERE line IN (SELECT line FROM ais_spot)
+                SELECT line, '{C.KIND_POSITION}' AS kind, {vals} FROM ais_spot_fast
                 EXCEPT SELECT line, kind, {vals} FROM ais_spot)""").fetchone()[0]
         n_spot = con.execute("SELECT count(*) FROM ais_spot").fetchone()[0]
     finally:
+        con.unregister("ais_spot_fast")
         con.execute("DROP TABLE IF EXISTS temp.ais_spot")
-    return differ == 0 and n_spot == len(lines)
+    return differ == 0 and n_spot == len(rows)
 
 
 def _reject_lines_by_text(texts: list, ix) -> np.ndarray | None:
@@ -1479,7 +1487,7 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
 
 def _drop_temp(con) -> None:
     con.execute("DROP VIEW IF EXISTS temp.ais_stage")
-    for name in ("ais_scan_src", "ais_fast_pos", "ais_fast_skip", "ais_raw_df", "ais_latest_raw", "ais_lines_df", "ais_spot_rows"):
+    for name in ("ais_scan_src", "ais_spot_fast", "ais_fast_pos", "ais_fast_skip", "ais_raw_df", "ais_latest_raw", "ais_lines_df", "ais_spot_rows"):
         try:
             con.unregister(name)
         except Exception:  # noqa: BLE001 - not registered
