@@ -120,15 +120,16 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
 
     from concurrent.futures import ThreadPoolExecutor
 
-    from lanes.io.files import fingerprint, quick_key
+    from lanes.io.files import fingerprint, identity_suffix, quick_key
 
     f = inspect(path, fmt, with_fingerprint=False)
-    quick = quick_key(f.path)
+    suffix = identity_suffix(f.path, fmt)  # bytes forced into another format are another input
+    quick = quick_key(f.path) + suffix
     pool = ThreadPoolExecutor(max_workers=1)
     # The SHA-256 of the whole file runs in a thread (hashlib releases the GIL) while DuckDB
     # stages the file. Only when a loaded file has the same quick key (size + first and last
     # MiB) is the full hash awaited before staging, to skip an already loaded file.
-    full = pool.submit(fingerprint, f.path)
+    full = pool.submit(lambda: fingerprint(f.path) + suffix)
     try:
         done = store.file_record(ws, full.result()) if store.quick_key_known(ws, quick) else None
     except BaseException:

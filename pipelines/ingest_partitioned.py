@@ -39,13 +39,15 @@ def skipped_counts(path, fmt: str, file_id: int) -> dict:
 
 def plan_files(ws, files: list, fmt: str | None = None) -> tuple[list[str], dict[str, dict]]:
     """Split ``files`` into those to stage and those already loaded (their skipped counts)."""
-    from lanes.io.files import fingerprint, inspect, quick_key
+    from lanes.io.files import fingerprint, identity_suffix, inspect, quick_key
     from pipelines.storage import ais as store
 
     todo, skipped = [], {}
     for p in files:
         f = inspect(p, fmt, with_fingerprint=False)
-        done = store.file_record(ws, fingerprint(f.path)) if store.quick_key_known(ws, quick_key(f.path)) else None
+        suffix = identity_suffix(f.path, fmt)
+        known = store.quick_key_known(ws, quick_key(f.path) + suffix)
+        done = store.file_record(ws, fingerprint(f.path) + suffix) if known else None
         if done is None:
             todo.append(str(p))
         else:
@@ -59,15 +61,17 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from lanes.io.files import fingerprint, inspect, quick_key
     import duckdb
 
+    from lanes.io.files import fingerprint, identity_suffix, inspect, quick_key
     from pipelines.ingest import stage_file
     from pipelines.storage import ais as store
 
     f = inspect(path, fmt, with_fingerprint=False)
+    suffix = identity_suffix(f.path, fmt)
     with ThreadPoolExecutor(max_workers=1) as pool:
-        full = pool.submit(fingerprint, f.path)  # hashlib releases the GIL: overlaps the staging
+        # hashlib releases the GIL: the hash overlaps the staging
+        full = pool.submit(lambda: fingerprint(f.path) + suffix)
         mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
         try:
             info = stage_file(mem, f)
@@ -79,13 +83,13 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
         finally:
             mem.con.close()
         fp = full.result()
-    out = Path(spool_dir) / f"{fp.replace(':', '-')}.parquet"
+    out = Path(spool_dir) / f"{fp.replace(':', '-').replace('#', '-')}.parquet"
     tmp = out.with_suffix(f".{os.getpid()}.part")
     # the columns stage_arrow reads, time as naive UTC
     table = pa.Table.from_pandas(stage.assign(time_utc=stage["time_utc"].dt.tz_convert(None)), preserve_index=False)
     pq.write_table(table, tmp, compression="zstd")
     tmp.replace(out)  # a retried or concurrent stage of the same bytes writes the same content
-    return {"path": str(f.path), "format": f.format, "fingerprint": fp, "quick_key": quick_key(f.path),
+    return {"path": str(f.path), "format": f.format, "fingerprint": fp, "quick_key": quick_key(f.path) + suffix,
             "size_bytes": f.size_bytes, "ignored": int(info["ignored"]), "spool": str(out),
             "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping"),
             "rows": table.num_rows}

@@ -163,3 +163,48 @@ def test_ingest_flow_on_a_two_worker_dask_cluster_equals_the_sequential_run(tmp_
     assert len(stream.data) == len(batch) and workers and workers <= addresses, (len(stream.data), workers)
     assert again["files"] == len(batch) and again["already_loaded"] == len(batch) and again["read"] == 0
     assert list(spool.iterdir()) == []
+
+
+# --- inputs a reviewer tries: a wrong forced format, empty files, Parquet forced on text --------
+def test_bytes_loaded_under_a_wrong_forced_format_can_still_be_loaded_as_detected(tmp_path, shared_data):
+    src = tmp_path / "noaa.csv"
+    shutil.copy(shared_file(shared_data, "ais/noaa_marinecadastre_20230111_sample.csv"), src)
+    db = tmp_path / "w.duckdb"
+    wrong = ingest_paths([src], db, fmt="nmea")
+    assert wrong["loaded"] == 0 and wrong["quarantined"] == wrong["read"] > 0  # every line a bad sentence
+    assert ingest_paths([src], db, fmt="nmea")["already_loaded"] == 1  # same bytes, same format: once
+    right = ingest_paths([src], db)  # detected: NOAA
+    assert right["already_loaded"] == 0 and right["loaded"] > 0
+    assert right["read"] == right["loaded"] + right["quarantined"] + right["duplicates"]
+    assert ingest_paths([src], db, fmt="noaa")["already_loaded"] == 1  # forcing the detected format is the same input
+    # the partitioned planner sees the same identities
+    with open_workspace(db) as ws:
+        assert plan_files(ws, [str(src)], "nmea")[0] == [] and plan_files(ws, [str(src)], "dma")[0] == [str(src)]
+
+
+def test_empty_files_in_a_directory_are_skipped_not_fatal(tmp_path):
+    from lanes.errors import AisFormatError
+
+    d = tmp_path / "in"
+    d.mkdir()
+    write_dma(d / "a.csv")
+    (d / "b_empty.csv").write_bytes(b"")
+    (d / "c_blank.nmea").write_text("\n  \n")
+    ref = ingest_paths([d / "a.csv"], tmp_path / "ref.duckdb")
+    s = ingest_paths([d], tmp_path / "w.duckdb")
+    assert s["files"] == 1 and s["per_file"][0]["path"].endswith("a.csv")
+    for k in ("read", "loaded", "quarantined", "duplicates", "reasons"):
+        assert s[k] == ref[k], k
+    with pytest.raises(AisFormatError, match="empty file"):  # named on its own, it is an error
+        ingest_paths([d / "b_empty.csv"], tmp_path / "w.duckdb")
+
+
+def test_parquet_forced_on_a_csv_file_is_a_clear_error(tmp_path):
+    from lanes.errors import AisFormatError
+
+    src = write_dma(tmp_path / "day.csv")
+    with pytest.raises(AisFormatError, match=r"day\.csv: not a readable Parquet file"):
+        ingest_paths([src], tmp_path / "w.duckdb", fmt="parquet")
+    out = subprocess.run([sys.executable, "-m", "pipelines.cli", "ingest-ais", str(src), "--db", str(tmp_path / "x.duckdb"),
+                          "--format", "parquet"], capture_output=True, text=True)
+    assert out.returncode == 2 and "not a readable Parquet file" in out.stderr and "Traceback" not in out.stderr

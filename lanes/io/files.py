@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import gzip
 import hashlib
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
 from lanes.errors import AisFormatError, AisInputError
+
+log = logging.getLogger(__name__)
 
 FORMATS = ("dma", "noaa", "nmea", "parquet")
 GZIP_MAGIC = b"\x1f\x8b"
@@ -119,6 +122,29 @@ def detect_format(path: str | Path) -> str:
     )
 
 
+def is_empty(path: str | Path) -> bool:
+    """No content at all: zero bytes, or (files under 1 MiB, after gunzip) only whitespace."""
+    path = Path(path)
+    size = path.stat().st_size
+    return size == 0 or (size < (1 << 20) and not head_text(path, 1 << 20).strip())
+
+
+def identity_suffix(path: str | Path, fmt: str | None) -> str:
+    """What distinguishes a file read in a forced format from the same bytes read as detected.
+
+    ``""`` when ``fmt`` is None or is the format detected from the content, else ``"#as-<fmt>"``:
+    bytes once loaded under a wrong ``--format`` (every row quarantined) can then still be
+    loaded as what they are; the same bytes under the same format are still loaded only once.
+    """
+    if fmt is None:
+        return ""
+    try:
+        detected = detect_format(path)
+    except AisFormatError:
+        detected = None
+    return "" if detected == fmt else f"#as-{fmt}"
+
+
 def expand_paths(paths) -> list[Path]:
     """Files named by ``paths``: a directory means every AIS-looking file inside it (recursive,
     sorted, hidden entries skipped; names ending in one of :data:`AIS_SUFFIXES`, optionally
@@ -127,7 +153,9 @@ def expand_paths(paths) -> list[Path]:
     Raises
     ------
     AisInputError
-        For a path that does not exist or a directory with no AIS file.
+        For a path that does not exist or a directory with no AIS file. Empty files inside a
+        directory are skipped with a warning (an empty file named on its own is an error, see
+        :func:`detect_format`).
     """
     out: list[Path] = []
     for p in paths:
@@ -141,8 +169,12 @@ def expand_paths(paths) -> list[Path]:
                     if f.startswith("."):
                         continue
                     base = name[:-3] if name.endswith(".gz") else name
-                    if base.endswith(AIS_SUFFIXES):
-                        found.append(Path(root) / f)
+                    if not base.endswith(AIS_SUFFIXES):
+                        continue
+                    if is_empty(Path(root) / f):  # no content: not an AIS file (named alone, it is an error)
+                        log.warning("%s: empty file in %s, skipped", Path(root) / f, p)
+                        continue
+                    found.append(Path(root) / f)
             if not found:
                 raise AisInputError(p, f"directory contains no AIS file (looked for {', '.join(AIS_SUFFIXES)}, optionally .gz)")
             out.extend(found)

@@ -67,7 +67,10 @@ def column_mapping(columns, path) -> dict[str, str]:
     if missing:
         hint = ""
         if "traj_id" in lower:
-            hint = " (this looks like the Ushant trajectory set: anonymised ids and relative times, read it with its own reader)"
+            hint = (" (this looks like the Ushant trajectory set: anonymised trajectory ids, no MMSI and times "
+                    "relative to each trajectory's start, so it cannot enter the AIS tables; read it with "
+                    "lanes.io.ushant.read_ushant(path, epoch_utc) and run the lanes chain on it, as "
+                    "bench/lanes.py does - see the README, 'Traffic lanes')")
         raise AisFormatError(
             path, f"Parquet file lacks column(s) for {', '.join(missing)}; columns are {', '.join(columns)}{hint}"
         )

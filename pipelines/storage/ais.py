@@ -911,8 +911,16 @@ def _static_typing(col: str) -> str:
 
 
 def parquet_columns(ws, path: Path) -> list[tuple[str, str]]:
-    """(name, DuckDB type) of the columns of a Parquet file."""
-    return [(r[0], r[1]) for r in ws.con.execute("DESCRIBE SELECT * FROM read_parquet(?)", [str(path)]).fetchall()]
+    """(name, DuckDB type) of the columns of a Parquet file; :class:`AisFormatError` when it is
+    not one (e.g. ``--format parquet`` forced on a CSV file)."""
+    try:
+        rows = ws.con.execute("DESCRIBE SELECT * FROM read_parquet(?)", [str(path)]).fetchall()
+    except (duckdb.InvalidInputException, duckdb.IOException) as err:
+        from lanes.errors import AisFormatError
+
+        why = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise AisFormatError(path, f"not a readable Parquet file ({why})") from None
+    return [(r[0], r[1]) for r in rows]
 
 
 def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
