@@ -63,13 +63,12 @@ def _utc(t) -> pd.Timestamp:
 
 def _option_utc(t, option: str) -> pd.Timestamp:
     """:func:`_utc` of a user-given time; a bad one is an :class:`AuditError` naming the option."""
-    try:
-        ts = pd.Timestamp(t)
-    except (ValueError, TypeError):
-        ts = pd.NaT
-    if ts is pd.NaT:
+    from pipelines.times import utc_or_none
+
+    ts = utc_or_none(t)
+    if ts is None:
         raise AuditError(f"{option} {t!r} is not an ISO 8601 time")
-    return _utc(ts)
+    return ts
 
 
 def default_vessel_profile(static: dict) -> str:

@@ -218,13 +218,12 @@ def user_errors_without_traceback():
 
 def parse_utc(text, what: str = "time") -> pd.Timestamp:
     """An ISO 8601 time as a tz-aware UTC Timestamp (naive input is taken as UTC)."""
-    try:
-        t = pd.Timestamp(text)
-    except (ValueError, TypeError):
-        raise NightlyError(f"{what}: {text!r} is not an ISO 8601 time") from None
-    if t is pd.NaT:
+    from pipelines.times import utc_or_none
+
+    t = utc_or_none(text)
+    if t is None:
         raise NightlyError(f"{what}: {text!r} is not an ISO 8601 time")
-    return t.tz_localize("UTC") if t.tzinfo is None else t.tz_convert("UTC")
+    return t
 
 
 def resolve_now(now: str | None) -> pd.Timestamp:

@@ -137,19 +137,17 @@ def load(
 def _departures(depart: list[str], every_h: float | None, count: int):
     import pandas as pd
 
+    from pipelines.times import utc_or_none
     from weather.errors import WeatherError
 
     if not depart:
         raise WeatherError("give at least one --depart time")
     times = []
     for text in depart:
-        try:
-            t = pd.Timestamp(text)
-        except (ValueError, TypeError):
-            t = pd.NaT
-        if t is pd.NaT:
+        t = utc_or_none(text)
+        if t is None:
             raise WeatherError(f"--depart {text!r} is not an ISO 8601 time")
-        times.append(t.tz_localize("UTC") if t.tzinfo is None else t.tz_convert("UTC"))
+        times.append(t)
     if every_h is not None:
         if len(times) != 1:
             raise WeatherError("--every needs exactly one --depart (the first departure)")
