@@ -171,3 +171,38 @@ def test_random_text_as_nmea(text):
     pure = clean_positions(stage)
     c = pure.counts
     assert c["read"] == c["loaded"] + c["quarantined"] + c["duplicates"]
+
+
+#: Clean rows that dilute the mutated ones below the fast stages' 2 % share of lines they hand
+#: to the exact statement, so the compiled scan and DuckDB's scanner both take these files.
+PADDING_CSV = [dma_row(f"01/01/2025 {1 + k // 60:02d}:{k % 60:02d}:00", str(219500000 + v), f"{56 + v * 0.1 + k * 2e-3:.6f}",
+                       "12.000000", name=f"PAD {v}") for k in range(120) for v in range(3)]
+
+
+# derandomized: the same 25 examples on every run, so the check that each stage really took the
+# file (rather than handing it to the exact path) cannot turn flaky.
+@settings(max_examples=25, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(lines=st.lists(mutated(BASE_CSV), min_size=1, max_size=6), crlf=st.booleans(), at=st.integers(0, 359))
+def test_mutated_lines_among_clean_ones_through_each_fast_stage(tmp_path_factory, lines, crlf, at):
+    """Each fast CSV stage alone (the compiled scan, DuckDB's scanner) == the pure twin."""
+    d = tmp_path_factory.mktemp("fuzzfast")
+    body = "\r\n" if crlf else "\n"
+    rows = PADDING_CSV[:at] + lines + PADDING_CSV[at:]
+    text = body.join([DMA_HEADER] + rows) + body
+    path = d / ("p" + hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:12] + ".csv")
+    path.write_bytes(text.encode("utf-8", "surrogatepass"))
+    pure = clean_positions(read_csv_stage(path)[0])
+    old = ingest_mod.FAST_CSV_MIN_BYTES, ingest_mod.FAST_CSV_ENGINES
+    try:
+        for engine in ("scan", "duckdb"):
+            ingest_mod.FAST_CSV_MIN_BYTES, ingest_mod.FAST_CSV_ENGINES = 0, (engine,)
+            with memory_ws() as ws:
+                counts = ingest_file(ws, path, fmt="dma")
+                sql_q = outcome_sql(ws, counts["file_id"])
+            check(counts, pure)
+            assert sql_q == dict(zip(pure.quarantine.line, pure.quarantine.reason)), engine
+            if "\r" not in "".join(lines):  # a stray CR is the one thing sending these to the exact path
+                assert counts["staging"] not in ("lines", "python"), (engine, counts["staging"])
+    finally:
+        ingest_mod.FAST_CSV_MIN_BYTES, ingest_mod.FAST_CSV_ENGINES = old
