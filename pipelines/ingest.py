@@ -220,12 +220,17 @@ def _discover(paths: list[str]) -> list[str]:
 _FLOW_WORKSPACES: dict = {}
 
 
-def _ingest_one(db: str, path: str, fmt: str | None, max_speed_kn: float) -> dict:
+def _on_flow_workspace(db: str, step, *args):
+    """``step(ws, *args)`` on the flow's shared connection to ``db``."""
     try:
-        return ingest_file(_flow_workspace(db), path, fmt=fmt, max_speed_kn=max_speed_kn)
+        return step(_flow_workspace(db), *args)
     except BaseException:
         _close_flow_workspace(db)  # a retry starts from a fresh connection
         raise
+
+
+def _ingest_one(db: str, path: str, fmt: str | None, max_speed_kn: float) -> dict:
+    return _on_flow_workspace(db, ingest_file, path, fmt, max_speed_kn)
 
 
 def _close_flow_workspace(db: str) -> None:
@@ -249,17 +254,13 @@ _TASKS = ("ingest_flow", "discover_task", "ingest_file_task", "stage_task", "com
 def _plan(db: str, files: list[str], fmt: str | None) -> tuple[list[str], dict]:
     from pipelines.ingest_partitioned import plan_files
 
-    return plan_files(_flow_workspace(db), files, fmt)
+    return _on_flow_workspace(db, plan_files, files, fmt)
 
 
 def _commit_one(db: str, staged: dict, max_speed_kn: float) -> dict:
     from pipelines.ingest_partitioned import commit_spooled
 
-    try:
-        return commit_spooled(_flow_workspace(db), staged, max_speed_kn)
-    except BaseException:
-        _close_flow_workspace(db)
-        raise
+    return _on_flow_workspace(db, commit_spooled, staged, max_speed_kn)
 
 
 def _flow_workspace(db: str):
@@ -308,7 +309,7 @@ def _build_flow() -> dict:
             else:
                 todo, skipped = plan_task(db, files, fmt)
                 staged = {p: stage_task.submit(p, fmt, spool_dir) for p in todo}
-                per_file = [skipped[p] if p in skipped else _committed(commit_task(db, staged[p], max_speed_kn))
+                per_file = [_file_done(skipped[p] if p in skipped else commit_task(db, staged[p], max_speed_kn))
                             for p in files]
         finally:
             _close_flow_workspace(db)
@@ -319,11 +320,11 @@ def _build_flow() -> dict:
     return _FLOW_OBJECTS
 
 
-#: Called with each committed file's counts by the partitioned flow (the CLI's progress bar).
+#: Called with each file's counts by the partitioned flow (the CLI's progress bar).
 _COMMIT_CALLBACKS: list = []
 
 
-def _committed(counts: dict) -> dict:
+def _file_done(counts: dict) -> dict:
     for cb in _COMMIT_CALLBACKS:
         cb(counts)
     return counts
@@ -331,7 +332,8 @@ def _committed(counts: dict) -> dict:
 
 @contextlib.contextmanager
 def commit_progress(callback):
-    """Call ``callback(counts)`` as the partitioned ingest flow commits each file."""
+    """Call ``callback(counts)`` as the partitioned ingest flow is done with each file
+    (committed, or skipped as already loaded)."""
     _COMMIT_CALLBACKS.append(callback)
     try:
         yield

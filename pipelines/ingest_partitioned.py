@@ -58,10 +58,8 @@ def plan_files(ws, files: list, fmt: str | None = None) -> tuple[list[str], dict
 
 def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
     """Stage one file into ``spool_dir`` (no workspace needed); returns what the commit needs."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     import duckdb
+    import pyarrow.parquet as pq
 
     from lanes.io.files import fingerprint, identity_suffix, inspect, quick_key
     from pipelines.ingest import stage_file
@@ -85,14 +83,11 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
         fp = full.result()
     out = Path(spool_dir) / f"{fp.replace(':', '-').replace('#', '-')}.parquet"
     tmp = out.with_suffix(f".{os.getpid()}.part")
-    # the columns stage_arrow reads, time as naive UTC
-    table = pa.Table.from_pandas(stage.assign(time_utc=stage["time_utc"].dt.tz_convert(None)), preserve_index=False)
-    pq.write_table(table, tmp, compression="zstd")
+    pq.write_table(store.stage_table(stage), tmp, compression="zstd")
     tmp.replace(out)  # a retried or concurrent stage of the same bytes writes the same content
     return {"path": str(f.path), "format": f.format, "fingerprint": fp, "quick_key": quick_key(f.path) + suffix,
             "size_bytes": f.size_bytes, "ignored": int(info["ignored"]), "spool": str(out),
-            "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping"),
-            "rows": table.num_rows}
+            "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping")}
 
 
 def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> dict:
@@ -103,7 +98,7 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
 
     done = store.file_record(ws, staged["fingerprint"])
     if done is not None:  # the same bytes twice in one batch: the first commit wins
-        _remove(staged["spool"])
+        Path(staged["spool"]).unlink(missing_ok=True)
         return skipped_counts(staged["path"], staged["format"], done["file_id"])
     try:
         store.stage_arrow(ws, pq.read_table(staged["spool"]))
@@ -112,7 +107,7 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
     except BaseException:
         store.discard_stage(ws)
         raise
-    _remove(staged["spool"])
+    Path(staged["spool"]).unlink(missing_ok=True)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", staged["path"], staged["format"],
              counts["read"], counts["loaded"], counts["quarantined"], counts["duplicates"])
     return {"path": staged["path"], "format": staged["format"], **counts, "already_loaded": False,
@@ -124,13 +119,6 @@ class _Scratch:
 
     def __init__(self, con):
         self.con = con
-
-
-def _remove(path: str) -> None:
-    try:
-        Path(path).unlink()
-    except FileNotFoundError:
-        pass
 
 
 def _stage_threads() -> int:

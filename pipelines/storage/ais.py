@@ -981,12 +981,17 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
 
 def stage_frame(ws, stage: pd.DataFrame) -> dict:
     """Put a typed stage built in Python (NMEA, or any reader) into ``ais_stage``."""
+    return stage_arrow(ws, stage_table(stage))
+
+
+def stage_table(stage: pd.DataFrame):
+    """A typed stage DataFrame as the Arrow table :func:`stage_arrow` reads (``time_utc`` naive
+    UTC). Arrow keeps NULLs as NULLs (nullable ints, NaT, None) and scans faster than object
+    columns."""
     import pyarrow as pa
 
     df = C.conform_stage(stage) if list(stage.dtypes.astype(str)) != list(C.STAGE_COLUMNS.values()) else stage
-    # Arrow keeps NULLs as NULLs (nullable ints, NaT, None) and scans faster than object columns.
-    return stage_arrow(ws, pa.Table.from_pandas(df.assign(time_utc=df["time_utc"].dt.tz_convert(None)),
-                                                preserve_index=False))
+    return pa.Table.from_pandas(df.assign(time_utc=df["time_utc"].dt.tz_convert(None)), preserve_index=False)
 
 
 def stage_arrow(ws, tbl) -> dict:
