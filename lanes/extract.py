@@ -48,6 +48,16 @@ the eps-ball >= ``min_density``) estimates the same density; the other points ta
 their nearest core sample within eps (else noise). The sample is seeded from the partition key, so
 results do not depend on how the data was partitioned.
 
+Legs of one route. Within an origin-destination partition, the same voyages can fall into
+several clusters: the slow harbour approach at each end (its speed differs from the sea passage
+by more than ``eps_speed_kn``), or the legs on either side of a sharp turn. They are one lane: the
+route those voyages sail between the two ports, with a typical speed per centroid that now
+includes the approach. So a smaller cluster whose voyages are, for at least
+``merge_voyage_share`` of them, also voyages of a larger cluster is merged into it (largest
+first). Voyages that take different routes between the same ports (or sail the same route at
+different speeds) share no voyages and stay separate lanes. The transit partition is not merged:
+its "voyages" are open tracks that may pass through several lanes.
+
 Lanes. Clusters with fewer than ``min_voyages`` voyages, or too short to give two centroids,
 become noise. Each remaining cluster is one lane: mean speed, circular mean course, point / voyage / vessel counts, and an ordered
 centroid sequence. To order the points along a lane that may bend, they are projected on a
@@ -124,6 +134,7 @@ class LaneParams:
     width_quantile: float = 0.9
     min_width_nmi: float = 0.05
     include_loops: bool = True
+    merge_voyage_share: float = 0.8
     seed: int = 0
 
     def __post_init__(self):
@@ -136,6 +147,8 @@ class LaneParams:
             raise ValueError("LaneParams.max_points must be at least 100")
         if not 0 < self.width_quantile <= 1:
             raise ValueError("LaneParams.width_quantile must be in (0, 1]")
+        if not 0 <= self.merge_voyage_share <= 1:
+            raise ValueError("LaneParams.merge_voyage_share must be in [0, 1] (0 = never merge)")
         if self.min_voyages < 1 or self.min_centroids < 1 or self.min_centroid_points < 1:
             raise ValueError("LaneParams.min_voyages, min_centroids and min_centroid_points must be at least 1")
 
@@ -217,6 +230,40 @@ def dbscan_labels(features: np.ndarray, weights: np.ndarray, params: LaneParams,
     return labels, True
 
 
+def merge_shared_voyage_clusters(labels: np.ndarray, voyages: np.ndarray, share: float) -> np.ndarray:
+    """Merge each cluster into a larger one that holds ``share`` of its voyages (module docstring).
+
+    Clusters are visited from the most voyages to the fewest (ties: most points, then lowest
+    label); a cluster is merged into the first already-kept cluster whose voyages include at least
+    ``share`` of its own (and whose label it then takes). ``-1`` (noise) is left alone.
+
+    Returns
+    -------
+    ndarray
+        New labels (a copy); label values are those of the kept clusters.
+    """
+    labels = np.asarray(labels, dtype=np.int64).copy()
+    inside = labels >= 0
+    if not inside.any():
+        return labels
+    pairs = pd.DataFrame({"label": labels[inside], "voyage": voyages[inside]})
+    sets = pairs.groupby("label")["voyage"].agg(lambda v: frozenset(v.tolist()))
+    n_points = pairs.groupby("label").size()
+    order = sorted(sets.index, key=lambda c: (-len(sets[c]), -int(n_points[c]), int(c)))
+    kept: list[int] = []
+    target = {}
+    for c in order:
+        own = sets[c]
+        into = next((k for k in kept if len(own & sets[k]) >= share * len(own)), None)
+        if into is None:
+            kept.append(c)
+        else:
+            target[c] = into
+    for c, into in target.items():
+        labels[labels == c] = into
+    return labels
+
+
 def resample_step_s(points: pd.DataFrame, default: float = 300.0) -> float:
     """The resampling step of the points: median time difference within a voyage run. [s]"""
     if len(points) < 2:
@@ -273,8 +320,10 @@ def extract_lanes_for_pair(points: pd.DataFrame, params: LaneParams | None = Non
         lab, sampled = dbscan_labels(feats, weights, params, key)
         labels[mv] = lab
 
-    # Clusters supported by too few voyages are noise.
     voyages = p["voyage"].to_numpy()
+    if key != TRANSIT and params.merge_voyage_share > 0:
+        labels = merge_shared_voyage_clusters(labels, voyages, params.merge_voyage_share)
+    # Clusters supported by too few voyages are noise.
     if (labels >= 0).any():
         inside = labels >= 0
         nvoy = pd.Series(voyages[inside]).groupby(labels[inside]).nunique()

@@ -56,6 +56,8 @@ class LanesSettings(BaseModel):
     min_voyages: int = Field(3, ge=1, description="fewest voyages a lane must have")
     max_points: int = Field(150_000, ge=100, description="per-partition DBSCAN sample size")
     centroid_spacing_nmi: float = Field(5.0, gt=0, description="spacing of lane centroids [nmi]")
+    merge_voyage_share: float = Field(0.8, ge=0, le=1, description="clusters sharing this share of their voyages "
+                                      "with a larger one of the same port pair are one lane (0 = never)")
     stop_speed_kn: float = Field(0.5, gt=0, description="stopped below this speed [kn]")
     min_stop_s: float = Field(180.0, ge=0, description="shortest stop [s]")
     port_eps_nmi: float = Field(0.135, gt=0, description="DBSCAN eps for stops -> ports [nmi]")
@@ -70,7 +72,8 @@ class LanesSettings(BaseModel):
             resample=resample,
             lanes=LaneParams(eps_nmi=self.eps_nmi, eps_speed_kn=self.eps_speed_kn, eps_course_deg=self.eps_course_deg,
                              min_density=self.min_density, min_voyages=self.min_voyages, max_points=self.max_points,
-                             centroid_spacing_nmi=self.centroid_spacing_nmi),
+                             centroid_spacing_nmi=self.centroid_spacing_nmi,
+                             merge_voyage_share=self.merge_voyage_share),
             max_jump_speed_kn=self.max_jump_speed_kn,
         )
 

@@ -9,7 +9,14 @@ import pandas as pd
 import pytest
 
 from lanes.chain import ChainParams, build_lanes
-from lanes.extract import LaneParams, extract_lanes, extract_lanes_for_pair, motion_features, partition_key
+from lanes.extract import (
+    LaneParams,
+    extract_lanes,
+    extract_lanes_for_pair,
+    merge_shared_voyage_clusters,
+    motion_features,
+    partition_key,
+)
 from lanes_tracks import T0, Itinerary, flat_dist_nmi, offset, shuttle, transit
 
 A = (41.30, 2.20)
@@ -233,3 +240,67 @@ def test_empty_input():
     r = extract_lanes(pd.DataFrame({c: [] for c in ("voyage", "track", "origin_port_id", "dest_port_id", "time_utc",
                                                       "lat_deg", "lon_deg", "speed_kn", "course_deg", "run")}))
     assert len(r.lanes) == 0 and r.n_noise == 0
+
+
+def _harbour_route(mmsi, start, a, a_out, b_in, b, lateral_nmi):
+    """A -> B and back: 3 nmi of harbour approach at 7 kn at each end, 30 nmi of sea at 18 kn."""
+    it = Itinerary(mmsi, start=start, cadence_s=60)
+    it.stay(*a, 40, jitter_nmi=0.005)
+    it.sail(*a_out, 7.0, lateral_nmi=lateral_nmi).sail(*b_in, 18.0, lateral_nmi=lateral_nmi).sail(*b, 7.0, lateral_nmi=lateral_nmi)
+    it.stay(*b, 40, jitter_nmi=0.005)
+    it.sail(*b_in, 7.0, lateral_nmi=lateral_nmi).sail(*a_out, 18.0, lateral_nmi=lateral_nmi).sail(*a, 7.0, lateral_nmi=lateral_nmi)
+    it.stay(*a, 40, jitter_nmi=0.005)
+    return it.frame()
+
+
+def test_harbour_approaches_are_part_of_the_lane_not_lanes_of_their_own():
+    # The slow approaches differ from the sea passage by 11 kn (> eps_speed_kn) and 30 deg, so
+    # DBSCAN clusters them apart; they are the same voyages, so they end up in the one lane.
+    a = (41.0, 3.0)
+    a_out = offset(*a, 3.0 * math.cos(math.radians(30)), 3.0 * math.sin(math.radians(30)))  # course 60
+    b_in = offset(*a_out, 30.0, 0.0)                                                           # course 90
+    b = offset(*b_in, 3.0 * math.cos(math.radians(30)), -3.0 * math.sin(math.radians(30)))  # course 120
+    frames = [_harbour_route(900 + i, T0 + pd.Timedelta(minutes=23 * i), a, a_out, b_in, b, 0.05 * i) for i in range(5)]
+    r = build_lanes(pd.concat(frames, ignore_index=True))
+    assert r.summary["ports"] == 2 and r.summary["voyages"] == 10
+    lanes = r.lanes.lanes
+    assert len(lanes) == 2 and set(lanes["n_voyages"]) == {5}
+    for lane_id, g in r.lanes.centroids.groupby("lane_id"):
+        g = g.sort_values("seq")
+        ends = [(g.iloc[0]["lat_deg"], g.iloc[0]["lon_deg"]), (g.iloc[-1]["lat_deg"], g.iloc[-1]["lon_deg"])]
+        # the centroid sequence runs berth to berth: the end centroids are the medians of the first
+        # and last 5 nmi bins (centroid_spacing_nmi), within half a bin of the ports; the sea
+        # passage alone starts 3 nmi + half a bin out ...
+        assert min(flat_dist_nmi(*ends[0], *a), flat_dist_nmi(*ends[0], *b)) < 2.5
+        assert min(flat_dist_nmi(*ends[1], *a), flat_dist_nmi(*ends[1], *b)) < 2.5
+        assert flat_dist_nmi(*ends[0], *ends[1]) > 30.0
+        # ... with the typical speed of the approach at the ends and of the passage in between
+        assert g.iloc[0]["speed_kn"] < 10.0 and g.iloc[-1]["speed_kn"] < 10.0
+        assert g["speed_kn"].max() == pytest.approx(18.0, abs=0.5)
+    # Without the merge, the approaches are lanes of their own (what the test guards against).
+    r_apart = build_lanes(pd.concat(frames, ignore_index=True), params=ChainParams(lanes=LaneParams(merge_voyage_share=0.0)))
+    assert len(r_apart.lanes.lanes) > 2
+
+
+def test_different_voyages_on_the_same_path_between_two_ports_stay_two_lanes():
+    # Slow and fast ferries on the same line between the same ports share no voyage: two lanes.
+    a = (41.0, 3.0)
+    b = offset(*a, 25.0, 0.0)
+    frames = [shuttle(950 + i, a, b, 2, speed_kn=8.0 if i < 4 else 18.0, lateral_nmi=0.05 * (i % 4), seed=i,
+                      start=T0 + pd.Timedelta(minutes=19 * i)) for i in range(8)]
+    r = build_lanes(pd.concat(frames, ignore_index=True))
+    lanes = r.lanes.lanes
+    eastbound = lanes[lanes["mean_course_deg"].map(lambda c: _angle_diff(c, 90.0) < 10)]
+    assert sorted(np.round(eastbound["mean_speed_kn"])) == [8.0, 18.0]
+
+
+def test_merge_shared_voyage_clusters_by_hand():
+    # Visiting order: 3 (voyages a, c, e: the most), then 0 and 1 (a, b; 0 has the lower label),
+    # then 2 (c, d). At 0.8: 0 shares 1 of 2 voyages with 3 -> kept; 1 shares 2 of 2 with 0 ->
+    # merged into 0; 2 shares 1 of 2 with 3, none with 0 -> kept. At 0.5 every half-share counts:
+    # 0, 1 and 2 all merge into 3.
+    labels = np.array([0, 0, 1, 1, 2, 2, 3, 3, 3, -1])
+    voyages = np.array(["a", "b", "a", "b", "c", "d", "a", "c", "e", "a"])
+    assert merge_shared_voyage_clusters(labels, voyages, 0.8).tolist() == [0, 0, 0, 0, 2, 2, 3, 3, 3, -1]
+    assert merge_shared_voyage_clusters(labels, voyages, 0.5).tolist() == [3, 3, 3, 3, 3, 3, 3, 3, 3, -1]
+    assert merge_shared_voyage_clusters(labels, voyages, 1.0).tolist() == [0, 0, 0, 0, 2, 2, 3, 3, 3, -1]

@@ -114,6 +114,8 @@ def test_cli_errors_are_one_line_exit_2(tmp_path, cli):
     assert res.stderr.strip().startswith("error: workspace") and len(res.stderr.strip().splitlines()) == 1
     res = cli("lanes", "--db", str(tmp_path / "none.duckdb"), "--eps-course-deg", "200")
     assert res.returncode == 2 and "eps_course_deg" in res.stderr
+    res = cli("lanes", "--db", str(tmp_path / "none.duckdb"), "--merge-voyage-share", "1.5")
+    assert res.returncode == 2 and "merge_voyage_share" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     bad = tmp_path / "ports.csv"
     bad.write_text("locode,name\nXX,Y\n")
     res = cli("lanes", "--db", str(tmp_path / "none.duckdb"), "--ports", str(bad))

@@ -23,6 +23,9 @@ def register(app: typer.Typer) -> None:
         min_density: float = typer.Option(3.0, "--min-density", help="Lane DBSCAN core density: voyages passing within eps."),
         min_voyages: int = typer.Option(3, "--min-voyages", help="Fewest voyages in a lane."),
         port_eps_nmi: float = typer.Option(0.135, "--port-eps-nmi", help="Stop DBSCAN eps for ports (nmi)."),
+        merge_voyage_share: float = typer.Option(0.8, "--merge-voyage-share",
+                                                 help="Within a port pair, a cluster sharing this share of its voyages with a larger one "
+                                                      "(its harbour approach, the leg after a sharp turn) is part of that lane; 0 keeps every cluster a lane."),
         task_runner: str = typer.Option("sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]",
                                         help="Where the per origin-destination lane extraction runs: in this process (no Prefect), "
                                              "or through the Prefect lanes flow on a local Dask cluster or an existing Dask scheduler."),
@@ -50,7 +53,8 @@ def register(app: typer.Typer) -> None:
 
         try:
             settings = LanesSettings(step_s=step_s, eps_nmi=eps_nmi, eps_speed_kn=eps_speed_kn, eps_course_deg=eps_course_deg,
-                                     min_density=min_density, min_voyages=min_voyages, port_eps_nmi=port_eps_nmi)
+                                     min_density=min_density, min_voyages=min_voyages, port_eps_nmi=port_eps_nmi,
+                                     merge_voyage_share=merge_voyage_share)
         except ValidationError as err:
             first = err.errors()[0]
             raise StormlaneError(f"bad option {first['loc'][0]}: {first['msg']}") from None
