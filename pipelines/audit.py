@@ -278,11 +278,18 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
                                  f"minimises time plus {sf['penalty_per_h']:g} h per hour over them (soft limits)")
             alts["min_distance"] = _renamed(plan.routes["min_distance"], "min_distance")
         if inputs.lane is not None and len(inputs.lane) >= 2:
-            deviation = _deviation(inputs, sampler, track.time_utc[0], plan.mesh if plan is not None else None, notes)
-            if deviation is not None:
-                alts["deviation"] = deviation
+            base, props, what = inputs.lane, {"lane_id": inputs.lane_id}, f"lane {inputs.lane_id}"
         else:
-            notes.append("no lane for this voyage in the workspace: no cargo-safe deviation")
+            from routing.audit import track_waypoints
+
+            base, props, what = track_waypoints(track), {"base": "sailed track"}, "the sailed track"
+            notes.append(("no lane for this voyage in the workspace" if inputs.voyage is not None else
+                          "an --mmsi/--start/--end window is not a lane's voyage")
+                         + ": the cargo-safe deviation walks the sailed track itself (a point every 5 nmi, at the speeds made good)")
+        deviation = _deviation(base, props, what, inputs.vessel, inputs.limits, sampler, track.time_utc[0],
+                               plan.mesh if plan is not None else None, notes)
+        if deviation is not None:
+            alts["deviation"] = deviation
     out = audit_routes(track, sampler, inputs.vessel, limits=inputs.limits, alternatives=alts, speed_loss_model=speed_loss_model)
     out["findings"] = out["findings"] + notes
     out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler})
@@ -295,11 +302,12 @@ def _renamed(route, name):
     return Route(name, route.lat_deg, route.lon_deg, route.time_utc, route.leg_speed_kn, dict(route.weather), dict(route.properties))
 
 
-def _deviation(inputs: AuditInputs, sampler, depart_utc, mesh, notes: list):
+def _deviation(lane: pd.DataFrame, properties: dict, what: str, vessel, limits, sampler, depart_utc, mesh, notes: list):
+    """Cargo-safe deviation of a point sequence (a lane's centroids, or the sailed track's points)."""
     from routing.deviate import deviate_lane, threshold_inputs
 
-    lane = inputs.lane.sort_values("seq")
-    weather_at, check, cells = threshold_inputs(sampler, inputs.vessel, inputs.limits)
+    lane = lane.sort_values("seq")
+    weather_at, check, cells = threshold_inputs(sampler, vessel, limits)
     leg_at_sea = None
     if mesh is not None:
         g = mesh.grid
@@ -312,11 +320,11 @@ def _deviation(inputs: AuditInputs, sampler, depart_utc, mesh, notes: list):
     try:
         return deviate_lane(
             lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy(), depart_utc,
-            weather_at=weather_at, check=check, cells=cells, leg_at_sea=leg_at_sea, default_speed_kn=inputs.vessel.speed_kn,
-            properties={"lane_id": inputs.lane_id},
+            weather_at=weather_at, check=check, cells=cells, leg_at_sea=leg_at_sea, default_speed_kn=vessel.speed_kn,
+            properties=properties,
         )
     except (StormlaneError, ValueError) as err:
-        notes.append(f"deviation of lane {inputs.lane_id} not computed: {err}")
+        notes.append(f"deviation of {what} not computed: {err}")
         return None
 
 
@@ -386,7 +394,8 @@ def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str = "bowd
             "Alternatives: time-optimal (smoothed) and minimum-distance A* routes for the same departure and vessel; "
             "the time-optimal A* route under the vessel's operator and IMO limits (safe-optimal: cells over the limits "
             "forbidden, or penalised when no route avoids them); "
-            "cargo-safe deviation of the voyage's lane (Spyrou-Sioula et al. 2022, Alg. 1, with sea legs and recomputed ETAs).",
+            "cargo-safe deviation of the voyage's lane, or of the sailed track when there is no lane "
+            "(Spyrou-Sioula et al. 2022, Alg. 1, with sea legs and recomputed ETAs).",
         ] + [f"Note: {n}" for n in result.get("notes", [])],
     )
 

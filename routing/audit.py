@@ -77,6 +77,34 @@ def track_to_route(positions: pd.DataFrame, *, min_step_s: float = TRACK_MIN_STE
     return Route(name, lat, lon, t, speed, properties=props)
 
 
+def track_waypoints(track: Route, spacing_nmi: float = 5.0) -> pd.DataFrame:
+    """The sailed track as a lane-like point sequence, for a deviation of the track itself.
+
+    One point each time the distance sailed passes a multiple of ``spacing_nmi`` (the first and
+    last fix always), like a lane's centroids; the speed at each point is the speed made good to
+    the next one (distance over time, so a wait at anchor slows the leg as it slowed the ship),
+    the last point repeating the one before.
+
+    Returns
+    -------
+    DataFrame
+        ``seq, lat_deg, lon_deg, speed_kn`` in sailing order (at least two rows).
+    """
+    if not spacing_nmi > 0:
+        raise ValueError(f"spacing_nmi must be positive, got {spacing_nmi!r}")
+    lat, lon = np.asarray(track.lat_deg, dtype=float), np.asarray(track.lon_deg, dtype=float)
+    legs = np.asarray(haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]), dtype=float).reshape(-1)
+    along = np.r_[0.0, np.cumsum(legs)]
+    step = np.floor(along / spacing_nmi)
+    pick = np.flatnonzero(np.r_[True, step[1:] != step[:-1]])
+    pick = np.union1d(pick, [lat.size - 1])
+    t_h = track.time_utc.asi8[pick] / 3.6e12
+    dt_h, dd = np.diff(t_h), np.diff(along[pick])
+    speed = np.divide(dd, dt_h, out=np.zeros_like(dd), where=dt_h > 0)
+    return pd.DataFrame({"seq": np.arange(pick.size, dtype=np.int64), "lat_deg": lat[pick], "lon_deg": lon[pick],
+                         "speed_kn": np.r_[speed, speed[-1]]})
+
+
 #: Order in which alternatives are preferred when they are equally safe (``safe_optimal``: the
 #: time-optimal A* route under the vessel's limits, :mod:`routing.safety`).
 PREFERENCE = ("deviation", "safe_optimal", "optimal", "min_distance")

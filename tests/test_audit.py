@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from routing.audit import TrackError, audit_routes, propose, track_to_route
+from routing.audit import TrackError, audit_routes, propose, track_to_route, track_waypoints
 from routing.route import Route
 from thresholds.operator import OperatorLimits
 from thresholds.vessel import Vessel
@@ -93,3 +93,26 @@ def test_propose_as_safe_and_faster_or_nothing():
     out = audit_routes(track, layered, VESSEL, limits=LIMITS, alternatives={"min_distance": slower})
     assert out["proposed"] is None
     assert propose({}) is None
+
+
+def test_track_waypoints_every_spacing_with_speeds_made_good():
+    from thresholds.units import EARTH_RADIUS_NMI
+
+    deg_per_nmi = 180.0 / (math.pi * EARTH_RADIUS_NMI)  # along a meridian
+    t0 = pd.Timestamp("2025-01-01T00:00Z")
+    # Due north: 0 .. 12 nmi at 12 kn (a fix every 0.6 nmi, 3 min), 1 h waiting at 12 nmi,
+    # then 12.6 .. 15 nmi at 6 kn (0.6 nmi, 6 min).
+    along = [0.6 * k for k in range(21)] + [12.0] + [12.0 + 0.6 * (k + 1) for k in range(5)]
+    minutes = [3.0 * k for k in range(21)] + [120.0] + [120.0 + 6.0 * (k + 1) for k in range(5)]
+    route = Route("historical", np.array(along) * deg_per_nmi, np.zeros(len(along)),
+                  pd.DatetimeIndex([t0 + pd.Timedelta(minutes=m) for m in minutes]), np.zeros(len(along) - 1))
+    wp = track_waypoints(route, spacing_nmi=5.0)
+    # the first fix, the first fixes past 5 and 10 nmi, and the last fix
+    assert wp["lat_deg"].to_numpy() / deg_per_nmi == pytest.approx([0.0, 5.4, 10.2, 15.0], abs=1e-9)
+    assert list(wp["seq"]) == [0, 1, 2, 3]
+    # 5.4 nmi in 27 min, 4.8 nmi in 24 min, then 4.8 nmi in 9 + 60 + 30 = 99 min (the wait slows
+    # the leg as it slowed the ship); the last point repeats the last leg
+    slow = 4.8 / (99.0 / 60.0)
+    assert wp["speed_kn"].to_numpy() == pytest.approx([12.0, 12.0, slow, slow], rel=1e-9)
+    with pytest.raises(ValueError, match="spacing_nmi"):
+        track_waypoints(route, spacing_nmi=0.0)

@@ -159,8 +159,14 @@ def test_audit_cli_json_and_errors(workspace):
     assert res.exit_code == 0, res.output
     obj = json.loads(res.stdout)
     assert obj["voyage"]["voyage_id"] is None and obj["voyage"]["mmsi"] == MMSI
-    assert "deviation" not in obj  # no voyage, so no lane: said in the findings
-    assert any("no lane" in f for f in obj["findings"])
+    # no voyage, so no lane: the deviation walks the sailed track itself (said in the findings)
+    assert any("walks the sailed track itself" in f for f in obj["findings"])
+    dev, hist = obj["deviation"], obj["historical"]
+    assert dev["waypoints"][0][:2] == pytest.approx(list(A), abs=1e-6)
+    assert dev["waypoints"][-1][:2] == pytest.approx(list(B), abs=1e-6)
+    assert dev["waypoints"][0][2] == hist["waypoints"][0][2]  # same departure
+    # it steps out of the storm the track sailed through
+    assert dev["max_hs_m"] < hist["max_hs_m"] - 0.5 and dev["exposure_h"] < hist["exposure_h"]
     res = runner.invoke(app, ["audit", "--voyage", "v1", "--db", str(workspace)])
     assert res.exit_code == 0 and "proposed:" in res.stdout and "historical" in res.stdout
     with pytest.raises(SystemExit) as exc:
