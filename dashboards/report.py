@@ -322,14 +322,33 @@ def _nightly_summary(model: NightlyReport) -> Markup:
     return join([el("h2", "Summary"), cards, table(None, rows), note])
 
 
+def route_notes(rs: RouteSet) -> list[str]:
+    """What a reader must know about the routes of a case, from their properties: a safe-optimal
+    route that could not keep within the limits (the search fell back to soft penalties), and
+    routes that outlast the weather (the last field held)."""
+    notes = []
+    for role, route in rs.routes.items():
+        props = route.properties or {}
+        if props.get("safety_requested") == "hard" and props.get("safety_mode") == "soft":
+            notes.append(f"{_route_label(role)}: no route keeps within the vessel's limits for this departure; this one "
+                         "minimises time plus a penalty per hour over them (soft limits), so it still breaks them.")
+        held = props.get("weather_held_after_h")
+        if held:
+            notes.append(f"{_route_label(role)}: arrives {fmt(held, 1)} h after the last weather time; the last field was "
+                         "held for those hours.")
+    return notes
+
+
 def _case_section(k: int, dep: LaneDeparture, provenance: Provenance) -> Markup:
     rs = dep.routes
     worst = (dep.worst_lat_deg, dep.worst_lon_deg) if dep.worst_lat_deg is not None else None
     rules = el("p", el("b", "Rule(s) fired: "), join(dep.rules, sep="; ") if dep.rules else "\u2013")
+    notes = route_notes(rs)
     return el(
         "section",
         el("h3", f"{k}. {_departure_title(dep)}", id=f"case-{k}"),
         rules,
+        el("ul", *(el("li", n) for n in notes), class_="notes") if notes else "",
         figures_section(rs, provenance, worst=worst),
         metrics_section(rs),
         events_section(rs),

@@ -491,7 +491,7 @@ def _safe_routes(spec: SafetySpec, req, mesh, mw, wx, routes: dict, timings: dic
             raise
         fallback = (f"hard: {err}; fell back to soft limits ({spec.penalty_per_h:g} h of penalty per hour over the limits): "
                     "the route below still breaks them")
-        log.warning("%s", fallback)
+        log.info("%s", fallback)  # not a warning: stats["safety"]["fallback"] carries it to every front end
         fl = fl.with_mode("soft")
         res = search(mesh, wx, req.ship, start_node, goal_node, t_start_h=t_node_h, safety=fl)
         if res.horizon_hit and not fl.complete:

@@ -361,3 +361,15 @@ def test_long_tracks_show_every_kth_waypoint():
     assert len(tab) - 1 == 168
     assert tab[1][0] == "39.00000" and tab[-1][0] == "41.00000"
     assert "(1001; every 6th shown, all of them in the exports)" in " ".join(page.text)
+
+
+def test_case_notes_say_when_the_safe_route_breaks_the_limits_or_outlasts_the_weather():
+    model = fx.nightly(n_adverse=2)
+    routes = model.departures[0].routes.routes
+    routes["optimal"].properties.update({"safety_requested": "hard", "safety_mode": "soft", "weather_held_after_h": 2.4})
+    text = nightly_html(model)
+    assert text.count("no route keeps within the vessel") == 1  # only the first case carries the flags
+    assert "arrives 2.4 h after the last weather time" in text
+    # a route that kept within its limits, inside the weather, gets no note
+    routes["optimal"].properties.update({"safety_mode": "hard", "weather_held_after_h": None})
+    assert "no route keeps within" not in nightly_html(model) and "last weather time" not in nightly_html(model)
