@@ -419,7 +419,8 @@ def plan_routes(
         p["max_hs_m_along"] = round(hs_along, 4)
         if end_h is not None and times[-1] > end_h + 1e-9:
             p["weather_held_after_h"] = round(float(times[-1] - end_h), 4)
-            log.warning("route %s ends %.2f h after the last weather time: the last field was held", kind, times[-1] - end_h)
+            # INFO, not WARNING: the property carries it to the route CLI and the nightly report.
+            log.info("route %s ends %.2f h after the last weather time: the last field was held", kind, times[-1] - end_h)
         return p
 
     depart = req.depart_utc

@@ -114,6 +114,7 @@ def test_planner_weather_coverage_errors():
 
 @pytest.mark.filterwarnings("ignore:Logger 'routing.planner' attempted to send logs:UserWarning")  # Prefect's handler, when set up by other tests
 def test_planner_start_off_node_keeps_exact_endpoints_and_warns_after_weather_end(caplog):
+    caplog.set_level("INFO", logger="routing.planner")
     field = small_field(hours=(0, 1))
     req = RouteRequest((39.513, 2.517), (40.488, 3.4711), T0, ShipModel(10.0, "bowditch"), spacing_deg=0.05)
     plan = plan_routes(req, field, land_mask_fn=None)
@@ -121,7 +122,21 @@ def test_planner_start_off_node_keeps_exact_endpoints_and_warns_after_weather_en
         assert (route.lat_deg[0], route.lon_deg[0]) == (39.513, 2.517)
         assert (route.lat_deg[-1], route.lon_deg[-1]) == (40.488, 3.4711)
     assert plan.routes["optimal"].properties["weather_held_after_h"] > 0
-    assert "last weather time" in caplog.text
+    assert "last weather time" in caplog.text  # INFO: the route property carries it to the user
+
+
+def test_cli_says_when_the_weather_ends_before_arrival(capsys, tmp_path, monkeypatch):
+    # The file reading is tested with the readers; here the field of two hours stands in for it.
+    import pipelines.routing_weather as rw
+
+    monkeypatch.setattr(rw, "load_weather", lambda files: (small_field(hours=(0, 1)), {}))
+    weather = tmp_path / "w.nc"
+    weather.write_bytes(b"")
+    code, out, err = run(capsys, "route", "--from", "39.513,2.517", "--to", "40.488,3.4711", "--depart", "2020-01-20T00:00Z",
+                         "--weather", str(weather), "--speed-kn", "10", "--mesh-deg", "0.05", "--ignore-land")
+    assert code == 0, err
+    note = [line for line in out.splitlines() if line.startswith("note: the weather ends before arrival")]
+    assert len(note) == 1 and "h of optimal_smoothed" in note[0] and "h of min_distance" in note[0]
 
 
 def lake_mask(grid):

@@ -155,3 +155,8 @@ def register(app: typer.Typer) -> None:
             if over and "hours_over_limits" in r.properties:
                 line += f"{r.properties['hours_over_limits']:>15.2f}"
             typer.echo(line)
+        held = {name: plan.routes[name].properties.get("weather_held_after_h") for name in names}
+        held = {name: h for name, h in held.items() if h}
+        if held:
+            typer.echo("note: the weather ends before arrival; its last field was held for the last "
+                       + ", ".join(f"{h:.2f} h of {name}" for name, h in held.items()))
