@@ -368,19 +368,8 @@ def deviate_lane(
     ValueError
         Fewer than two centroids, mismatched lengths, or a leg without a usable speed.
     """
-    lat = np.asarray(lat_deg, dtype=float)
-    lon = np.asarray(lon_deg, dtype=float)
-    spd = np.asarray(speed_kn, dtype=float)
+    lat, lon, spd, t0 = _lane_inputs(lat_deg, lon_deg, speed_kn, depart_utc, default_speed_kn)
     n = lat.size
-    if n < 2 or lon.size != n or spd.size != n:
-        raise ValueError(f"a lane needs >= 2 centroids with lat, lon and speed of equal length (got {lat.size}, {lon.size}, {spd.size})")
-    bad = ~np.isfinite(spd) | (spd <= 0.0)
-    if bad[:-1].any():
-        if default_speed_kn is None or not default_speed_kn > 0:
-            raise ValueError(f"centroids {np.flatnonzero(bad[:-1]).tolist()} have no usable speed and no default_speed_kn was given")
-        spd = np.where(bad, float(default_speed_kn), spd)
-    t0 = pd.Timestamp(depart_utc)
-    t0 = t0.tz_localize("UTC") if t0.tzinfo is None else t0.tz_convert("UTC")
     judge = _Judge(weather_at, check, cells.spacing_nmi)
     lane_along = _LaneAlong(lat, lon)
     cur_along = 0.0
@@ -582,18 +571,13 @@ def threshold_inputs(sampler, vessel, limits=None):
     return sampler, check, SafeCellIndex(sampler.lat_deg, sampler.lon_deg, times, passing_mask)
 
 
-def lane_route(lat_deg, lon_deg, speed_kn, depart_utc, *, default_speed_kn: float | None = None, name: str = "historical",
-               properties: dict | None = None) -> Route:
-    """A lane's centroid path as a :class:`Route`, timed like Algorithm 1 times it.
-
-    The leg from centroid i takes ``haversine(c_i, c_i+1) / speed_kn[i]`` hours ([1] Alg. 1,
-    line 4), starting at ``depart_utc``. This is the lane-departure the deviation is compared with.
-    """
+def _lane_inputs(lat_deg, lon_deg, speed_kn, depart_utc, default_speed_kn):
+    """Checked arrays of a lane (speeds filled with the default) and its UTC departure."""
     lat = np.asarray(lat_deg, dtype=float)
     lon = np.asarray(lon_deg, dtype=float)
     spd = np.asarray(speed_kn, dtype=float)
     if lat.size < 2 or lon.size != lat.size or spd.size != lat.size:
-        raise ValueError("a lane needs >= 2 centroids with lat, lon and speed of equal length")
+        raise ValueError(f"a lane needs >= 2 centroids with lat, lon and speed of equal length (got {lat.size}, {lon.size}, {spd.size})")
     bad = ~np.isfinite(spd) | (spd <= 0.0)
     if bad[:-1].any():
         if default_speed_kn is None or not default_speed_kn > 0:
@@ -601,6 +585,17 @@ def lane_route(lat_deg, lon_deg, speed_kn, depart_utc, *, default_speed_kn: floa
         spd = np.where(bad, float(default_speed_kn), spd)
     t0 = pd.Timestamp(depart_utc)
     t0 = t0.tz_localize("UTC") if t0.tzinfo is None else t0.tz_convert("UTC")
+    return lat, lon, spd, t0
+
+
+def lane_route(lat_deg, lon_deg, speed_kn, depart_utc, *, default_speed_kn: float | None = None, name: str = "historical",
+               properties: dict | None = None) -> Route:
+    """A lane's centroid path as a :class:`Route`, timed like Algorithm 1 times it.
+
+    The leg from centroid i takes ``haversine(c_i, c_i+1) / speed_kn[i]`` hours ([1] Alg. 1,
+    line 4), starting at ``depart_utc``. This is the lane-departure the deviation is compared with.
+    """
+    lat, lon, spd, t0 = _lane_inputs(lat_deg, lon_deg, speed_kn, depart_utc, default_speed_kn)
     d = np.asarray(haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]), dtype=float)
     hours = np.concatenate([[0.0], np.cumsum(d / spd[:-1])])
     times = pd.DatetimeIndex(t0 + pd.to_timedelta(hours, unit="h"))
