@@ -249,6 +249,11 @@ class RouteSet:
     hs_limit_m : float, optional
         The Hs limit of this case's vessel, drawn on its map and plot (default: the provenance's
         ``limits["hs_m"]``; a nightly run mixes vessel classes with different limits).
+    profiles : dict of str -> DataFrame
+        Weather met along each route as its evaluation sampled it (``time_utc``, ``hs_m``: one row
+        per piece of leg, at most 15 min of sailing). The Hs plot draws these when given, so its
+        peak is the table's "highest Hs met" even where a long leg crosses a storm between two
+        waypoints; without them it draws the waypoint values.
     """
 
     routes: dict
@@ -259,11 +264,17 @@ class RouteSet:
     proposed: str | None = None
     exports: dict = field(default_factory=dict)
     hs_limit_m: float | None = None
+    profiles: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for role, route in self.routes.items():
             if not isinstance(route, Route):
                 raise ReportError(f"RouteSet.routes[{role!r}] is {type(route).__name__}, not a Route")
+        for role, prof in self.profiles.items():
+            if role not in self.routes:
+                raise ReportError(f"RouteSet.profiles[{role!r}] has no route of that role")
+            if not isinstance(prof, pd.DataFrame) or not {"time_utc", "hs_m"} <= set(prof.columns):
+                raise ReportError(f"RouteSet.profiles[{role!r}] must be a DataFrame with columns time_utc and hs_m")
         if self.proposed is not None and self.proposed not in self.routes:
             raise ReportError(f"RouteSet.proposed = {self.proposed!r} is not one of the routes {sorted(self.routes)}")
 

@@ -185,18 +185,26 @@ def route_map_png(
     return _png(fig)
 
 
-def series_png(routes: dict, *, hs_limit_m: float | None = None, width_in: float = 5.8, dpi: int = 100) -> bytes:
-    """Hs met (top) and speed over ground (bottom) along each route against time (UTC)."""
+def series_png(routes: dict, *, hs_limit_m: float | None = None, profiles: dict | None = None, width_in: float = 5.8,
+               dpi: int = 100) -> bytes:
+    """Hs met (top) and speed over ground (bottom) along each route against time (UTC).
+
+    Hs comes from ``profiles[role]`` (the evaluation's samples along the legs) when given, else
+    from the route's waypoints.
+    """
     from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
     from matplotlib.figure import Figure
 
+    profiles = profiles or {}
     fig = Figure(figsize=(width_in, 5.6), dpi=dpi)
     ax_hs, ax_v = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [1.2, 1.0]})
     for role, route in routes.items():
         st = style_for(role)
         t = _naive_utc(route.time_utc)
-        hs = route.weather.get("hs_m")
-        if hs is not None:
+        prof = profiles.get(role)
+        if prof is not None and len(prof):
+            ax_hs.plot(_naive_utc(pd.DatetimeIndex(prof["time_utc"])), prof["hs_m"].to_numpy(dtype=float), label=label_for(role), **st)
+        elif (hs := route.weather.get("hs_m")) is not None:
             ax_hs.plot(t, hs, marker="." if route.n_waypoints < 80 else None, label=label_for(role), **st)
         if route.n_waypoints >= 2:
             ax_v.step(t, np.append(route.leg_speed_kn, route.leg_speed_kn[-1]), where="post", label=label_for(role), **st)

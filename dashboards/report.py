@@ -158,7 +158,7 @@ def figures_section(routes: RouteSet, provenance: Provenance, worst=None) -> Mar
     if not ordered:
         return Markup("")
     map_png = plots.route_map_png(ordered, routes.weather, hs_limit_m=hs_limit, worst=worst)
-    series = plots.series_png(ordered, hs_limit_m=hs_limit)
+    series = plots.series_png(ordered, hs_limit_m=hs_limit, profiles=routes.profiles)
     return el(
         "div",
         img_png(map_png, "map: land, Hs field, wave direction and the routes"),

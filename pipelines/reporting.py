@@ -102,7 +102,20 @@ def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = N
         proposed=proposed,
         exports=dict(exports or {}),
         hs_limit_m=hs_limit_m,
+        profiles=hs_profiles(evaluations),
     )
+
+
+def hs_profiles(evaluations: dict) -> dict:
+    """Hs met along each evaluated route, as its evaluation sampled it (``time_utc``, ``hs_m``),
+    for the report's Hs plot (:attr:`dashboards.model.RouteSet.profiles`)."""
+    out = {}
+    for role, ev in evaluations.items():
+        samples = getattr(ev, "samples", None)
+        if samples is not None and len(samples) and {"time_utc", "hs_m"} <= set(samples.columns):
+            out[role] = pd.DataFrame({"time_utc": pd.DatetimeIndex(samples["time_utc"]),
+                                      "hs_m": np.round(samples["hs_m"].to_numpy(dtype=float), 3)})
+    return out
 
 
 def limits_for_report(limits) -> dict:

@@ -91,3 +91,34 @@ def test_lane_departure_model_adverse_and_failed():
     assert snap.lon_deg.min() >= 1.5 - 1.0 and snap.lat_deg.max() <= 40.5 + 1.0
     failed = lane_departure_model(lane_id="L9", origin="Genoa", destination="Tunis", depart_utc=t0, error="NoRouteError: unreachable")
     assert failed.status == "failed" and failed.error == "NoRouteError: unreachable" and failed.routes is None
+
+
+def test_hs_plot_profile_shows_the_peak_a_long_leg_crosses_between_waypoints():
+    from dashboards import model as report_model
+    from dashboards.plots import series_png
+    from pipelines.reporting import route_set_from_evaluations
+    from routing.evaluate import evaluate_route
+
+    t0 = pd.Timestamp("2025-01-31T00:00Z")
+
+    def weather(times, lat, lon):
+        lon = np.asarray(lon, dtype=float)
+        # a 7 m peak at 2.25 E, 1.5 m elsewhere: both waypoints of the long leg are calm
+        return {"hs_m": 1.5 + 5.5 * np.exp(-(((lon - 2.25) / 0.1) ** 2)), "wave_from_deg": np.full(lon.size, 270.0)}
+
+    route = Route("historical", [40.0, 40.0], [1.5, 3.0], t0 + pd.to_timedelta([0.0, 5.8], unit="h"), [12.0])
+    ev = evaluate_route(route, weather, VESSEL)
+    rs = route_set_from_evaluations({"historical": ev})
+    prof = rs.profiles["historical"]
+    assert len(prof) == len(ev.samples) == 24  # 5.8 h in pieces of at most 15 min
+    assert prof["hs_m"].max() == pytest.approx(ev.summary["max_hs_m"], abs=1e-3) and prof["hs_m"].max() > 6.0
+    assert np.nanmax(ev.route.weather["hs_m"]) < 1.6  # what a plot of the waypoints alone would show
+    # the plot draws the profile (a different image than from the waypoints), and the profiles
+    # survive the model's JSON codec (report.json, re-rendered by `stormlane report`)
+    assert series_png(rs.routes, profiles=rs.profiles) != series_png(rs.routes)
+    back = report_model._decode(report_model._encode(rs))
+    pd.testing.assert_frame_equal(back.profiles["historical"], prof, check_dtype=False)
+    with pytest.raises(report_model.ReportError, match=r"profiles\['optimal'\] has no route"):
+        report_model.RouteSet(routes=rs.routes, profiles={"optimal": prof})
+    with pytest.raises(report_model.ReportError, match="columns time_utc and hs_m"):
+        report_model.RouteSet(routes=rs.routes, profiles={"historical": prof.rename(columns={"hs_m": "h"})})
