@@ -55,8 +55,9 @@ route those voyages sail between the two ports, with a typical speed per centroi
 includes the approach. So a smaller cluster whose voyages are, for at least
 ``merge_voyage_share`` of them, also voyages of a larger cluster is merged into it (largest
 first). Voyages that take different routes between the same ports (or sail the same route at
-different speeds) share no voyages and stay separate lanes. The transit partition is not merged:
-its "voyages" are open tracks that may pass through several lanes.
+different speeds) share no voyages and stay separate lanes. The transit partition is not merged
+(its "voyages" are open tracks that may pass through several lanes), nor are loops (a loop's
+outbound and return legs are the same voyages, but opposite lanes).
 
 Lanes. Clusters with fewer than ``min_voyages`` voyages, or too short to give two centroids,
 become noise. Each remaining cluster is one lane: mean speed, circular mean course, point / voyage / vessel counts, and an ordered
@@ -321,7 +322,7 @@ def extract_lanes_for_pair(points: pd.DataFrame, params: LaneParams | None = Non
         labels[mv] = lab
 
     voyages = p["voyage"].to_numpy()
-    if key != TRANSIT and params.merge_voyage_share > 0:
+    if key != TRANSIT and key[0] != key[1] and params.merge_voyage_share > 0:
         labels = merge_shared_voyage_clusters(labels, voyages, params.merge_voyage_share)
     # Clusters supported by too few voyages are noise.
     if (labels >= 0).any():

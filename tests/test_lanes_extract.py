@@ -304,3 +304,23 @@ def test_merge_shared_voyage_clusters_by_hand():
     assert merge_shared_voyage_clusters(labels, voyages, 0.8).tolist() == [0, 0, 0, 0, 2, 2, 3, 3, 3, -1]
     assert merge_shared_voyage_clusters(labels, voyages, 0.5).tolist() == [3, 3, 3, 3, 3, 3, 3, 3, 3, -1]
     assert merge_shared_voyage_clusters(labels, voyages, 1.0).tolist() == [0, 0, 0, 0, 2, 2, 3, 3, 3, -1]
+
+
+def test_a_loops_outbound_and_return_legs_stay_two_lanes():
+    # Excursions from one port and back (a loop voyage): the outbound and return legs are the same
+    # voyages but opposite lanes, so the loop partition never merges clusters.
+    a = (41.0, 3.0)
+    p = offset(*a, 20.0, 0.0)
+    frames = []
+    for i in range(5):
+        it = Itinerary(970 + i, start=T0 + pd.Timedelta(minutes=29 * i), cadence_s=60)
+        it.stay(*a, 40, jitter_nmi=0.005)
+        for _ in range(2):
+            it.sail(*p, 15.0, lateral_nmi=0.05 * i).sail(*a, 15.0, lateral_nmi=0.05 * i)
+            it.stay(*a, 40, jitter_nmi=0.005)
+        frames.append(it.frame())
+    r = build_lanes(pd.concat(frames, ignore_index=True))
+    lanes = r.lanes.lanes
+    assert r.summary["ports"] == 1 and set(lanes["kind"]) == {"loop"}
+    courses = sorted(lanes["mean_course_deg"])
+    assert len(lanes) == 2 and _angle_diff(courses[0], 90.0) < 5.0 and _angle_diff(courses[1], 270.0) < 5.0
