@@ -1278,20 +1278,6 @@ def _results_with_progress(futures: list) -> list:
     return results
 
 
-@contextlib.contextmanager
-def quiet_late_route_warnings():
-    """Silence the router's per-route "ends after the last weather time" warning for a run (the
-    late departures of a night all reach past the forecast; each route keeps it as its
-    ``weather_held_after_h`` property and its evaluation counts the hours without weather)."""
-    logger = logging.getLogger("routing.planner")
-    level = logger.level
-    logger.setLevel(logging.ERROR)
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
-
-
 def demo_step(ctx) -> dict:
     """Demo step: tonight's reroute at the end of the scenario's AIS period (``--now``), with the
     scenario's forecast weather files (else the workspace's weather), report in ``DIR/nightly``."""
@@ -1308,8 +1294,7 @@ def demo_step(ctx) -> dict:
     if n_lanes == 0:
         ctx.echo("  no lanes in the workspace (too few days of AIS?): no nightly run")
         return {"skipped": "no lanes"}
-    with quiet_late_route_warnings():
-        out = _flow()(db=str(ctx.db), out=str(ctx.workdir / "nightly"), weather=files, now=now.isoformat(), max_detail=10)
+    out = _flow()(db=str(ctx.db), out=str(ctx.workdir / "nightly"), weather=files, now=now.isoformat(), max_detail=10)
     ctx.echo(f"  night {out['run_id']} at {out['now_utc']}: {out['lanes_checked']} lanes x {out['window']['departures']} "
              f"departures = {out['departures_checked']} lane-departures; {out['adverse']} adverse, {out['reroutes']} with a "
              f"proposed reroute, {out['failed']} failed")

@@ -45,7 +45,7 @@ def register(app: typer.Typer) -> None:
         Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes), report, timings_s and the top-ranked lane-departures.
         """  # noqa: E501 (typer keeps line breaks in --help)
         _quiet_prefect()
-        from pipelines.nightly import (NightlyParams, flow_with_runner, make_task_runner, preflight, quiet_late_route_warnings,
+        from pipelines.nightly import (NightlyParams, flow_with_runner, make_task_runner, preflight,
                                        reroute_progress, user_errors_without_traceback)
 
         source = "fetch" if fetch else ("files" if weather else "auto")
@@ -56,7 +56,7 @@ def register(app: typer.Typer) -> None:
         )
         make_task_runner(task_runner)  # validate before starting anything
         preflight(params)
-        with progress("rerouting lanes") as advance, quiet_late_route_warnings(), user_errors_without_traceback():
+        with progress("rerouting lanes") as advance, user_errors_without_traceback():
             with reroute_progress(lambda done, total: advance(1 if done else 0, total=total)):
                 summary = flow_with_runner(task_runner)(**params.model_dump())
         if json_out:
