@@ -28,6 +28,9 @@ log = logging.getLogger(__name__)
 #: Weather must cover the track; a little slack at the ends is accepted (the last fix may fall
 #: a few minutes after the last weather time). [h]
 COVERAGE_SLACK_H = 0.0
+#: A track longer than this many times the distance between its ends gets a finding: the A*
+#: alternatives (straight between the ends) are not comparable with it.
+DETOUR_FACTOR_NOTE = 3.0
 
 
 class AuditError(StormlaneError):
@@ -160,6 +163,8 @@ def load_audit_inputs(db, *, voyage_id: str | None = None, mmsi: int | None = No
         start_utc, end_utc = _option_utc(start, "--start"), _option_utc(end, "--end")
         if not end_utc > start_utc:
             raise AuditError(f"--end {end_utc.isoformat()} must be after --start {start_utc.isoformat()}")
+        if voyage is None:
+            _refuse_several_voyages(ws, int(mmsi), start_utc, end_utc)
         positions = read_positions(ws, mmsi=int(mmsi), start=start_utc, end=end_utc + pd.Timedelta(seconds=1))
         if len(positions) < 2:
             raise AuditError(f"MMSI {mmsi} has {len(positions)} AIS fix(es) between {start_utc.isoformat()} and "
@@ -183,6 +188,30 @@ def load_audit_inputs(db, *, voyage_id: str | None = None, mmsi: int | None = No
         vessel=load_vessel(profile_name), vessel_profile=profile_name, limits=limits, profile_name=getattr(limits, "name", str(profile)),
         voyage=voyage, static=static, lane=lane, lane_id=lane_id, weather_files=files, port_names=port_names,
     )
+
+
+def _refuse_several_voyages(ws, mmsi: int, start_utc: pd.Timestamp, end_utc: pd.Timestamp) -> None:
+    """An --mmsi window holding most of two or more of the ship's voyages is an error: an audit
+    compares one passage with routes straight between its ends, and port calls inside the window
+    would make those meaningless. (Needs the voyages of `stormlane lanes`; without them the
+    findings still flag a track far longer than the distance between its ends.)"""
+    from pipelines.storage.lanes import read_voyages
+
+    try:
+        v = read_voyages(ws)
+    except Exception:  # noqa: BLE001 - no voyages table yet (lanes not run): nothing to check against
+        return
+    v = v[v["mmsi"] == mmsi]
+    if v.empty:
+        return
+    inside = (v["arrive_utc"].clip(upper=end_utc) - v["depart_utc"].clip(lower=start_utc)).dt.total_seconds()
+    own = (v["arrive_utc"] - v["depart_utc"]).dt.total_seconds()
+    held = v[(own > 0) & (inside >= 0.5 * own)]
+    if len(held) >= 2:
+        ids = ", ".join(str(x) for x in held["voyage_id"].head(6)) + (", ..." if len(held) > 6 else "")
+        raise AuditError(f"the window {start_utc.isoformat()} .. {end_utc.isoformat()} holds {len(held)} voyages of MMSI {mmsi} "
+                         f"({ids}); an audit compares one passage with routes between its ends: audit one voyage at a time "
+                         "with --voyage ID, or narrow --start/--end")
 
 
 def weather_from_workspace(ws, start_utc, end_utc, pad_h: float = 6.0):
@@ -242,15 +271,24 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
         (Route or None) and ``notes`` (what was not computed and why).
     """
     from pipelines.routing_weather import field_from_dataset
-    from routing.audit import audit_routes, track_to_route
+    from routing.audit import audit_routes, detour_factor, track_to_route, trim_stationary_ends
     from routing.sampling import PointSampler
 
     track = track_to_route(inputs.positions)
+    window_notes = []
+    if inputs.voyage is None:
+        # A window may begin or end in port: the audited passage is the part under way.
+        whole = track
+        track = trim_stationary_ends(track)
+        if track is not whole:
+            window_notes.append(f"the window's first {(track.time_utc[0] - whole.time_utc[0]).total_seconds() / 3600:.1f} h and last "
+                                f"{(whole.time_utc[-1] - track.time_utc[-1]).total_seconds() / 3600:.1f} h have the ship stationary: the "
+                                f"audit covers {track.time_utc[0].isoformat()} .. {track.time_utc[-1].isoformat()}, under way")
     field_ = field_from_dataset(inputs.weather_ds)
     sampler = PointSampler.from_field(field_)
     _check_coverage(sampler, track.time_utc[0], track.time_utc[-1], "voyage")
     alts: dict = {}
-    notes: list[str] = []
+    notes: list[str] = window_notes
     plan_stats: dict = {}
     deviation = None
     if alternatives:
@@ -290,6 +328,10 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
                                plan.mesh if plan is not None else None, notes)
         if deviation is not None:
             alts["deviation"] = deviation
+    if detour_factor(track) > DETOUR_FACTOR_NOTE:
+        notes.append(f"the sailed track ({track.dist_nmi:.0f} nmi) is {detour_factor(track):.1f} times the distance between its ends: "
+                     "port calls or a loop inside the window? The A* alternatives sail straight between the ends, so their time, "
+                     "fuel and exposure are not comparable with the track's")
     out = audit_routes(track, sampler, inputs.vessel, limits=inputs.limits, alternatives=alts, speed_loss_model=speed_loss_model)
     out["findings"] = out["findings"] + notes
     out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler})

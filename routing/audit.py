@@ -77,13 +77,49 @@ def track_to_route(positions: pd.DataFrame, *, min_step_s: float = TRACK_MIN_STE
     return Route(name, lat, lon, t, speed, properties=props)
 
 
-def track_waypoints(track: Route, spacing_nmi: float = 5.0) -> pd.DataFrame:
+#: Below this speed made good between two kept fixes the ship is taken as stationary. [kn]
+STATIONARY_KN = 1.0
+
+
+def _made_good_kn(track: Route) -> np.ndarray:
+    """Speed made good on each leg (distance over time; 0 for a leg of no duration). [kn]"""
+    d = np.asarray(haversine_nmi(track.lat_deg[:-1], track.lon_deg[:-1], track.lat_deg[1:], track.lon_deg[1:]), dtype=float).reshape(-1)
+    h = np.diff(track.time_utc.asi8) / 3.6e12
+    return np.divide(d, h, out=np.zeros_like(d), where=h > 0)
+
+
+def detour_factor(track: Route, floor_nmi: float = 1.0) -> float:
+    """Distance sailed over the great-circle distance between the track's ends (at least
+    ``floor_nmi``): about 1 for a passage, large for a window holding port calls or a loop."""
+    direct = float(haversine_nmi(track.lat_deg[0], track.lon_deg[0], track.lat_deg[-1], track.lon_deg[-1]))
+    return float(track.dist_nmi) / max(direct, floor_nmi)
+
+
+def trim_stationary_ends(track: Route, min_speed_kn: float = STATIONARY_KN) -> Route:
+    """The track without its stationary start and end (a window that begins or ends in port).
+
+    Leading and trailing legs slower than ``min_speed_kn`` (speed made good) are dropped, so the
+    track starts where the ship gets under way and ends where it stops; a track that never
+    moves is returned as it is.
+    """
+    moving = np.flatnonzero(_made_good_kn(track) >= min_speed_kn)
+    if moving.size == 0 or (moving[0] == 0 and moving[-1] == track.n_waypoints - 2):
+        return track
+    a, b = int(moving[0]), int(moving[-1]) + 2
+    weather = {k: np.asarray(v)[a:b] for k, v in track.weather.items()}
+    props = {**track.properties, "trimmed_stationary_h": round(float((track.time_utc[a] - track.time_utc[0]).total_seconds()
+                                                                      + (track.time_utc[-1] - track.time_utc[b - 1]).total_seconds()) / 3600.0, 4)}
+    return Route(track.name, track.lat_deg[a:b], track.lon_deg[a:b], track.time_utc[a:b], track.leg_speed_kn[a:b - 1], weather, props)
+
+
+def track_waypoints(track: Route, spacing_nmi: float = 5.0, min_speed_kn: float = STATIONARY_KN) -> pd.DataFrame:
     """The sailed track as a lane-like point sequence, for a deviation of the track itself.
 
     One point each time the distance sailed passes a multiple of ``spacing_nmi`` (the first and
     last fix always), like a lane's centroids; the speed at each point is the speed made good to
-    the next one (distance over time, so a wait at anchor slows the leg as it slowed the ship),
-    the last point repeating the one before.
+    the next one while under way (distance over the time of the track's legs not slower than
+    ``min_speed_kn``: a lane's typical speeds are sailing speeds too), the last point repeating
+    the one before.
 
     Returns
     -------
@@ -98,8 +134,9 @@ def track_waypoints(track: Route, spacing_nmi: float = 5.0) -> pd.DataFrame:
     step = np.floor(along / spacing_nmi)
     pick = np.flatnonzero(np.r_[True, step[1:] != step[:-1]])
     pick = np.union1d(pick, [lat.size - 1])
-    t_h = track.time_utc.asi8[pick] / 3.6e12
-    dt_h, dd = np.diff(t_h), np.diff(along[pick])
+    leg_h = np.diff(track.time_utc.asi8) / 3.6e12
+    under_way_h = np.r_[0.0, np.cumsum(np.where(_made_good_kn(track) >= min_speed_kn, leg_h, 0.0))]
+    dt_h, dd = np.diff(under_way_h[pick]), np.diff(along[pick])
     speed = np.divide(dd, dt_h, out=np.zeros_like(dd), where=dt_h > 0)
     return pd.DataFrame({"seq": np.arange(pick.size, dtype=np.int64), "lat_deg": lat[pick], "lon_deg": lon[pick],
                          "speed_kn": np.r_[speed, speed[-1]]})

@@ -8,7 +8,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from routing.audit import TrackError, audit_routes, propose, track_to_route, track_waypoints
+from routing.audit import (
+    TrackError,
+    audit_routes,
+    detour_factor,
+    propose,
+    track_to_route,
+    track_waypoints,
+    trim_stationary_ends,
+)
 from routing.route import Route
 from thresholds.operator import OperatorLimits
 from thresholds.vessel import Vessel
@@ -110,9 +118,40 @@ def test_track_waypoints_every_spacing_with_speeds_made_good():
     # the first fix, the first fixes past 5 and 10 nmi, and the last fix
     assert wp["lat_deg"].to_numpy() / deg_per_nmi == pytest.approx([0.0, 5.4, 10.2, 15.0], abs=1e-9)
     assert list(wp["seq"]) == [0, 1, 2, 3]
-    # 5.4 nmi in 27 min, 4.8 nmi in 24 min, then 4.8 nmi in 9 + 60 + 30 = 99 min (the wait slows
-    # the leg as it slowed the ship); the last point repeats the last leg
-    slow = 4.8 / (99.0 / 60.0)
-    assert wp["speed_kn"].to_numpy() == pytest.approx([12.0, 12.0, slow, slow], rel=1e-9)
+    # 5.4 nmi in 27 min, 4.8 nmi in 24 min, then 4.8 nmi in 9 + 30 = 39 min under way (the hour
+    # waiting is not sailing time, as a lane's typical speeds are sailing speeds); the last point
+    # repeats the last leg
+    last = 4.8 / (39.0 / 60.0)
+    assert wp["speed_kn"].to_numpy() == pytest.approx([12.0, 12.0, last, last], rel=1e-9)
     with pytest.raises(ValueError, match="spacing_nmi"):
         track_waypoints(route, spacing_nmi=0.0)
+
+
+def test_trim_stationary_ends_keeps_the_passage_under_way():
+    t0 = pd.Timestamp("2025-01-01T00:00Z")
+    # 1 h at the berth (3 fixes, 30 min apart, a few metres of GPS jitter), 3 legs at 10 kn due
+    # north (5 nmi in 30 min each), 1 h at the next berth.
+    lat = [40.0, 40.00001, 40.0, 40.0 + 5 / 60, 40.0 + 10 / 60, 40.0 + 15 / 60, 40.0 + 15 / 60 + 1e-5, 40.0 + 15 / 60]
+    minutes = [0, 30, 60, 90, 120, 150, 180, 210]
+    pos = pd.DataFrame({"time_utc": [t0 + pd.Timedelta(minutes=m) for m in minutes], "lat_deg": lat, "lon_deg": 3.0})
+    track = track_to_route(pos)
+    trimmed = trim_stationary_ends(track)
+    assert trimmed.n_waypoints == 4 and trimmed.time_utc[0] == t0 + pd.Timedelta(minutes=60)
+    assert trimmed.time_utc[-1] == t0 + pd.Timedelta(minutes=150)
+    assert trimmed.properties["trimmed_stationary_h"] == pytest.approx(2.0)
+    assert trimmed.dist_nmi == pytest.approx(track.dist_nmi, abs=0.02)  # only the jitter is gone
+    assert trim_stationary_ends(trimmed) is trimmed  # under way from the first leg to the last: unchanged
+    still = track_to_route(pos.assign(lat_deg=40.0))
+    assert trim_stationary_ends(still) is still  # never moves: nothing to trim to
+
+
+def test_detour_factor_of_a_passage_and_of_an_out_and_back_window():
+    from thresholds.units import EARTH_RADIUS_NMI
+
+    deg = 180.0 / (math.pi * EARTH_RADIUS_NMI)  # 1 nmi of latitude
+    t = pd.DatetimeIndex([pd.Timestamp("2025-01-01T00:00Z") + pd.Timedelta(hours=k) for k in range(3)])
+    passage = Route("historical", np.array([0.0, 10.0, 20.0]) * deg, np.zeros(3), t, np.full(2, 10.0))
+    assert detour_factor(passage) == pytest.approx(1.0)
+    # 20 nmi out and 19.5 back: 39.5 nmi sailed, ends 0.5 nmi apart -> over the 1 nmi floor
+    back = Route("historical", np.array([0.0, 20.0, 0.5]) * deg, np.zeros(3), t, np.full(2, 20.0))
+    assert detour_factor(back) == pytest.approx(39.5)

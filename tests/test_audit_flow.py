@@ -234,3 +234,19 @@ def test_demo_audit_step_finds_the_storm_voyage(workspace, tmp_path):
     assert out["voyage_id"] == "v1" and out["proposed"] is not None
     assert out["historical"]["exposure_h"] > 0.5 and (workdir / "audit.html").is_file()
     assert any("passed" in line and "storm T" in line for line in lines)
+
+
+def test_a_window_holding_several_voyages_is_refused(monkeypatch):
+    import pipelines.storage.lanes as lanes_store
+    from pipelines.audit import AuditError, _refuse_several_voyages
+
+    t = pd.Timestamp("2025-01-14T00:00Z")
+    h = pd.Timedelta(hours=1)
+    voyages = pd.DataFrame({"voyage_id": ["a", "b", "c", "x"], "mmsi": [MMSI, MMSI, MMSI, 219000999],
+                            "depart_utc": [t, t + 10 * h, t + 20 * h, t], "arrive_utc": [t + 8 * h, t + 18 * h, t + 28 * h, t + 30 * h]})
+    monkeypatch.setattr(lanes_store, "read_voyages", lambda ws: voyages)
+    with pytest.raises(AuditError, match=r"holds 2 voyages of MMSI 219000123 \(a, b\).*--voyage ID"):
+        _refuse_several_voyages(None, MMSI, t - h, t + 19 * h)
+    # one voyage and a little of the next (under half of it), or another ship's voyages: accepted
+    _refuse_several_voyages(None, MMSI, t - h, t + 13 * h)
+    _refuse_several_voyages(None, 219000999, t, t + 30 * h)

@@ -39,10 +39,13 @@ def register(app: typer.Typer) -> None:
         json_out: bool = JsonOption,
     ) -> None:
         """Evaluate a sailed voyage in the hindcast weather and compare it with the time-optimal and
-        minimum-distance routes (and the lane's cargo-safe deviation) for the same departure.
+        minimum-distance routes and the cargo-safe deviation (of the voyage's lane, else of the
+        sailed track) for the same departure.
 
         Prints the comparison table (time, distance, Hs met, fuel, CO2, hours over limits, IMO
-        events) and the findings; with --json one object with a key per route.
+        events) and the findings; with --json one object with a key per route. An --mmsi window
+        is audited under way (a stationary start or end is trimmed); a window holding two or more
+        of the ship's voyages is refused: audit them one --voyage at a time.
         """
         from pipelines.audit import run_audit
         from thresholds.errors import StormlaneError
