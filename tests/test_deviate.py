@@ -291,3 +291,19 @@ def test_lane_route_timing():
     assert r.name == "historical"
     with pytest.raises(ValueError, match="no usable speed"):
         lane_route(lat, lon, [12.0, np.nan, 8.0, 8.0], T0)
+
+
+def test_leg_judge_reports_the_highest_hs_met_between_the_ends():
+    from routing.deviate import _Judge
+
+    grid = Grid(storm_speed_deg_h=0.0)  # a still storm: 7 m at 41.0 N 1.6 E, 2 m far from it
+    judge = _Judge(grid.weather_at, check, spacing_nmi=3.0)
+    t = [T0.value] * 3
+    # across the centre along its meridian (72 nmi: interior points every 3 nmi, the middle one at
+    # the centre), beside it (4 sigma north: 2 m), and a leg too short to have interior points
+    lat1, lon1, lat2, lon2 = [40.4, 41.6, 41.0], [1.6, 1.0, 1.6], [41.6, 41.6, 41.0], [1.6, 2.2, 1.61]
+    rules, hs = judge.legs_with_hs(lat1, lon1, t, lat2, lon2, [12.0] * 3)
+    assert hs[0] == pytest.approx(7.0, abs=1e-6) and "hs_m" in rules[0]
+    assert hs[1] == pytest.approx(2.0, abs=1e-6) and rules[1] == []
+    assert np.isnan(hs[2]) and rules[2] == []
+    assert judge.legs(lat1, lon1, t, lat2, lon2, [12.0] * 3) == rules
