@@ -319,9 +319,10 @@ class _Judge:
                     out[i].append(r)
         hs = w.get("hs_m")
         if hs is not None and np.isfinite(hs).any():
-            acc = np.full(n_legs, -np.inf)
-            np.fmax.at(acc, leg, np.where(np.isfinite(hs), hs, -np.inf))
-            hs_max = np.where(np.isfinite(acc), acc, np.nan)
+            # the interior points are grouped by leg (np.repeat): one reduction per leg with points
+            has = np.flatnonzero(k > 0)
+            starts = np.r_[0, np.cumsum(k[has])[:-1]]
+            hs_max[has] = np.fmax.reduceat(hs, starts)
         return out, hs_max
 
 
