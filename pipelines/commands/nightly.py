@@ -13,10 +13,14 @@ from pipelines.commands._common import DbOption, JsonOption, emit_json, progress
 DEPLOYMENT_NAME = "nightly"
 
 
-def _quiet_prefect() -> None:
+def _quiet_prefect(console_info: bool = True) -> None:
     # quiet and offline (STACK.md): no telemetry look-ups from Prefect
     os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
     os.environ.setdefault("DO_NOT_TRACK", "1")
+    if not console_info:
+        # an interactive run shows its progress bar and summary, not a log line per task (as
+        # `stormlane demo`); PREFECT_LOGGING_LEVEL set by the user wins
+        os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
 
 
 def register(app: typer.Typer) -> None:
@@ -44,7 +48,7 @@ def register(app: typer.Typer) -> None:
 
         Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes), report, timings_s and the top-ranked lane-departures.
         """  # noqa: E501 (typer keeps line breaks in --help)
-        _quiet_prefect()
+        _quiet_prefect(console_info=False)
         from pipelines.nightly import (NightlyParams, flow_with_runner, make_task_runner, preflight,
                                        reroute_progress, user_errors_without_traceback)
 
