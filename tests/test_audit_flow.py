@@ -191,8 +191,33 @@ def test_deviate_cli(workspace):
     assert obj["metrics"]["hs_decrease_pct"] > 0
     moved = [s for s in obj["steps"] if s["status"] == "deviated"]
     assert moved and all(s["rules_fired"] for s in moved)  # moved only where a rule fired
+    # the human output: here the deviation is safer, so no "not safer" note ...
+    res = CliRunner().invoke(app, ["deviate", "--lane", "L1", "--depart", "2025-01-15T00:00Z", "--db", str(workspace)])
+    assert res.exit_code == 0 and "deviation:" in res.stdout and "than the lane" not in res.stdout
     res = CliRunner().invoke(app, ["deviate", "--lane", "L9", "--depart", "2025-01-15T00:00Z", "--db", str(workspace)])
     assert res.exit_code != 0 and "no lane 'L9'" in str(res.exception)
+
+
+def test_deviate_cli_says_when_the_deviation_is_not_safer(workspace, monkeypatch):
+    # ... and with the lane and deviation swapped (the deviation now meets the storm), it says so.
+    from typer.testing import CliRunner
+
+    import pipelines.deviate as deviate_mod
+    from pipelines.cli import app
+
+    real = deviate_mod.deviate_in_workspace
+
+    def swapped(*args, **kwargs):
+        out = real(*args, **kwargs)
+        lane, dev = out["lane"], out["deviation"]
+        out["lane"] = {**dev}
+        out["deviation"] = {**lane, **{k: dev[k] for k in ("n_deviated", "n_unresolved", "n_legs_adverse")}}
+        return out
+
+    monkeypatch.setattr(deviate_mod, "deviate_in_workspace", swapped)
+    res = CliRunner().invoke(app, ["deviate", "--lane", "L1", "--depart", "2025-01-15T00:00Z", "--db", str(workspace)])
+    assert res.exit_code == 0, res.output
+    assert "note: the deviation meets more hours over the limits or in IMO situations and a higher max Hs than the lane" in res.stdout
 
 
 def test_deviate_outside_the_weather_names_the_whole_span(workspace):
