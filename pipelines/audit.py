@@ -275,20 +275,19 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
     from routing.sampling import PointSampler
 
     track = track_to_route(inputs.positions)
-    window_notes = []
+    notes: list[str] = []
     if inputs.voyage is None:
         # A window may begin or end in port: the audited passage is the part under way.
         whole = track
         track = trim_stationary_ends(track)
         if track is not whole:
-            window_notes.append(f"the window's first {(track.time_utc[0] - whole.time_utc[0]).total_seconds() / 3600:.1f} h and last "
-                                f"{(whole.time_utc[-1] - track.time_utc[-1]).total_seconds() / 3600:.1f} h have the ship stationary: the "
-                                f"audit covers {track.time_utc[0].isoformat()} .. {track.time_utc[-1].isoformat()}, under way")
+            notes.append(f"the window's first {(track.time_utc[0] - whole.time_utc[0]).total_seconds() / 3600:.1f} h and last "
+                         f"{(whole.time_utc[-1] - track.time_utc[-1]).total_seconds() / 3600:.1f} h have the ship stationary: the "
+                         f"audit covers {track.time_utc[0].isoformat()} .. {track.time_utc[-1].isoformat()}, under way")
     field_ = field_from_dataset(inputs.weather_ds)
     sampler = PointSampler.from_field(field_)
     _check_coverage(sampler, track.time_utc[0], track.time_utc[-1], "voyage")
     alts: dict = {}
-    notes: list[str] = window_notes
     plan_stats: dict = {}
     deviation = None
     if alternatives:
@@ -328,8 +327,9 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
                                plan.mesh if plan is not None else None, notes)
         if deviation is not None:
             alts["deviation"] = deviation
-    if detour_factor(track) > DETOUR_FACTOR_NOTE:
-        notes.append(f"the sailed track ({track.dist_nmi:.0f} nmi) is {detour_factor(track):.1f} times the distance between its ends: "
+    detour = detour_factor(track)
+    if detour > DETOUR_FACTOR_NOTE:
+        notes.append(f"the sailed track ({track.dist_nmi:.0f} nmi) is {detour:.1f} times the distance between its ends: "
                      "port calls or a loop inside the window? The A* alternatives sail straight between the ends, so their time, "
                      "fuel and exposure are not comparable with the track's")
     out = audit_routes(track, sampler, inputs.vessel, limits=inputs.limits, alternatives=alts, speed_loss_model=speed_loss_model)

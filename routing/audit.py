@@ -81,11 +81,11 @@ def track_to_route(positions: pd.DataFrame, *, min_step_s: float = TRACK_MIN_STE
 STATIONARY_KN = 1.0
 
 
-def _made_good_kn(track: Route) -> np.ndarray:
-    """Speed made good on each leg (distance over time; 0 for a leg of no duration). [kn]"""
-    d = np.asarray(haversine_nmi(track.lat_deg[:-1], track.lon_deg[:-1], track.lat_deg[1:], track.lon_deg[1:]), dtype=float).reshape(-1)
+def _legs(track: Route) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per leg: length [nmi], duration [h] and speed made good (0 for a leg of no duration) [kn]."""
+    d = np.asarray(track.leg_dist_nmi, dtype=float).reshape(-1)
     h = np.diff(track.time_utc.asi8) / 3.6e12
-    return np.divide(d, h, out=np.zeros_like(d), where=h > 0)
+    return d, h, np.divide(d, h, out=np.zeros_like(d), where=h > 0)
 
 
 def detour_factor(track: Route, floor_nmi: float = 1.0) -> float:
@@ -102,7 +102,7 @@ def trim_stationary_ends(track: Route, min_speed_kn: float = STATIONARY_KN) -> R
     track starts where the ship gets under way and ends where it stops; a track that never
     moves is returned as it is.
     """
-    moving = np.flatnonzero(_made_good_kn(track) >= min_speed_kn)
+    moving = np.flatnonzero(_legs(track)[2] >= min_speed_kn)
     if moving.size == 0 or (moving[0] == 0 and moving[-1] == track.n_waypoints - 2):
         return track
     a, b = int(moving[0]), int(moving[-1]) + 2
@@ -129,13 +129,12 @@ def track_waypoints(track: Route, spacing_nmi: float = 5.0, min_speed_kn: float 
     if not spacing_nmi > 0:
         raise ValueError(f"spacing_nmi must be positive, got {spacing_nmi!r}")
     lat, lon = np.asarray(track.lat_deg, dtype=float), np.asarray(track.lon_deg, dtype=float)
-    legs = np.asarray(haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]), dtype=float).reshape(-1)
-    along = np.r_[0.0, np.cumsum(legs)]
+    leg_nmi, leg_h, made_good_kn = _legs(track)
+    along = np.r_[0.0, np.cumsum(leg_nmi)]
     step = np.floor(along / spacing_nmi)
     pick = np.flatnonzero(np.r_[True, step[1:] != step[:-1]])
     pick = np.union1d(pick, [lat.size - 1])
-    leg_h = np.diff(track.time_utc.asi8) / 3.6e12
-    under_way_h = np.r_[0.0, np.cumsum(np.where(_made_good_kn(track) >= min_speed_kn, leg_h, 0.0))]
+    under_way_h = np.r_[0.0, np.cumsum(np.where(made_good_kn >= min_speed_kn, leg_h, 0.0))]
     dt_h, dd = np.diff(under_way_h[pick]), np.diff(along[pick])
     speed = np.divide(dd, dt_h, out=np.zeros_like(dd), where=dt_h > 0)
     return pd.DataFrame({"seq": np.arange(pick.size, dtype=np.int64), "lat_deg": lat[pick], "lon_deg": lon[pick],
