@@ -632,6 +632,10 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
             "exact_lines": int(len(special)), "line_mapping": "scan", "timings": times}
 
 
+#: Rows per record batch of the scan's Arrow table (DuckDB's row group size).
+SCAN_BATCH_ROWS = 122_880
+
+
 def _scan_table(con, r, is_row: np.ndarray):
     """The Arrow table of the canonical rows of a scan (the columns of ``ais_fast``). (A table
     of every line filtered by a view was measured slower: DuckDB filters the Arrow scan on
@@ -693,7 +697,10 @@ def _scan_table(con, r, is_row: np.ndarray):
             idx[other] = [code_of[x] if x is not None else -1 for x in got]
             reason = pa.DictionaryArray.from_arrays(pa.array(idx, mask=idx < 0), pa.array(codes, pa.string())) \
                 .cast(pa.string())
-    return tbl.append_column("reason0", reason)
+    # In record batches of DuckDB's row-group size: DuckDB scans a one-chunk Arrow table on one
+    # thread, and every read of the stage (the fixes to numpy, the insert, vessels) with it.
+    tbl = tbl.append_column("reason0", reason)
+    return pa.Table.from_batches(tbl.to_batches(max_chunksize=SCAN_BATCH_ROWS))
 
 
 def _spot_check_lines(con, tbl, ix, header, spec, index, n_fields: int, n: int = 64) -> bool:
