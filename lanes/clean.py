@@ -49,7 +49,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from thresholds.geodesy import haversine_nmi
+from lanes._jumps import link_breaks
+from lanes._jumps import linked as linked_fixes
 
 # ---------------------------------------------------------------------------------------------
 # Limits (ITU-R M.1371-5 Annex 2 Table 45, M.585-9 Annex 1) and the default speed-jump limit.
@@ -337,13 +338,12 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
     if n < 2:
         return bad
     same = mmsi[1:] == mmsi[:-1]
-    dist = haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:])
-    brk = same & (dist > max_speed_kn * (t[1:] - t[:-1]) / 3600.0)
+    brk = link_breaks(same, t, lat, lon, max_speed_kn)
     if not brk.any():
         return bad
 
     def linked(i: int, j: int) -> bool:
-        return bool(haversine_nmi(lat[i], lon[i], lat[j], lon[j]) <= max_speed_kn * abs(t[j] - t[i]) / 3600.0)
+        return bool(linked_fixes(t[i], lat[i], lon[i], t[j], lat[j], lon[j], float(max_speed_kn)))
 
     starts = np.flatnonzero(np.r_[True, ~same])
     ends = np.r_[starts[1:], n]

@@ -163,3 +163,27 @@ def test_summary_counts_add_up_on_empty_and_all_bad():
 @pytest.mark.parametrize("code", sorted(C.REASONS))
 def test_every_reason_is_documented(code):
     assert C.REASONS[code]
+
+
+def test_compiled_link_test_equals_numpy_haversine_on_both_threads():
+    # 600 k pairs: the kernel cuts them into two ranges run on two threads; every pair must be
+    # judged as the numpy haversine judges it (away from exact ties, a float-rounding matter).
+    from lanes._jumps import link_breaks
+
+    rng = np.random.default_rng(3)
+    n = 600_001
+    track = np.sort(rng.integers(0, 500, n))
+    t = np.cumsum(rng.uniform(1.0, 60.0, n))
+    lat = rng.uniform(-70.0, 70.0, n)
+    lon = rng.uniform(-180.0, 180.0, n)
+    lat[1::2] = lat[:-1:2] + rng.normal(0.0, 0.02, n // 2)  # half the pairs near the limit
+    lon[1::2] = lon[:-1:2] + rng.normal(0.0, 0.02, n // 2)
+    same = track[1:] == track[:-1]
+    limit = haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:])
+    allowed = 60.0 * (t[1:] - t[:-1]) / 3600.0
+    expect = same & (limit > allowed)
+    clear = np.abs(limit - allowed) > 1e-9 * np.maximum(allowed, 1.0)
+    got = link_breaks(same, t, lat, lon, 60.0)
+    assert got.shape == expect.shape
+    assert 0 < expect.sum() < len(expect)
+    assert np.array_equal(got[clear], expect[clear])

@@ -700,7 +700,7 @@ def _scan_table(con, r, is_row: np.ndarray):
     # In record batches of DuckDB's row-group size: DuckDB scans a one-chunk Arrow table on one
     # thread, and every read of the stage (the fixes to numpy, the insert, vessels) with it.
     tbl = tbl.append_column("reason0", reason)
-    return pa.Table.from_batches(tbl.to_batches(max_chunksize=SCAN_BATCH_ROWS))
+    return pa.Table.from_batches(tbl.to_batches(max_chunksize=SCAN_BATCH_ROWS), schema=tbl.schema)
 
 
 def _spot_check_lines(con, tbl, ix, header, spec, index, n_fields: int, n: int = 64) -> bool:
