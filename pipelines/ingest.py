@@ -126,12 +126,18 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     suffix = identity_suffix(f.path, fmt)  # bytes forced into another format are another input
     quick = quick_key(f.path) + suffix
     pool = ThreadPoolExecutor(max_workers=1)
-    # The SHA-256 of the whole file runs in a thread (hashlib releases the GIL) while DuckDB
-    # stages the file. Only when a loaded file has the same quick key (size + first and last
-    # MiB) is the full hash awaited before staging, to skip an already loaded file.
-    full = pool.submit(lambda: fingerprint(f.path) + suffix)
+    # The SHA-256 of the whole file runs in a thread (hashlib releases the GIL) while the file
+    # is cleaned and committed; it is needed only for the file's row. It starts after the
+    # staging, whose fast scan keeps both cores busy, so that it fills the single-threaded steps
+    # of the commit instead. Only when a loaded file has the same quick key (size + first and
+    # last MiB) is the full hash computed first, to skip an already loaded file.
+    full = None
     try:
-        done = store.file_record(ws, full.result()) if store.quick_key_known(ws, quick) else None
+        if store.quick_key_known(ws, quick):
+            full = pool.submit(lambda: fingerprint(f.path) + suffix)
+            done = store.file_record(ws, full.result())
+        else:
+            done = None
     except BaseException:
         pool.shutdown(wait=True)
         raise
@@ -144,10 +150,9 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     info = None
     try:
         info = stage_file(ws, f, progress)
-        fp = full.result()
-        if store.file_record(ws, fp) is not None:  # same bytes, different quick key: impossible
-            raise RuntimeError(f"{f.path}: fingerprint already loaded")
-        meta = {"fingerprint": fp, "quick_key": quick, "path": str(f.path), "format": f.format,
+        if full is None:
+            full = pool.submit(lambda: fingerprint(f.path) + suffix)
+        meta = {"fingerprint": full, "quick_key": quick, "path": str(f.path), "format": f.format,
                 "size_bytes": f.size_bytes, "ignored": info["ignored"], "line_index": info.get("line_index")}
         counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit)
     except BaseException:

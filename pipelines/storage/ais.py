@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+from concurrent.futures import Future
 from pathlib import Path
 
 import duckdb
@@ -1330,6 +1331,8 @@ def _fill_raw(con, meta: dict) -> None:
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
+    ``fingerprint`` may be a future (a hash still running in a thread): it is awaited only when
+    the file's row is written, at the end of the transaction.
 
     Returns the file's counts: ``read``, ``loaded``, ``quarantined``, ``duplicates``,
     ``static``, ``ignored``, ``reasons``, ``file_id``. ``before_commit`` (tests only) is called
@@ -1339,8 +1342,6 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     con = ws.con
     _prepare(con)
     with ws.transaction():
-        if file_record(ws, meta["fingerprint"]) is not None:
-            raise RuntimeError(f"{meta['path']}: loaded concurrently by another ingest")
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
         has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
         out_lines, out_reasons = [], []
@@ -1414,11 +1415,16 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         }
         if counts["read"] != counts["loaded"] + counts["quarantined"] + counts["duplicates"]:
             raise AssertionError(f"{meta['path']}: counts do not add up: {counts}")
+        fingerprint = meta["fingerprint"]
+        if isinstance(fingerprint, Future):
+            fingerprint = fingerprint.result()
+        if file_record(ws, fingerprint) is not None:
+            raise RuntimeError(f"{meta['path']}: fingerprint already loaded (by another ingest meanwhile)")
         con.execute(
             """INSERT INTO ais_files (file_id, fingerprint, path, format, size_bytes, n_read, n_loaded, n_quarantined,
                    n_duplicates, n_static, n_ignored, reasons, max_speed_kn)
                VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)""",
-            [file_id, meta["fingerprint"], str(meta["path"]), meta["format"], int(meta["size_bytes"]), counts["read"],
+            [file_id, fingerprint, str(meta["path"]), meta["format"], int(meta["size_bytes"]), counts["read"],
              counts["loaded"], counts["quarantined"], dups, counts["static"], counts["ignored"],
              json.dumps(counts["reasons"], sort_keys=True), float(max_speed_kn)],
         )
