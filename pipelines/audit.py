@@ -222,8 +222,9 @@ def weather_from_workspace(ws, start_utc, end_utc, pad_h: float = 6.0):
 
     try:
         g = get_grid(ws)
-    except StormlaneError as err:
-        raise AuditError(f"no --weather files given and {err}") from None
+    except StormlaneError:  # no grid loaded at all (the latest is asked for)
+        raise AuditError(f"no --weather files given and no weather in the workspace {ws.path}: "
+                         "load some with `stormlane weather load PATH...`") from None
     cells = read_cells(ws, int(g["grid_id"]), start=start_utc - pd.Timedelta(hours=pad_h), end=end_utc + pd.Timedelta(hours=pad_h))
     if cells.empty:
         raise AuditError(f"the workspace weather grid {g['name']!r} ({g['start_utc']} .. {g['end_utc']}) has no data between "

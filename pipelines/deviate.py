@@ -24,6 +24,102 @@ class DeviationInputError(StormlaneError):
     """Unknown lane, bad departure time or weather that does not cover the lane-departure."""
 
 
+#: The variable a deviation cannot do without (the thresholds judge Hs first).
+REQUIRED_VAR = "hs_m"
+
+
+def weather_label(product, *, grid=None, source_files=None, max_files: int = 3) -> str:
+    """How an error names the weather: the product, then the workspace grid and/or file names.
+
+    >>> weather_label("CMEMS MEDSEA", source_files="/d/Waves_20200120.nc; /d/Waves_20200121.nc")
+    'CMEMS MEDSEA (Waves_20200120.nc, Waves_20200121.nc)'
+    >>> weather_label("CMEMS MEDSEA", grid="med", source_files="a.nc")
+    "CMEMS MEDSEA (workspace grid 'med': a.nc)"
+    """
+    if isinstance(source_files, str):
+        source_files = [f for f in source_files.split(";")]
+    names = [Path(str(f).strip()).name for f in source_files or () if str(f).strip() and str(f).strip().lower() != "none"]
+    files = ", ".join(names[:max_files]) + (f", ... ({len(names)} files)" if len(names) > max_files else "")
+    where = f"workspace grid {grid!r}" if grid else ""
+    inside = ": ".join(x for x in (where, files) if x)
+    return f"{product or 'weather'}" + (f" ({inside})" if inside else "")
+
+
+def check_departure_in_weather(t0: pd.Timestamp, first: pd.Timestamp, last: pd.Timestamp, label: str) -> None:
+    """Raise :class:`DeviationInputError` unless the departure lies in the weather's whole time span."""
+    if first <= t0 <= last:
+        return
+    gap = f"{t0:%Y-%m-%dT%H:%MZ} -> {first:%Y-%m-%dT%H:%MZ}" if t0 < first else f"{last:%Y-%m-%dT%H:%MZ} -> {t0:%Y-%m-%dT%H:%MZ}"
+    raise DeviationInputError(
+        f"{label}, {REQUIRED_VAR}: no data for {gap}: the departure {t0.isoformat()} is outside the weather "
+        f"{first.isoformat()} .. {last.isoformat()}; give --weather files that cover it"
+    )
+
+
+def check_lane_in_weather(ds, lane: pd.DataFrame, lane_id: str, t0: pd.Timestamp, window_end: pd.Timestamp, label: str) -> None:
+    """Raise :class:`DeviationInputError` when the weather lacks ``hs_m`` or does not reach the lane.
+
+    The checks are :func:`weather.coverage.check_coverage`'s (the one ``stormlane nightly`` runs):
+    the variable exists and is not missing at every sea cell at a time step of the lane's window,
+    and the lane's bbox lies inside the grid's. A lane point within half a grid step beyond the
+    outer cell centres is inside (the sampler interpolates there, see ``routing.sampling``); land
+    cells inside the grid (NaN) are not a coverage gap.
+    """
+    from weather.coverage import check_coverage
+    from weather.errors import CoverageError
+
+    lat, lon = lane["lat_deg"].to_numpy(dtype=float), lane["lon_deg"].to_numpy(dtype=float)
+    times = pd.DatetimeIndex(ds["time_utc"].values)
+    times = times.tz_localize("UTC") if times.tz is None else times.tz_convert("UTC")
+    try:
+        check_coverage(ds, variables=[REQUIRED_VAR], start=max(t0, times[0]), end=min(window_end, times[-1]), product=label)
+        glat, glon = np.sort(ds["lat"].values.astype(float)), np.sort(ds["lon"].values.astype(float))
+        half_lat = 0.5 * (glat[1] - glat[0]) if glat.size > 1 else 0.0
+        half_lon = 0.5 * (glon[1] - glon[0]) if glon.size > 1 else 0.0
+        outside = ((lat < glat[0] - half_lat - 1e-9) | (lat > glat[-1] + half_lat + 1e-9)
+                   | (lon < glon[0] - half_lon - 1e-9) | (lon > glon[-1] + half_lon + 1e-9))
+        if outside.any():
+            try:
+                check_coverage(ds[[REQUIRED_VAR]], bbox=(lon.min(), lat.min(), lon.max(), lat.max()), product=label)
+            except CoverageError as err:
+                raise CoverageError(f"{err}; {int(outside.sum())} of {lat.size} lane centroids lie outside the grid") from None
+    except CoverageError as err:
+        raise DeviationInputError(f"the weather does not cover lane {lane_id}: {err}") from None
+
+
+def check_lane_meets_weather(evaluation: dict, lane: pd.DataFrame, lane_id: str, label: str) -> None:
+    """Raise :class:`DeviationInputError` when the lane, sailed from the departure, meets no weather at all
+    (every sample on land or missing cells): its hours over the limits would read 0 h, safe."""
+    time_h, none_h = evaluation.get("time_h") or 0.0, evaluation.get("no_weather_h") or 0.0
+    if time_h > 0 and none_h >= time_h - 1e-9:
+        lat, lon = lane["lat_deg"], lane["lon_deg"]
+        raise DeviationInputError(
+            f"{label}, {REQUIRED_VAR}: lane {lane_id} (lat {lat.min():.3f}..{lat.max():.3f}, lon {lon.min():.3f}..{lon.max():.3f}) "
+            f"meets no data over its {time_h:.1f} h (land or missing cells of the grid); give --weather files that cover it"
+        )
+
+
+def not_safer_note(lane: dict, deviation: dict) -> str | None:
+    """The note saying the deviation is not safer than the lane, or None.
+
+    Not safer = more hours over the limits or in IMO situations (``adverse_h``), or a higher max
+    Hs, than the lane, by more than 0.05. ``lane`` and ``deviation`` are the evaluation summaries
+    (``RouteEvaluation.to_dict()``). The table output and ``--json`` (``"note"``) both carry it.
+    """
+    worse = [what for what, key in (("more hours over the limits or in IMO situations", "adverse_h"), ("a higher max Hs", "max_hs_m"))
+             if deviation.get(key) is not None and lane.get(key) is not None and deviation[key] > lane[key] + 0.05]
+    if not worse:
+        return None
+
+    def num(x, fmt):
+        return "n/a" if x is None or x != x else format(x, fmt)
+
+    return (f"the deviation meets {' and '.join(worse)} than the lane ({num(deviation.get('adverse_h'), '.1f')} h against "
+            f"{num(lane.get('adverse_h'), '.1f')} h; max Hs {num(deviation.get('max_hs_m'), '.2f')} against "
+            f"{num(lane.get('max_hs_m'), '.2f')} m): Algorithm 1 looks one step ahead at a time; compare the safe "
+            "time-optimal route (`stormlane route --safety hard`)")
+
+
 def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | None = None, profile: str | None = None,
                          store: bool = True) -> dict:
     """Deviation of lane ``lane_id`` departing at ``depart``; returns the CLI's JSON object.
@@ -63,42 +159,53 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         v = float(np.nanmedian(lane["speed_kn"])) if np.isfinite(lane["speed_kn"]).any() else 10.0
         window_end = t0 + pd.Timedelta(hours=2.0 * d / max(v, 1.0) + 6.0)
         files = [str(p) for p in weather]
-        span = None  # the whole weather's time span, for the error message
         if files:
             from weather.io import read_local
 
             ds, meta = read_local(files)
+            label = weather_label(meta.get("product") or ds.attrs.get("product"),
+                                  source_files=meta.get("source_files") or ds.attrs.get("source_files") or files)
+            span = pd.DatetimeIndex(ds["time_utc"].values[[0, -1]])
+            span = span.tz_localize("UTC") if span.tz is None else span.tz_convert("UTC")
+            check_departure_in_weather(t0, span[0], span[-1], label)
         else:
+            from pipelines.storage.weather import get_grid
+
+            try:
+                g = get_grid(ws)
+            except StormlaneError:
+                raise DeviationInputError(f"no weather in the workspace {db}: load some with `stormlane weather load PATH...` "
+                                          "or pass --weather FILE...") from None
+            label = weather_label(g["product"], grid=g["name"], source_files=g.get("source_files"))
+            check_departure_in_weather(t0, _utc(g["start_utc"]), _utc(g["end_utc"]), label)  # the grid's whole span
             try:
                 ds, meta = weather_from_workspace(ws, t0, window_end)
             except AuditError as err:
                 raise DeviationInputError(str(err)) from None
-            from pipelines.storage.weather import get_grid
-
-            g = get_grid(ws)
-            span = (pd.Timestamp(g["start_utc"]), pd.Timestamp(g["end_utc"]))
+    check_lane_in_weather(ds, lane, str(lane_id), t0, window_end, label)
     vessel_name = vessel or DEFAULT_VESSEL
     ves = load_vessel(vessel_name)
     limits = load_operator_profile(profile)
     sampler = PointSampler.from_field(field_from_dataset(ds))
-    if t0 < sampler.start_utc or t0 > sampler.end_utc:
-        first, last = span or (sampler.start_utc, sampler.end_utc)
-        raise DeviationInputError(f"departure {t0.isoformat()} is outside the weather {first.isoformat()} .. {last.isoformat()}")
     weather_at, check, cells = threshold_inputs(sampler, ves, limits)
     lat, lon, spd = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy()
-    dev = deviate_lane(lat, lon, spd, t0, weather_at=weather_at, check=check, cells=cells, leg_at_sea=lane_land_check(lane),
-                       default_speed_kn=ves.speed_kn, properties={"lane_id": str(lane_id)})
     lane_r = lane_route(lat, lon, spd, t0, default_speed_kn=ves.speed_kn, properties={"lane_id": str(lane_id)})
     ev_lane = evaluate_route(lane_r, sampler, ves, limits=limits)
+    lane_summary = ev_lane.to_dict(waypoints=True)
+    check_lane_meets_weather(lane_summary, lane, str(lane_id), label)
+    dev = deviate_lane(lat, lon, spd, t0, weather_at=weather_at, check=check, cells=cells, leg_at_sea=lane_land_check(lane),
+                       default_speed_kn=ves.speed_kn, properties={"lane_id": str(lane_id)})
     ev_dev = evaluate_route(dev, sampler, ves, limits=limits)
+    dev_summary = {**ev_dev.to_dict(waypoints=True), "n_deviated": dev.properties["n_deviated"],
+                   "n_unresolved": dev.properties["n_unresolved"], "n_legs_adverse": dev.properties["n_legs_adverse"]}
     deviation_id = f"{lane_id}@{t0.strftime('%Y-%m-%dT%H:%MZ')}"
     if store:
         with open_workspace(db) as ws:
             write_deviation(ws, deviation_id, lane_id, t0, ev_dev.route)
+    notes = [not_safer_note(lane_summary, dev_summary)]
     if dev.time_utc[-1] > sampler.end_utc:
-        note = f"the deviation arrives {dev.time_utc[-1].isoformat()}, after the weather ends ({sampler.end_utc.isoformat()})"
-    else:
-        note = None
+        notes.append(f"the deviation arrives {dev.time_utc[-1].isoformat()}, after the weather ends ({sampler.end_utc.isoformat()})")
+    notes = [n for n in notes if n]
     steps = dev.properties["steps"]
     return {
         "deviation_id": deviation_id,
@@ -106,10 +213,15 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         "depart_utc": t0.isoformat(),
         "vessel_profile": vessel_name,
         "weather": {"files": files, **{k: v for k, v in meta.items() if isinstance(v, (str, int, float))}},
-        "lane": ev_lane.to_dict(waypoints=True),
-        "deviation": {**ev_dev.to_dict(waypoints=True), "n_deviated": dev.properties["n_deviated"],
-                      "n_unresolved": dev.properties["n_unresolved"], "n_legs_adverse": dev.properties["n_legs_adverse"]},
+        "lane": lane_summary,
+        "deviation": dev_summary,
         "steps": steps,
         "metrics": comparison_metrics(ev_lane, ev_dev),
-        "note": note,
+        "note": "\n".join(notes) or None,
+        "notes": notes,
     }
+
+
+def _utc(t) -> pd.Timestamp:
+    t = pd.Timestamp(t)
+    return t.tz_localize("UTC") if t.tzinfo is None else t.tz_convert("UTC")

@@ -199,34 +199,42 @@ def test_deviate_cli(workspace):
 
 
 def test_deviate_cli_says_when_the_deviation_is_not_safer(workspace, monkeypatch):
-    # ... and with the lane and deviation swapped (the deviation now meets the storm), it says so.
+    # ... and when the deviation meets the storm for longer than the lane (here: the lane's path at
+    # half speed, standing in for Algorithm 1's result), the table and --json say so in the same words.
     from typer.testing import CliRunner
 
-    import pipelines.deviate as deviate_mod
+    import routing.deviate as routing_deviate
     from pipelines.cli import app
 
-    real = deviate_mod.deviate_in_workspace
+    real = routing_deviate.deviate_lane
 
-    def swapped(*args, **kwargs):
-        out = real(*args, **kwargs)
-        lane, dev = out["lane"], out["deviation"]
-        out["lane"] = {**dev}
-        out["deviation"] = {**lane, **{k: dev[k] for k in ("n_deviated", "n_unresolved", "n_legs_adverse")}}
-        return out
+    def slow_deviation(lat, lon, spd, t0, **kwargs):
+        dev = real(lat, lon, spd, t0, **kwargs)
+        return routing_deviate.lane_route(lat, lon, np.asarray(spd) * 0.5, t0, name=dev.name, properties=dev.properties)
 
-    monkeypatch.setattr(deviate_mod, "deviate_in_workspace", swapped)
-    res = CliRunner().invoke(app, ["deviate", "--lane", "L1", "--depart", "2025-01-15T00:00Z", "--db", str(workspace)])
+    monkeypatch.setattr(routing_deviate, "deviate_lane", slow_deviation)
+    args = ["deviate", "--lane", "L1", "--depart", "2025-01-15T00:00Z", "--db", str(workspace)]
+    res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
-    assert "note: the deviation meets more hours over the limits or in IMO situations and a higher max Hs than the lane" in res.stdout
+    said = "the deviation meets more hours over the limits or in IMO situations"
+    assert f"note: {said}" in res.stdout
+    res = CliRunner().invoke(app, [*args, "--json"])
+    assert res.exit_code == 0, res.output
+    obj = json.loads(res.stdout)
+    assert obj["deviation"]["adverse_h"] > obj["lane"]["adverse_h"] + 0.05
+    assert obj["note"].startswith(said) and obj["notes"] == [obj["note"]]
+    assert f"note: {obj['note']}" in CliRunner().invoke(app, args).stdout  # the same text as the table's
 
 
 def test_deviate_outside_the_weather_names_the_whole_span(workspace):
     """The workspace weather is read for the lane's window only; a departure after the data ends
-    must be reported against the grid's whole span (it said the window's: 10:00 .. 14:00)."""
+    must be reported against the grid's whole span (it said the window's: 10:00 .. 14:00), naming
+    the product, the grid and the variable."""
     from pipelines.deviate import DeviationInputError, deviate_in_workspace
 
-    with pytest.raises(DeviationInputError, match=r"^departure 2025-01-15T16:00:00\+00:00 is outside the weather "
-                                                    r"2025-01-14T18:00:00\+00:00 \.\. 2025-01-15T14:00:00\+00:00$"):
+    with pytest.raises(DeviationInputError, match=r"^test storm \(hand-built\) \(workspace grid 'test-storm'\), hs_m: no data for "
+                                                    r"2025-01-15T14:00Z -> 2025-01-15T16:00Z: the departure 2025-01-15T16:00:00\+00:00 "
+                                                    r"is outside the weather 2025-01-14T18:00:00\+00:00 \.\. 2025-01-15T14:00:00\+00:00; "):
         deviate_in_workspace(workspace, "L1", "2025-01-15T16:00Z", store=False)
 
 

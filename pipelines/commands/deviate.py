@@ -44,11 +44,5 @@ def register(app: typer.Typer) -> None:
         m = out["metrics"]
         if m["hs_decrease_pct"] is not None and m["hs_decrease_pct"] == m["hs_decrease_pct"]:
             typer.echo(f"  mean Hs over the lane's adverse portion: {m['hs_decrease_pct']:.0f} % lower on the deviation")
-        worse = [what for what, key in (("more hours over the limits or in IMO situations", "adverse_h"), ("a higher max Hs", "max_hs_m"))
-                 if b.get(key) is not None and a.get(key) is not None and b[key] > a[key] + 0.05]
-        if worse:
-            typer.echo(f"  note: the deviation meets {' and '.join(worse)} than the lane ({b['adverse_h']:.1f} h against "
-                       f"{a['adverse_h']:.1f} h; max Hs {b['max_hs_m']:.2f} against {a['max_hs_m']:.2f} m): Algorithm 1 looks one step "
-                       "ahead at a time; compare the safe time-optimal route (`stormlane route --safety hard`)")
-        if out.get("note"):
-            typer.echo(f"  note: {out['note']}")
+        for note in out["notes"]:  # pipelines.deviate.not_safer_note, then the weather's; --json: "note"/"notes"
+            typer.echo(f"  note: {note}")
