@@ -257,6 +257,52 @@ def test_missing_and_garbage_files(tmp_path):
         read_local(tmp_path / "empty")
 
 
+def test_truncated_real_files_are_refused_as_truncated(shared_data, tmp_path, capsys):
+    # The first 100 kB of a real file: the classic (CDF-1) MEDSEA file opens without complaint and
+    # reads the missing data as fill values, so this used to say "duplicate latitude or longitude
+    # values"; the HDF5 one failed with a bare "HDF error".
+    from pipelines.cli import main
+    from weather.io import read_local
+
+    for relative, kind in ((MED, "NetCDF classic"), (CUR_NATIVE, "NetCDF-4/HDF5")):
+        src = shared_file(shared_data, relative)
+        cut = tmp_path / f"cut_{src.name}"
+        cut.write_bytes(src.read_bytes()[:100_000])
+        size = src.stat().st_size
+        with pytest.raises(WeatherFileError, match=rf"cut_.*: truncated {kind} file: 100000 bytes on disk, its header says {size}"):
+            read_local(cut)
+        with pytest.raises(SystemExit) as exc:
+            main(["weather", "info", str(cut)])
+        err = capsys.readouterr().err.strip()
+        assert exc.value.code == 2 and len(err.splitlines()) == 1
+        assert err.startswith(f"error: {cut}: truncated {kind} file") and "duplicate" not in err
+
+
+@pytest.mark.parametrize("fmt", ["NETCDF3_CLASSIC", "NETCDF3_64BIT_OFFSET", "NETCDF3_64BIT_DATA", "NETCDF4", "NETCDF4_CLASSIC"])
+def test_truncated_netcdf_is_detected_at_every_length(tmp_path, fmt):
+    """Complete files of every NetCDF format pass; every cut of the header or the data fails."""
+    import netCDF4
+
+    from weather.io.netcdf import check_complete
+
+    path = tmp_path / "full.nc"
+    with netCDF4.Dataset(path, "w", format=fmt) as nc:
+        nc.createDimension("time", None)  # record variables: sizes from the record count
+        nc.createDimension("lat", 7)
+        nc.title = "t" * 5
+        nc.createVariable("lat", "f4", ("lat",))[:] = np.arange(7)
+        nc.createVariable("VHM0", "i2", ("time", "lat"))[0:6] = 1
+        nc.createVariable("flag", "i1", ("time",))[0:6] = 1
+    data = path.read_bytes()
+    check_complete(path)
+    cut = tmp_path / "cut.nc"
+    step = 1 if len(data) < 20_000 else 37
+    for n in range(4, len(data) - 3, step):  # the last record's padding (up to 3 bytes) is optional
+        cut.write_bytes(data[:n])
+        with pytest.raises(WeatherFileError, match="cut.nc: truncated NetCDF"):
+            check_complete(cut)
+
+
 def test_products_without_overlap_are_refused(shared_data):
     from weather.io import read_local
 

@@ -63,11 +63,165 @@ _ERA5 = {"u10", "v10", "swh", "mwd", "pp1d", "mwp"}
 _GFS_HEIGHT = {"u-component_of_wind_height_above_ground", "v-component_of_wind_height_above_ground"}
 
 
+#: At most this much of a NetCDF file is read to parse its header (headers are a few kB).
+_HEADER_BYTES = 1 << 22
+#: Bytes per value of the NetCDF classic types (NC_BYTE .. NC_UINT64; 7-11 are CDF-5 only).
+_CDF_TYPE_SIZE = {1: 1, 2: 1, 3: 2, 4: 4, 5: 4, 6: 8, 7: 1, 8: 2, 9: 4, 10: 8, 11: 8}
+
+
+class _Header:
+    """Big-endian reader over the first bytes of a file; ``EOFError`` past the end."""
+
+    def __init__(self, data: bytes, pos: int = 0):
+        self.data, self.pos = data, pos
+
+    def take(self, n: int) -> bytes:
+        if self.pos + n > len(self.data):
+            raise EOFError
+        out = self.data[self.pos : self.pos + n]
+        self.pos += n
+        return out
+
+    def uint(self, n: int) -> int:
+        return int.from_bytes(self.take(n), "big")
+
+
+def _netcdf3_data_end(data: bytes) -> int | None:
+    """Smallest file size the header of a NetCDF classic file (CDF-1, -2 or -5) implies: the end of
+    its last variable's data (unpadded, so a lower bound). ``None`` when the header is not
+    understood; ``EOFError`` when ``data`` ends inside the header."""
+    if len(data) < 4:
+        raise EOFError
+    version = data[3]
+    if version not in (1, 2, 5):
+        return None
+    size = 8 if version == 5 else 4  # NON_NEG (counts, lengths)
+    offset = 4 if version == 1 else 8  # OFFSET (begin)
+    h = _Header(data, 4)
+
+    def name() -> None:
+        n = h.uint(size)
+        h.take(-(-n // 4) * 4)
+
+    def attributes() -> None:
+        tag, n = h.uint(4), h.uint(size)
+        if tag not in (0, 0x0C):
+            raise ValueError
+        for _ in range(n):
+            name()
+            nc_type, count = h.uint(4), h.uint(size)
+            h.take(-(-count * _CDF_TYPE_SIZE[nc_type] // 4) * 4)
+
+    try:
+        numrecs = h.uint(size)
+        if numrecs == (1 << (8 * size)) - 1:  # STREAMING: record count unknown
+            numrecs = 0
+        tag, n = h.uint(4), h.uint(size)
+        if tag not in (0, 0x0A):
+            return None
+        dims = []
+        for _ in range(n):
+            name()
+            dims.append(h.uint(size))
+        attributes()
+        tag, n = h.uint(4), h.uint(size)
+        if tag not in (0, 0x0B):
+            return None
+        fixed_end, records = 0, []  # records: (begin, bytes per record)
+        for _ in range(n):
+            name()
+            dimids = [h.uint(size) for _ in range(h.uint(size))]
+            attributes()
+            nc_type = h.uint(4)
+            h.uint(size)  # vsize (capped for huge variables: recomputed below)
+            begin = h.uint(offset)
+            shape = [dims[d] for d in dimids]
+            record = bool(shape) and shape[0] == 0
+            nbytes = _CDF_TYPE_SIZE[nc_type] * int(np.prod(shape[1:] if record else shape, dtype=np.int64))
+            if record:
+                records.append((begin, nbytes))
+            else:
+                fixed_end = max(fixed_end, begin + nbytes)
+    except (KeyError, ValueError, IndexError):
+        return None
+    end = fixed_end
+    if records and numrecs:
+        # one record holds every record variable, each padded to 4 bytes unless it is the only one
+        recsize = records[0][1] if len(records) == 1 else sum(-(-b // 4) * 4 for _, b in records)
+        end = max(end, max(begin + (numrecs - 1) * recsize + nbytes for begin, nbytes in records))
+    return end
+
+
+def _hdf5_data_end(data: bytes) -> int | None:
+    """End-of-file address recorded in an HDF5 (NetCDF-4) superblock at offset 0, ``None`` when
+    not understood, ``EOFError`` when ``data`` ends inside the superblock."""
+    if len(data) < 14:
+        raise EOFError
+    version = data[8]
+    if version in (0, 1):
+        o, pos, fields = data[13], 24 + (4 if version == 1 else 0), 4  # base, free space, EOF, driver
+    elif version in (2, 3):
+        o, pos, fields = data[9], 12, 3  # base, superblock extension, EOF
+    else:
+        return None
+    if o not in (2, 4, 8):
+        return None
+    if pos + fields * o > len(data):
+        raise EOFError
+    values = [int.from_bytes(data[pos + k * o : pos + (k + 1) * o], "little") for k in range(fields)]
+    base, eof = values[0], values[2]
+    undefined = (1 << (8 * o)) - 1
+    if undefined in (base, eof):
+        return None
+    return base + eof
+
+
+def check_complete(path: str | Path) -> None:
+    """Raise :class:`WeatherFileError` when a NetCDF file is shorter than its own header says.
+
+    A partial download or copy of a NetCDF classic file opens without complaint and reads the
+    missing data as fill values (so the reader would report nonsense such as duplicate
+    coordinates); a NetCDF-4 (HDF5) file records its end-of-file address in the superblock.
+    Both are compared with the size on disk.
+    """
+    path = Path(path)
+    actual = path.stat().st_size
+    with open(path, "rb") as fh:
+        data = fh.read(4)
+        if data[:3] == b"CDF":
+            kind, parse = "NetCDF classic", _netcdf3_data_end
+        elif data[:4] == b"\x89HDF":
+            kind, parse = "NetCDF-4/HDF5", _hdf5_data_end
+        else:
+            return
+        n = 1 << 16
+        while True:
+            fh.seek(0)
+            data = fh.read(n)
+            try:
+                need = parse(data)
+                break
+            except EOFError:
+                if len(data) >= actual:  # the whole file is shorter than its header
+                    raise WeatherFileError(
+                        f"{path}: truncated {kind} file: its {actual} bytes end inside the header; download or copy it again"
+                    ) from None
+                if n >= _HEADER_BYTES:  # a header longer than we read: not checked
+                    return
+                n *= 8
+    if need is not None and actual < need:
+        raise WeatherFileError(
+            f"{path}: truncated {kind} file: {actual} bytes on disk, its header says {need}; download or copy it again"
+        )
+
+
 def open_netcdf(path: str | Path) -> xr.Dataset:
-    """Open a NetCDF 3/4 file with CF decoding; errors name the file."""
+    """Open a NetCDF 3/4 file with CF decoding; errors name the file (truncated files included)."""
     path = Path(path)
     if not path.exists():
         raise WeatherFileError(f"{path}: no such file")
+    if path.is_file():
+        check_complete(path)
     try:
         return xr.open_dataset(path, engine="netcdf4", mask_and_scale=True, decode_times=True, cache=False)
     except Exception as err:  # netCDF4 raises OSError / RuntimeError with terse messages
