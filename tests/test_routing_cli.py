@@ -39,9 +39,10 @@ def test_cli_json_contract_calm_sea(capsys, tmp_path):
     )  # fmt: skip
     assert code == 0, err
     data = json.loads(out)  # exactly one JSON object on stdout
-    assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm"]
+    assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm", "notes"]
+    assert data["notes"] == []
     assert data["great_circle_nmi"] == pytest.approx(haversine_nmi(10, 0, 12, 6), rel=1e-6)
-    for name in list(data)[1:]:
+    for name in list(data)[1:-1]:
         route = data[name]
         assert set(route) == {"time_h", "dist_nmi", "max_hs_m", "waypoints"}
         assert route["waypoints"][0][:2] == [10.0, 0.0] and route["waypoints"][-1][:2] == [12.0, 6.0]
@@ -50,8 +51,8 @@ def test_cli_json_contract_calm_sea(capsys, tmp_path):
     assert len(data["optimal_smoothed"]["waypoints"]) == 2
     geo = json.loads(out_file.read_text())
     lines = [f["properties"] for f in geo["features"] if f["properties"]["feature"] == "route"]
-    assert [p["route"] for p in lines] == list(data)[1:]
-    assert [p["time_h"] for p in lines] == pytest.approx([data[k]["time_h"] for k in list(data)[1:]], rel=1e-6)
+    assert [p["route"] for p in lines] == list(data)[1:-1]
+    assert [p["time_h"] for p in lines] == pytest.approx([data[k]["time_h"] for k in list(data)[1:-1]], rel=1e-6)
 
 
 def test_cli_table_output(capsys):
@@ -129,14 +130,96 @@ def test_cli_says_when_the_weather_ends_before_arrival(capsys, tmp_path, monkeyp
     # The file reading is tested with the readers; here the field of two hours stands in for it.
     import pipelines.routing_weather as rw
 
-    monkeypatch.setattr(rw, "load_weather", lambda files: (small_field(hours=(0, 1)), {}))
+    monkeypatch.setattr(rw, "load_weather", lambda files, **kw: (small_field(hours=(0, 1)), {}))
     weather = tmp_path / "w.nc"
     weather.write_bytes(b"")
-    code, out, err = run(capsys, "route", "--from", "39.513,2.517", "--to", "40.488,3.4711", "--depart", "2020-01-20T00:00Z",
-                         "--weather", str(weather), "--speed-kn", "10", "--mesh-deg", "0.05", "--ignore-land")
+    args = ["route", "--from", "39.513,2.517", "--to", "40.488,3.4711", "--depart", "2020-01-20T00:00Z",
+            "--weather", str(weather), "--speed-kn", "10", "--mesh-deg", "0.05", "--ignore-land"]
+    code, out, err = run(capsys, *args)
     assert code == 0, err
     note = [line for line in out.splitlines() if line.startswith("note: the weather ends before arrival")]
     assert len(note) == 1 and "h of optimal_smoothed" in note[0] and "h of min_distance" in note[0]
+    # --json says it too: the documented keys, then "notes"; each route sailed past the weather's end
+    # carries weather_held_after_h (the calm-water route meets no weather)
+    code, out, err = run(capsys, *args, "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm", "notes"]
+    snapped = [line.removeprefix("note: ") for line in err.splitlines() if line.startswith("note: ")]  # e.g. goal moved to a node
+    assert data["notes"] == [*snapped, note[0].removeprefix("note: ")]
+    for name in ("optimal", "optimal_smoothed", "min_distance"):
+        assert set(data[name]) == {"time_h", "dist_nmi", "max_hs_m", "waypoints", "weather_held_after_h"}
+        assert 0 < data[name]["weather_held_after_h"] < data[name]["time_h"] - 0.9  # the weather lasts 1 h
+        assert f"{data[name]['weather_held_after_h']:.2f} h of {name}" in data["notes"][-1]
+    assert "weather_held_after_h" not in data["min_distance_calm"]
+
+
+def medsea_dataset(shared_data):
+    from conftest import shared_file
+    from weather.io import read_local
+
+    folder = shared_file(shared_data, "weather/simroute_cmems_medsea_wav")
+    return folder, read_local(folder)[0]
+
+
+MEDSEA = "CMEMS MEDSEA_ANALYSIS_FORECAST_WAV_006_017, hs_m, wave_from_deg"
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--depart", "2020-01-19T09:00Z"],
+         f"departure 2020-01-19T09:00Z is outside the weather's times: {MEDSEA}: no data for 2020-01-19T09:00Z -> "
+         "2020-01-20T00:00Z (data cover 2020-01-20T00:00Z -> 2020-01-21T23:00Z)"),
+        (["--depart", "2020-01-22T06:30Z"],
+         f"departure 2020-01-22T06:30Z is outside the weather's times: {MEDSEA}: no data for 2020-01-21T23:00Z -> "
+         "2020-01-22T06:30Z (data cover 2020-01-20T00:00Z -> 2020-01-21T23:00Z)"),
+        (["--depart", "2020-01-20T09:00Z", "--to", "41.5,12.775"],
+         f"goal (41.5000, 12.7750) is outside the weather grid: {MEDSEA}: bbox lon 2.9..12.775, lat 39.225..41.5 is not "
+         "covered (data cover lon 1.5..5.58333, lat 38.4375..42.1458)"),
+        (["--depart", "2020-01-20T09:00Z", "--from", "35.0,12.9", "--to", "36.0,13.0"],
+         f"start (35.0000, 12.9000) and goal (36.0000, 13.0000) are outside the weather grid: {MEDSEA}: bbox lon 12.9..13, "
+         "lat 35..36 is not covered (data cover lon 1.5..5.58333, lat 38.4375..42.1458)"),
+    ],
+)
+def test_cli_coverage_errors_name_the_product_the_variables_and_the_span(shared_data, capsys, args, message):
+    """The wording of weather.coverage.check_coverage (weather join, nightly), in one line, exit 2."""
+    folder, _ = medsea_dataset(shared_data)
+    base = {"--from": "39.225,2.900", "--to": "41.500,2.775"}
+    for flag in ("--from", "--to"):
+        if flag not in args:
+            args = [*args, flag, base[flag]]
+    code, out, err = run(capsys, "route", "--weather", str(folder), "--mesh-nmi", "1.5", "--json", *args)
+    assert code == 2 and out == ""
+    assert err == f"error: {message}\n"
+
+
+def test_route_coverage_check_on_a_tiny_dataset():
+    xr = pytest.importorskip("xarray")
+    from pipelines.routing_weather import check_route_coverage
+
+    times = pd.date_range("2025-01-01", periods=3, freq="3h").values
+    shape = (3, 3, 4)
+    ds = xr.Dataset(
+        {"hs_m": (("time_utc", "lat", "lon"), np.ones(shape)), "tp_s": (("time_utc", "lat", "lon"), np.ones(shape)),
+         "current_u_ms": (("time_utc", "lat", "lon"), np.zeros(shape)), "current_v_ms": (("time_utc", "lat", "lon"), np.zeros(shape))},
+        coords={"time_utc": times, "lat": [40.0, 40.5, 41.0], "lon": [2.0, 2.5, 3.0, 3.5]},
+        attrs={"product": "demo waves + currents"},
+    )  # fmt: skip
+    inside = (("start", (40.2, 2.1)), ("goal", (40.9, 3.4)))
+    check_route_coverage(ds, pd.Timestamp("2025-01-01T04:30Z"), inside)
+    check_route_coverage(ds, pd.Timestamp("2025-01-01T06:00Z"), inside)  # the last time: the rest is held
+    with pytest.raises(WeatherCoverageError, match=r"^departure 2024-12-31T22:00Z is outside the weather's times: demo waves "
+                       r"\+ currents, hs_m, current_u_ms, current_v_ms: no data for 2024-12-31T22:00Z -> 2025-01-01T00:00Z"):
+        check_route_coverage(ds, pd.Timestamp("2025-01-01T00:00+02:00"), inside)
+    with pytest.raises(WeatherCoverageError, match=r"^start \(39.9000, 2.1000\) is outside the weather grid: demo waves \+ "
+                       r"currents, hs_m, current_u_ms, current_v_ms: bbox lon 2.1..3.4, lat 39.9..40.9 is not covered"):
+        check_route_coverage(ds, pd.Timestamp("2025-01-01T03:00Z"), (("start", (39.9, 2.1)), ("goal", (40.9, 3.4))))
+    # a variable present but missing over every sea cell at the departure is no data either
+    ds["current_u_ms"][1] = np.nan
+    with pytest.raises(WeatherCoverageError, match=r"demo waves \+ currents, current_u_ms: no data at 1 time step\(s\): "
+                       r"2025-01-01T03:00Z -> 2025-01-01T03:00Z"):
+        check_route_coverage(ds, pd.Timestamp("2025-01-01T03:00Z"), inside)
 
 
 def lake_mask(grid):

@@ -64,7 +64,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Compute the time-optimal route (raw grid and smoothed) and the minimum-distance route.
 
-        The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time).
+        The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time); a route that arrives after the last weather time (whose last field is then held) also has weather_held_after_h; "notes" lists what the table prints as note: lines (empty when there is nothing to say).
 
         With --safety soft|hard two more routes respect the vessel's limits (safe_optimal, safe_optimal_smoothed), every route reports hours_over_limits (operator + IMO rules at its own ETAs), hours_by_rule and unsafe_cell_h, and a "safety" object says which mode ran (hard falls back to soft when no route keeps within the limits).
         """  # noqa: E501 (typer keeps line breaks in --help)
@@ -118,7 +118,9 @@ def register(app: typer.Typer) -> None:
                 from routing.errors import WeatherCoverageError
 
                 raise WeatherCoverageError(f"weather file(s) not found: {', '.join(missing)}")
-            field, _meta = load_weather([str(f) for f in files])
+            field, _meta = load_weather(
+                [str(f) for f in files], depart_utc=t, points=() if ignore_land else (("start", start), ("goal", goal))
+            )
         spacing = mesh_deg if mesh_deg is not None else (mesh_nmi / 60.0 if mesh_nmi is not None else None)
         req = RouteRequest(
             start, goal, t, ship, spacing_deg=spacing, bbox=box, edges=edges, ignore_land=ignore_land,
@@ -126,17 +128,28 @@ def register(app: typer.Typer) -> None:
         )  # fmt: skip
         plan = plan_routes(req, field, safety=safety, vessel=ship_vessel, limits=limits, penalty_per_h=safety_penalty)
         names = ROUTE_NAMES + (SAFE_ROUTE_NAMES if safety != "none" else ())
+        notes = []
         for what, key in (("start", "start_snap_nmi"), ("goal", "goal_snap_nmi")):
             moved = plan.routes["optimal"].properties.get(key, 0.0)
             if moved > 0.5 * plan.mesh.grid.dlat_deg * 60.0:
-                typer.echo(f"note: {what} moved {moved:.2f} nmi to the nearest sea node", err=True)
+                notes.append(f"{what} moved {moved:.2f} nmi to the nearest sea node")
+                typer.echo(f"note: {notes[-1]}", err=True)
+        held = {name: plan.routes[name].properties.get("weather_held_after_h") for name in names}
+        held = {name: h for name, h in held.items() if h}
+        if held:
+            notes.append("the weather ends before arrival; its last field was held for the last "
+                         + ", ".join(f"{h:.2f} h of {name}" for name, h in held.items()))
         if out is not None:
             from dashboards.exports import write_routes
 
             written = write_routes([plan.routes[name] for name in names], out)
             typer.echo(f"wrote {', '.join(map(str, written))}", err=True)
         if json_out:
-            emit_json(plan.to_dict())
+            data = plan.to_dict()
+            for name, h in held.items():
+                data[name]["weather_held_after_h"] = h
+            data["notes"] = notes  # what the table prints as note: lines (empty: nothing to say)
+            emit_json(data)
             return
         typer.echo(f"great circle {plan.great_circle_nmi:.2f} nmi; mesh {plan.mesh.grid.ny} x {plan.mesh.grid.nx} "
                    f"({plan.mesh.grid.dlat_deg * 60:.3g} nmi, {plan.mesh.edges} edges), vessel {ship_vessel.name}, "
@@ -155,8 +168,5 @@ def register(app: typer.Typer) -> None:
             if over and "hours_over_limits" in r.properties:
                 line += f"{r.properties['hours_over_limits']:>15.2f}"
             typer.echo(line)
-        held = {name: plan.routes[name].properties.get("weather_held_after_h") for name in names}
-        held = {name: h for name, h in held.items() if h}
         if held:
-            typer.echo("note: the weather ends before arrival; its last field was held for the last "
-                       + ", ".join(f"{h:.2f} h of {name}" for name, h in held.items()))
+            typer.echo(f"note: {notes[-1]}")
