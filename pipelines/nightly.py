@@ -181,8 +181,11 @@ def _require_out_dir(path) -> None:
 
 def preflight(params: NightlyParams) -> None:
     """What a person can fix before a night starts, checked before Prefect starts: the
-    workspace and the weather paths exist, the planned voyages file reads and the report folder
-    can be created (the flow's steps run the same checks)."""
+    workspace and the weather paths exist, the planned voyages file reads, the report folder
+    can be created, the workspace has the lanes asked for and something can be sailed (every
+    planned voyage failing is one error with their reasons). The flow's steps run the same
+    checks; a transient failure here (a workspace locked by another process) is left to the
+    flow's I/O task, which retries it."""
     _require_workspace(params.db)
     _require_weather_files(params.weather)
     if params.voyages:
@@ -191,6 +194,12 @@ def preflight(params: NightlyParams) -> None:
         for out in (params.out, params.out_root):
             if out:
                 _require_out_dir(out)
+    try:
+        load_paths(params.db, voyages=params.voyages, lanes=params.lanes, vessel=params.vessel)
+    except StormlaneError:
+        raise
+    except Exception:  # noqa: BLE001 - transient (locked workspace ...): the flow retries it
+        log.debug("preflight: lanes not checked", exc_info=True)
 
 
 class _UserErrorsWithoutTraceback(logging.Filter):
@@ -200,20 +209,84 @@ class _UserErrorsWithoutTraceback(logging.Filter):
         return True
 
 
+def _workspace_locked(err: BaseException | None) -> bool:
+    try:
+        import duckdb
+    except ImportError:  # pragma: no cover - duckdb is a dependency
+        return False
+    return isinstance(err, duckdb.IOException) and "Could not set lock" in str(err)
+
+
+def is_user_error(err: BaseException | None) -> bool:
+    """An error the CLI reports as one ``error:`` line: a :class:`StormlaneError` (bad input,
+    missing coverage ...) or a workspace locked by another process."""
+    return isinstance(err, StormlaneError) or _workspace_locked(err)
+
+
+#: Loggers of Prefect's flow and task runs (their records reach the console through the root logger).
+RUN_LOGGERS = ("prefect.flow_runs", "prefect.task_runs")
+
+
+class _HoldRunErrors(logging.Filter):
+    """On a console handler: keep the flow and task runs' ERROR records back instead of printing them."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.held: list[logging.LogRecord] = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno >= logging.ERROR and record.name.startswith(RUN_LOGGERS):
+            self.held.append(record)
+            return False
+        return True
+
+
+def prefect_console_handlers() -> list[logging.Handler]:
+    """Prefect's console handlers (on the root logger, set up when Prefect is imported)."""
+    from prefect.logging.configuration import ensure_logging_setup
+    from prefect.logging.handlers import PrefectConsoleHandler
+
+    ensure_logging_setup()  # what `import prefect.main` does first (later calls are incremental: same handlers)
+    return [h for h in logging.getLogger().handlers if isinstance(h, PrefectConsoleHandler)]
+
+
 @contextlib.contextmanager
-def user_errors_without_traceback():
-    """While the CLI runs a night: Prefect logs a failed run's exception with its traceback; for
-    a :class:`StormlaneError` (bad input, missing coverage) the one-line message is what the
-    user needs, so the traceback is dropped (other exceptions keep theirs)."""
-    loggers = [logging.getLogger(n) for n in ("prefect.flow_runs", "prefect.task_runs")]
+def user_errors_one_line(hold_console: bool = True, handlers: list[logging.Handler] | None = None):
+    """While the CLI runs a night, a user error ends it with the CLI's one ``error:`` line only.
+
+    Prefect logs a failed run's exception with its traceback: for a :class:`StormlaneError`
+    the traceback is dropped (other exceptions keep theirs). With ``hold_console`` the flow and
+    task runs' ERROR lines ("Task run failed with exception ...", "Finished in state Failed",
+    "Flow run ... Encountered exception") are also kept off the console (``handlers``, default
+    Prefect's console handlers) until the run ends: dropped when it ended with a user error
+    (:func:`is_user_error`, whose message the CLI prints), printed then otherwise (an unexpected
+    crash, or a lane that failed in a night that completed). Prefect's API log handler still
+    receives every record.
+    """
+    loggers = [logging.getLogger(n) for n in RUN_LOGGERS]
     f = _UserErrorsWithoutTraceback()
     for lg in loggers:
         lg.addFilter(f)
+    holders = []
+    if hold_console:
+        for h in prefect_console_handlers() if handlers is None else handlers:
+            holder = _HoldRunErrors()
+            h.addFilter(holder)
+            holders.append((h, holder))
+    error = None
     try:
         yield
+    except BaseException as err:
+        error = err
+        raise
     finally:
         for lg in loggers:
             lg.removeFilter(f)
+        for h, holder in holders:
+            h.removeFilter(holder)
+            if not is_user_error(error):
+                for record in holder.held:
+                    h.handle(record)
 
 
 def parse_utc(text, what: str = "time") -> pd.Timestamp:
@@ -412,7 +485,8 @@ def load_paths(db, *, voyages: str | None = None, lanes: list[str] | None = None
 
     Without ``voyages``: every lane (or the ``lanes`` listed) with the window's departures.
     With ``voyages`` (a CSV, :func:`read_planned_voyages`): each planned voyage on the busiest
-    lane between its ports (a voyage whose ports have no lane is kept and fails with the reason).
+    lane between its ports (a voyage whose ports have no lane is kept and fails with the reason,
+    naming the file and line; when every one fails, :class:`NightlyError` lists the reasons).
     """
     from pipelines.storage import open_workspace
     from pipelines.storage.ais import read_vessels
@@ -453,7 +527,7 @@ def load_paths(db, *, voyages: str | None = None, lanes: list[str] | None = None
         else:
             cand = all_lanes[(all_lanes["origin_port_id"] == o) & (all_lanes["dest_port_id"] == d)]
             if cand.empty:
-                error = f"no lane from {_port_label(ports, o)} to {_port_label(ports, d)} in the workspace"
+                error = f"{voyages}: line {r['line']}: no lane from {_port_label(ports, o)} to {_port_label(ports, d)} in the workspace"
             else:
                 lane_id = str(cand.sort_values(["n_voyages", "lane_id"], ascending=[False, True]).iloc[0]["lane_id"])
         out.append(NightPath(
@@ -463,6 +537,8 @@ def load_paths(db, *, voyages: str | None = None, lanes: list[str] | None = None
             centroids=by_lane.get(lane_id, pd.DataFrame(columns=["seq", "lat_deg", "lon_deg", "speed_kn"])),
             vessel_profile=vessel or r["vessel"], departures=[r["depart_utc"]], error=error,
         ))
+    if all(p.error for p in out):
+        raise NightlyError(nothing_to_sail(out))
     return out
 
 
@@ -513,8 +589,19 @@ def weather_span_needed(paths: list[NightPath], departures: pd.DatetimeIndex) ->
         starts.append(min(deps))
         ends.append(max(deps) + pd.Timedelta(hours=p.hours))
     if not starts:
-        raise NightlyError("nothing to check tonight: no lane or planned voyage can be sailed")
+        raise NightlyError(nothing_to_sail(paths))
     return min(starts), max(ends)
+
+
+def nothing_to_sail(paths: list[NightPath], show: int = 3) -> str:
+    """The error of a night where no lane or planned voyage can be sailed: how many failed and
+    the first ``show`` reasons (a planned voyage's reason names its file and line)."""
+    reasons = [p.error for p in paths if p.error]
+    msg = "nothing to check tonight: no lane or planned voyage can be sailed"
+    if not reasons:
+        return msg
+    more = f"; ... and {len(reasons) - show} more" if len(reasons) > show else ""
+    return f"{msg} ({len(reasons)} of {len(paths)} failed): " + "; ".join(reasons[:show]) + more
 
 
 def fetch_requests(paths: list[NightPath], departures: pd.DatetimeIndex, pad_deg: float = WEATHER_PAD_DEG) -> list:

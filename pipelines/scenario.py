@@ -279,12 +279,13 @@ def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | 
     """
     if int(seed) < 0:
         raise ScenarioConfigError(f"--seed {seed}: the seed must be a non-negative integer")
+    from pipelines.times import utc_or_none
+
+    start_ts = utc_or_none(start) if start is not None else DEFAULT_START_UTC
+    if start_ts is None:
+        raise ScenarioConfigError(f"--start {start!r} is not an ISO 8601 time")
     out_dir = make_out_dir(out_dir)
     spec = load_scenario_spec(config, ports)
-    try:
-        start_ts = pd.Timestamp(start) if start is not None else DEFAULT_START_UTC
-    except ValueError:
-        raise ScenarioConfigError(f"--start {start!r} is not an ISO 8601 time") from None
     st = ScenarioSettings(seed=int(seed), start_utc=start_ts, days=float(days), **settings)
     scenario = generate_scenario(spec, st)
     truth = describe(scenario)

@@ -23,6 +23,15 @@ def _quiet_prefect(console_info: bool = True) -> None:
         os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
 
 
+def _prefect_console_verbose() -> bool:
+    """PREFECT_LOGGING_LEVEL asks for Prefect's INFO or DEBUG lines on the console."""
+    import logging
+
+    value = os.environ.get("PREFECT_LOGGING_LEVEL", "").strip().upper()
+    level = int(value) if value.isdigit() else logging.getLevelName(value) if value else logging.WARNING
+    return isinstance(level, int) and level < logging.WARNING
+
+
 def register(app: typer.Typer) -> None:
     @app.command("nightly")
     def nightly(
@@ -49,8 +58,8 @@ def register(app: typer.Typer) -> None:
         Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes), report, timings_s and the top-ranked lane-departures.
         """  # noqa: E501 (typer keeps line breaks in --help)
         _quiet_prefect(console_info=False)
-        from pipelines.nightly import (NightlyParams, flow_with_runner, make_task_runner, preflight,
-                                       reroute_progress, user_errors_without_traceback)
+        from pipelines.nightly import (NightlyParams, flow_with_runner, make_task_runner, preflight, reroute_progress,
+                                       user_errors_one_line)
 
         source = "fetch" if fetch else ("files" if weather else "auto")
         params = NightlyParams.checked(
@@ -60,7 +69,10 @@ def register(app: typer.Typer) -> None:
         )
         make_task_runner(task_runner)  # validate before starting anything
         preflight(params)
-        with progress("rerouting lanes") as advance, user_errors_without_traceback():
+        # a user error inside the flow (e.g. weather not covering the window) ends with the one
+        # `error:` line: Prefect's run ERROR lines stay off the console unless PREFECT_LOGGING_LEVEL
+        # asks for Prefect's INFO/DEBUG lines
+        with user_errors_one_line(hold_console=not _prefect_console_verbose()), progress("rerouting lanes") as advance:
             with reroute_progress(lambda done, total: advance(1 if done else 0, total=total)):
                 summary = flow_with_runner(task_runner)(**params.model_dump())
         if json_out:

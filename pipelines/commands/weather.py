@@ -55,8 +55,13 @@ def fetch(
 
     Credentials come from the clients' own configuration (`copernicusmarine login`, ~/.cdsapirc).
     """
+    from pipelines.times import utc_or_none
+    from weather.errors import WeatherError
     from weather.io.cache import DownloadCache
 
+    for option, text in (("--start", start), ("--end", end)):
+        if utc_or_none(text) is None:
+            raise WeatherError(f"{option} {text!r} is not an ISO 8601 time")
     box = _bbox(bbox)
     store = DownloadCache(cache) if cache else DownloadCache()
     if product.startswith("era5"):
