@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from pipelines.audit import AuditError, lane_land_check, weather_from_workspace
+from pipelines.times import utc_or_none
 from thresholds.errors import StormlaneError
 
 #: Vessel profile of a deviation when none is given: the seed paper studies container ships
@@ -143,11 +144,9 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     db = Path(db)
     if not db.exists():
         raise DeviationInputError(f"workspace {db} does not exist (run `stormlane demo` or `stormlane lanes` first)")
-    try:
-        t0 = pd.Timestamp(depart)
-    except (ValueError, TypeError):
-        raise DeviationInputError(f"--depart {depart!r} is not an ISO 8601 time") from None
-    t0 = t0.tz_localize("UTC") if t0.tzinfo is None else t0.tz_convert("UTC")
+    t0 = utc_or_none(depart)
+    if t0 is None:
+        raise DeviationInputError(f"--depart {depart!r} is not an ISO 8601 time")
     with open_workspace(db) as ws:
         lanes = read_lanes(ws)
         lane = read_lane_centroids(ws, str(lane_id))

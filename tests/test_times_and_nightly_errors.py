@@ -109,6 +109,10 @@ def test_time_options_reject_day_or_month_first_dates(tmp_path, empty_workspace,
     line = _one_error_line(capsys, "scenario", "--out", str(tmp_path / "s"), "--start", "01/02/2025")
     assert line == "error: --start '01/02/2025' is not an ISO 8601 time"
     assert not (tmp_path / "cache").exists() or not any((tmp_path / "cache").iterdir())
+    line = _one_error_line(capsys, "route", "--from", "39.2,2.9", "--to", "41.5,2.8", "--depart", "01/02/2025", "--json")
+    assert "'01/02/2025' is not an ISO 8601 time" in line
+    line = _one_error_line(capsys, "deviate", "--db", db, "--lane", "1-2-1", "--depart", "14/01/2025", "--json")
+    assert line == "error: --depart '14/01/2025' is not an ISO 8601 time"
 
 
 def test_scenario_start_is_utc_whatever_its_offset(tmp_path):

@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import JsonOption, emit_json
+from pipelines.times import utc_or_none
 
 ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
 SAFE_ROUTE_NAMES = ("safe_optimal", "safe_optimal_smoothed")
@@ -70,8 +71,6 @@ def register(app: typer.Typer) -> None:
         """  # noqa: E501 (typer keeps line breaks in --help)
         import logging
 
-        import pandas as pd
-
         from pipelines.config import load_vessel
         from routing.astar import ShipModel
         from routing.planner import RouteRequest, plan_routes
@@ -95,11 +94,9 @@ def register(app: typer.Typer) -> None:
         start = _latlon(from_, "--from")
         goal = _latlon(to, "--to")
         box = _floats(bbox, 4, "LONMIN,LATMIN,LONMAX,LATMAX", "--bbox") if bbox else None
-        try:
-            t = pd.Timestamp(depart)
-        except (ValueError, TypeError):
-            raise typer.BadParameter(f"{depart!r} is not an ISO 8601 time", param_hint="--depart") from None
-        t = t.tz_localize("UTC") if t.tz is None else t.tz_convert("UTC")
+        t = utc_or_none(depart)
+        if t is None:
+            raise typer.BadParameter(f"{depart!r} is not an ISO 8601 time", param_hint="--depart")
 
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
         ship_vessel = load_vessel(vessel)
