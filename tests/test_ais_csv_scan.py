@@ -130,3 +130,19 @@ def test_crlf_lines_and_threads_agree():
     assert data[one.starts[5]:one.ends[5]].decode() == rows[5]
     # rows with the same static text share a hash, others do not
     assert one.shash[0] == one.shash[3] != one.shash[1]
+
+
+@pytest.mark.parametrize("n_threads", [1, 2, 3])
+def test_ranges_fill_one_allocation_with_or_without_a_final_newline(n_threads):
+    # The ranges count their lines first and write into one array: every line, blank ones and
+    # a last line without a newline included, must come out once and in file order.
+    lines = [f"01/01/2025 00:00:{i % 60:02d},2190000{i % 90 + 10:02d},{50 + i / 1000:.3f},,N{i}" for i in range(3000)]
+    lines[1500] = ""
+    for data in ("\n".join(lines) + "\n", "\n".join(lines)):
+        buf = np.frombuffer(data.encode(), dtype=np.uint8)
+        r = scan_csv(buf, INDEX, 5, DMA_T, NAV_STATUS_WORDS, ("name",), n_threads=n_threads)
+        assert r.n_lines == len(lines)
+        got = [data[a:b] for a, b in zip(r.starts.tolist(), r.ends.tolist())]
+        assert got == lines
+        assert (r.kind == KIND_ROW).sum() == len(lines) - 1
+        assert r.vals[r.fields.index("lat_deg")][r.kind == KIND_ROW][-1] == pytest.approx(52.999)
