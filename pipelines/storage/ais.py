@@ -607,7 +607,7 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
         ix.close()
         log.info("%s: %d of %d lines not canonical; leaving the scan path", path, len(special), ix.n_lines)
         return None
-    tbl, fixes = _scan_table(con, r, is_row)
+    tbl = _scan_table(con, r, is_row)
     del r, res["scan"]
     times["arrow"] = time.perf_counter() - t0 - times["scan"]
     t1 = time.perf_counter()
@@ -629,7 +629,7 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     blank = ix.blank_lines[ix.blank_lines > 1]
     times["total"] = time.perf_counter() - t0
     log.info("%s: scan stage %s", path, {k: round(v, 2) for k, v in times.items()})
-    return {"ignored": int(len(blank)), "python_fallback": False, "staging": "scan", "line_index": ix, "fixes": fixes,
+    return {"ignored": int(len(blank)), "python_fallback": False, "staging": "scan", "line_index": ix,
             "exact_lines": int(len(special)), "line_mapping": "scan", "timings": times}
 
 
@@ -638,11 +638,9 @@ SCAN_BATCH_ROWS = 122_880
 
 
 def _scan_table(con, r, is_row: np.ndarray):
-    """The Arrow table of the canonical rows of a scan (the columns of ``ais_fast``), and the
-    fixes among them that pass rules 1-6 as :func:`_first_load_fetch` returns them (taken from
-    the scan's arrays, which saves fetching them back from DuckDB). (A table of every line
-    filtered by a view was measured slower: DuckDB filters the Arrow scan on every read of the
-    stage.)
+    """The Arrow table of the canonical rows of a scan (the columns of ``ais_fast``). (A table
+    of every line filtered by a view was measured slower: DuckDB filters the Arrow scan on
+    every read of the stage.)
 
     ``reason0`` (rules 1-6): a row that clearly passes every check of :func:`_reason_case`'s
     clean-row conjunction (tested in numpy with no value near a bound: exact integer and float
@@ -680,11 +678,11 @@ def _scan_table(con, r, is_row: np.ndarray):
                 clean &= ok(vals[name])
             elif name in ("lat_deg", "lon_deg"):
                 clean[:] = False
+    del vals
     tbl = pa.table(cols)
     del cols
     other = np.flatnonzero(~clean)
     reason = pa.nulls(n, pa.string())
-    ok = clean
     if len(other):
         con.register("ais_scan_other", tbl.take(pa.array(other)))
         try:
@@ -700,20 +698,10 @@ def _scan_table(con, r, is_row: np.ndarray):
             idx[other] = [code_of[x] if x is not None else -1 for x in got]
             reason = pa.DictionaryArray.from_arrays(pa.array(idx, mask=idx < 0), pa.array(codes, pa.string())) \
                 .cast(pa.string())
-        ok = clean.copy()
-        ok[other] = [x is None for x in got]
-    lon = vals.get("lon_deg")
-    fixes = None
-    if "lat_deg" in vals and lon is not None:
-        keep = np.flatnonzero(ok)
-        lon = lon[keep]
-        fixes = {"line": rows[keep] + 1, "mmsi": mm[keep], "t_us": t_us[keep], "lat": vals["lat_deg"][keep],
-                 "lon": np.where(np.abs(lon - 180.0) <= _TOL, -180.0, lon)}  # _NORM["lon_deg"]
-    del vals
     # In record batches of DuckDB's row-group size: DuckDB scans a one-chunk Arrow table on one
     # thread, and every read of the stage (the fixes to numpy, the insert, vessels) with it.
     tbl = tbl.append_column("reason0", reason)
-    return pa.Table.from_batches(tbl.to_batches(max_chunksize=SCAN_BATCH_ROWS), schema=tbl.schema), fixes
+    return pa.Table.from_batches(tbl.to_batches(max_chunksize=SCAN_BATCH_ROWS), schema=tbl.schema)
 
 
 def _spot_check_lines(con, tbl, ix, header, spec, index, n_fields: int, n: int = 64) -> bool:
@@ -1235,24 +1223,13 @@ def _track_order(mmsi: np.ndarray, t_us: np.ndarray, line: np.ndarray) -> np.nda
     return base[order] if base is not None else order
 
 
-def _first_load_fetch(con, scanned: dict | None = None) -> dict:
-    """The fixes that passed rules 1-6, as numpy arrays (line, mmsi, t_us, lat, lon).
-
-    ``scanned``: those of the scan stage's canonical rows (:func:`_scan_table`), sorted by
-    line; then only the lines typed from their text (``ais_exact``) are fetched, and merged in
-    by line."""
-    source = f"ais_stage WHERE {_OK}" if scanned is None else f"ais_exact WHERE {_OK} ORDER BY line"
+def _first_load_fetch(con) -> dict:
+    """The fixes that passed rules 1-6, as numpy arrays (line, mmsi, t_us, lat, lon)."""
     d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, {_NORM['lon_deg']} AS lon_deg "
-                    f"FROM {source}").fetchnumpy()
-    d = {"line": np.asarray(d["line"], dtype=np.int64), "mmsi": np.asarray(d["mmsi"], dtype=np.int64),
-         "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat_deg"], dtype=float),
-         "lon": np.asarray(d["lon_deg"], dtype=float)}
-    if scanned is None:
-        return d
-    if len(d["line"]) == 0:
-        return scanned
-    at = np.searchsorted(scanned["line"], d["line"])
-    return {k: np.insert(scanned[k], at, d[k]) for k in d}
+                    f"FROM ais_stage WHERE {_OK}").fetchnumpy()
+    return {"line": np.asarray(d["line"], dtype=np.int64), "mmsi": np.asarray(d["mmsi"], dtype=np.int64),
+            "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat_deg"], dtype=float),
+            "lon": np.asarray(d["lon_deg"], dtype=float)}
 
 
 def _first_load_kernel(d: dict, max_speed_kn: float) -> dict:
@@ -1311,14 +1288,14 @@ def _first_load_finish(con, k: dict) -> tuple[np.ndarray, list]:
     return np.concatenate(out_lines), out_reasons
 
 
-def _first_load_outcomes(con, max_speed_kn: float, scanned: dict | None = None) -> tuple[np.ndarray, list]:
+def _first_load_outcomes(con, max_speed_kn: float) -> tuple[np.ndarray, list]:
     """Rules 7-8 for a file whose (mmsi, time) keys meet no stored position: (lines, reasons)
     of the duplicates and speed jumps among the rows that passed rules 1-6.
 
     The accepted fixes come to numpy once, sorted by (track, time, line); a row with the key of
     the row before it duplicates the first row of its run (values compared on those few rows
     only), and the kept fixes go through :func:`lanes.clean.speed_jump_mask`."""
-    return _first_load_finish(con, _first_load_kernel(_first_load_fetch(con, scanned), max_speed_kn))
+    return _first_load_finish(con, _first_load_kernel(_first_load_fetch(con), max_speed_kn))
 
 
 def _line_index(con, meta: dict):
@@ -1387,7 +1364,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             # Arrow-backed stage scan and the kernel's Python parts contend for the GIL, and
             # deleting the flagged rows after the insert makes the commit far costlier.)
             con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
-            lines, reasons = _first_load_outcomes(con, float(max_speed_kn), meta.pop("fixes", None))
+            lines, reasons = _first_load_outcomes(con, float(max_speed_kn))
             out_lines.append(lines)
             out_reasons += reasons
         all_lines = np.concatenate(out_lines) if out_lines else np.empty(0, dtype=np.int64)
