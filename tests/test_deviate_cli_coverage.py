@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.cli import main
+from cli_runner import run_cli as run
 
 MED = ((40.2, 2.4), (41.0, 3.6))
 NY = ((40.65, -74.05), (40.45, -73.6))
@@ -26,17 +26,6 @@ LAT = np.round(np.arange(39.5, 41.81, 0.1), 6)
 LON = np.round(np.arange(1.5, 4.51, 0.1), 6)
 TIMES = pd.date_range("2025-01-14T18:00", "2025-01-15T14:00", freq="1h")
 PRODUCT = "CMEMS waves"  # what the reader names a file holding VHM0
-
-
-def run(capsys, *args):
-    """Run the CLI in-process; returns (exit code, stdout, stderr)."""
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def _hs(nan_where=None) -> np.ndarray:

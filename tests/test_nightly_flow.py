@@ -17,6 +17,7 @@ import pandas as pd
 import pytest
 
 from nightly_world import NOW, build_world
+from cli_runner import run_cli as _cli
 
 R_NMI = 6371008.8 / 1852.0  # mean Earth radius (IUGG) in nautical miles
 
@@ -207,7 +208,6 @@ def test_report_and_exports_are_written(world, night):
     assert np.allclose(back.lat_deg, stored.lat_deg, atol=1e-6) and np.allclose(back.lon_deg, stored.lon_deg, atol=1e-6)
 
 
-
 @pytest.mark.browser
 def test_the_nights_report_opens_clean_in_a_headless_browser(world, night):
     """Issue 8: the demo night's own report (maps, plots, the lanes-at-risk table), opened from
@@ -297,19 +297,6 @@ def test_a_failing_lane_is_marked_failed_and_the_night_completes(world, night, t
     assert "failed" in html and str(broken) in html
     assert res["adverse"] == (good["status"] == "adverse").sum() + (bad["status"] == "adverse").sum()
     assert math.isfinite(res["timings_s"]["reroute_s"])
-
-
-def _cli(capsys, *args):
-    """Run ``stormlane`` in-process; returns (exit code, stdout, stderr)."""
-    from pipelines.cli import main
-
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def test_cli_planned_voyages_json_contract(world, night, tmp_path, capsys):

@@ -8,7 +8,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipelines.cli import main
 from pipelines.routing_weather import field_from_dataset
 from routing.astar import ShipModel
 from routing.errors import NoRouteError, WeatherCoverageError
@@ -16,19 +15,9 @@ from routing.field import WeatherField
 from routing.mesh import LandMask
 from routing.planner import RouteRequest, plan_routes
 from thresholds.geodesy import haversine_nmi
+from cli_runner import run_cli as run
 
 T0 = pd.Timestamp("2020-01-20T00:00Z")
-
-
-def run(capsys, *args):
-    """Run the CLI in-process; returns (exit code, stdout, stderr)."""
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def test_cli_json_contract_calm_sea(capsys, tmp_path):

@@ -20,6 +20,7 @@ import pandas as pd
 import pytest
 
 from nightly_world import NOW, build_world
+from cli_runner import run_cli as _cli
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -56,18 +57,6 @@ def test_anything_else_is_not_a_time(text):
 
 
 # --- every command's time option ---------------------------------------------------------------------
-
-
-def _cli(capsys, *argv):
-    from pipelines.cli import main
-
-    try:
-        main(list(argv))
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def _one_error_line(capsys, *argv) -> str:
