@@ -176,7 +176,7 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
                 raise DeviationInputError(f"no weather in the workspace {db}: load some with `stormlane weather load PATH...` "
                                           "or pass --weather FILE...") from None
             label = weather_label(g["product"], grid=g["name"], source_files=g.get("source_files"))
-            check_departure_in_weather(t0, _utc(g["start_utc"]), _utc(g["end_utc"]), label)  # the grid's whole span
+            check_departure_in_weather(t0, utc_or_none(g["start_utc"]), utc_or_none(g["end_utc"]), label)  # the grid's whole span
             try:
                 ds, meta = weather_from_workspace(ws, t0, window_end)
             except AuditError as err:
@@ -219,8 +219,3 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         "note": "\n".join(notes) or None,
         "notes": notes,
     }
-
-
-def _utc(t) -> pd.Timestamp:
-    t = pd.Timestamp(t)
-    return t.tz_localize("UTC") if t.tzinfo is None else t.tz_convert("UTC")
