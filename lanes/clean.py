@@ -353,24 +353,39 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
         cuts = [s] + [int(i) + 1 for i in np.flatnonzero(brk[s:e - 1]) + s] + [e]
         segs = list(zip(cuts[:-1], cuts[1:]))
         pinned = [bool(fixed[a:b].any()) for a, b in segs]
-        order = sorted(range(len(segs)), key=lambda q: (not pinned[q], -(segs[q][1] - segs[q][0]), q))
-        accepted: list[int] = []
-        for q in order:
-            a, b = segs[q]
-            pos = bisect.bisect_left(accepted, q)
-            if pinned[q]:
-                accepted.insert(pos, q)
-                continue
-            ok = True
-            if pos > 0 and not linked(segs[accepted[pos - 1]][1] - 1, a):
-                ok = False
-            if ok and pos < len(accepted) and not linked(b - 1, segs[accepted[pos]][0]):
-                ok = False
-            if ok:
-                accepted.insert(pos, q)
-            else:
-                bad[a:b] = True
+        for q in rejected_segments([b - a for a, b in segs], pinned,
+                                   lambda p, q, segs=segs: linked(segs[p][1] - 1, segs[q][0])):
+            bad[segs[q][0]:segs[q][1]] = True
     return bad & ~fixed
+
+
+def rejected_segments(lengths, pinned, linked_seg) -> list[int]:
+    """The greedy step of :func:`speed_jump_mask` on one track cut into segments.
+
+    ``lengths[q]``: number of fixes of segment q (segments in time order); ``pinned[q]``: the
+    segment holds a fixed (stored) fix; ``linked_seg(p, q)`` (p < q): whether the last fix of
+    segment p and the first fix of segment q are linked. Segments are taken pinned first, then
+    largest first, earliest first on ties; one is accepted when it is linked to the nearest
+    accepted segment before it and after it. Returns the rejected segments, in the order they
+    were judged."""
+    order = sorted(range(len(lengths)), key=lambda q: (not pinned[q], -lengths[q], q))
+    accepted: list[int] = []
+    rejected: list[int] = []
+    for q in order:
+        pos = bisect.bisect_left(accepted, q)
+        if pinned[q]:
+            accepted.insert(pos, q)
+            continue
+        ok = True
+        if pos > 0 and not linked_seg(accepted[pos - 1], q):
+            ok = False
+        if ok and pos < len(accepted) and not linked_seg(q, accepted[pos]):
+            ok = False
+        if ok:
+            accepted.insert(pos, q)
+        else:
+            rejected.append(q)
+    return rejected
 
 
 def jump_context(new: pd.DataFrame, existing: pd.DataFrame) -> pd.DataFrame:

@@ -153,7 +153,8 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         if full is None:
             full = pool.submit(lambda: fingerprint(f.path) + suffix)
         meta = {"fingerprint": full, "quick_key": quick, "path": str(f.path), "format": f.format,
-                "size_bytes": f.size_bytes, "ignored": info["ignored"], "line_index": info.get("line_index")}
+                "size_bytes": f.size_bytes, "ignored": info["ignored"], "line_index": info.get("line_index"),
+                "scan_fixes": info.pop("scan_fixes", None)}
         counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit)
     except BaseException:
         store.discard_stage(ws)

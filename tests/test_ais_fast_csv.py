@@ -247,10 +247,10 @@ def test_scan_stage_spot_check_catches_a_wrong_value(tmp_path, monkeypatch):
     real = store._scan_table
 
     def corrupt(con, r, is_row):
-        tbl = real(con, r, is_row)
+        tbl, fixes = real(con, r, is_row)
         lat = tbl.column("lat_deg").combine_chunks()
         bad = pc.if_else(pa.array(np.arange(len(lat)) == 0), pa.scalar(1.5), lat)
-        return tbl.set_column(tbl.column_names.index("lat_deg"), "lat_deg", bad)
+        return tbl.set_column(tbl.column_names.index("lat_deg"), "lat_deg", bad), fixes
 
     monkeypatch.setattr(store, "_scan_table", corrupt)
     monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", 0)

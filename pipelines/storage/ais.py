@@ -607,7 +607,7 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
         ix.close()
         log.info("%s: %d of %d lines not canonical; leaving the scan path", path, len(special), ix.n_lines)
         return None
-    tbl = _scan_table(con, r, is_row)
+    tbl, fixes = _scan_table(con, r, is_row)
     del r, res["scan"]
     times["arrow"] = time.perf_counter() - t0 - times["scan"]
     t1 = time.perf_counter()
@@ -630,7 +630,7 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     times["total"] = time.perf_counter() - t0
     log.info("%s: scan stage %s", path, {k: round(v, 2) for k, v in times.items()})
     return {"ignored": int(len(blank)), "python_fallback": False, "staging": "scan", "line_index": ix,
-            "exact_lines": int(len(special)), "line_mapping": "scan", "timings": times}
+            "exact_lines": int(len(special)), "line_mapping": "scan", "timings": times, "scan_fixes": fixes}
 
 
 #: Rows per record batch of the scan's Arrow table (DuckDB's row group size).
@@ -638,9 +638,11 @@ SCAN_BATCH_ROWS = 122_880
 
 
 def _scan_table(con, r, is_row: np.ndarray):
-    """The Arrow table of the canonical rows of a scan (the columns of ``ais_fast``). (A table
-    of every line filtered by a view was measured slower: DuckDB filters the Arrow scan on
-    every read of the stage.)
+    """(table, fixes): the Arrow table of the canonical rows of a scan (the columns of
+    ``ais_fast``), and the same rows' ``line``, ``mmsi``, ``t_us``, ``lat``, ``lon`` as numpy
+    arrays (the table's own buffers) with ``ok`` = no ``reason0``, for the first-load kernel.
+    (A table of every line filtered by a view was measured slower: DuckDB filters the Arrow scan
+    on every read of the stage.)
 
     ``reason0`` (rules 1-6): a row that clearly passes every check of :func:`_reason_case`'s
     clean-row conjunction (tested in numpy with no value near a bound: exact integer and float
@@ -653,7 +655,8 @@ def _scan_table(con, r, is_row: np.ndarray):
     rows = np.flatnonzero(is_row)
     n = len(rows)
     mm, t_us = r.mmsi[rows], r.t_us[rows]
-    cols = {"line": pa.array(rows + 1), "parse_error": pa.nulls(n, pa.string()), "mmsi": pa.array(mm, mask=mm < 0),
+    line = rows + 1
+    cols = {"line": pa.array(line), "parse_error": pa.nulls(n, pa.string()), "mmsi": pa.array(mm, mask=mm < 0),
             "time_utc": pa.array(t_us.view("datetime64[us]"), mask=t_us == NULL_TIME)}
     vals = {}
     for name in (*_NUM_FIELDS, "nav_status"):
@@ -678,6 +681,9 @@ def _scan_table(con, r, is_row: np.ndarray):
                 clean &= ok(vals[name])
             elif name in ("lat_deg", "lon_deg"):
                 clean[:] = False
+    del rows
+    fixes = {"line": line, "mmsi": mm, "t_us": t_us, "lat": vals.get("lat_deg", np.full(n, np.nan)),
+             "lon": vals.get("lon_deg", np.full(n, np.nan)), "ok": clean}
     del vals
     tbl = pa.table(cols)
     del cols
@@ -691,6 +697,7 @@ def _scan_table(con, r, is_row: np.ndarray):
             got = con.execute(sql, _used(sql, _params())).to_arrow_table().column("reason0").to_pylist()
         finally:
             con.unregister("ais_scan_other")
+        clean[other] = [x is None for x in got]
         codes = sorted({x for x in got if x is not None})
         if codes:
             code_of = {c: i for i, c in enumerate(codes)}
@@ -701,7 +708,7 @@ def _scan_table(con, r, is_row: np.ndarray):
     # In record batches of DuckDB's row-group size: DuckDB scans a one-chunk Arrow table on one
     # thread, and every read of the stage (the fixes to numpy, the insert, vessels) with it.
     tbl = tbl.append_column("reason0", reason)
-    return pa.Table.from_batches(tbl.to_batches(max_chunksize=SCAN_BATCH_ROWS), schema=tbl.schema)
+    return pa.Table.from_batches(tbl.to_batches(max_chunksize=SCAN_BATCH_ROWS), schema=tbl.schema), fixes
 
 
 def _spot_check_lines(con, tbl, ix, header, spec, index, n_fields: int, n: int = 64) -> bool:
@@ -1192,71 +1199,35 @@ def _track_sql(has_old: bool) -> str:
     """
 
 
-def _track_order(mmsi: np.ndarray, t_us: np.ndarray, line: np.ndarray) -> np.ndarray:
-    """Permutation sorting fixes by track, then time, then line.
-
-    Tracks are grouped by MMSI (in order of first appearance, which is all the duplicate and
-    jump rules need). AIS files are mostly in time order: a stable radix sort of the track codes
-    (numpy sorts 16-bit keys by radix) then keeps every track in file order, and when that order
-    is already by time (then line) nothing else is needed. Otherwise one stable sort of a packed
-    64-bit (track, time) key when it fits, else a lexicographic sort."""
-    n = len(mmsi)
-    base = None
-    if n > 1 and not (line[1:] > line[:-1]).all():
-        base = np.argsort(line, kind="stable")
-        mmsi, t_us = mmsi[base], t_us[base]
-    codes, uniq = pd.factorize(mmsi)
-    order = None
-    if n and len(uniq) <= (1 << 16):
-        order = np.argsort(codes.astype(np.uint16), kind="stable")
-        c, t = codes[order], t_us[order]
-        if not ((c[1:] != c[:-1]) | (t[1:] >= t[:-1])).all():
-            order = None  # a track is not in time order
-        del c, t
-    if order is None:
-        t_rel = t_us - t_us.min() if n else t_us
-        bits_t = int(t_rel.max()).bit_length() if n else 0
-        if bits_t + max(len(uniq), 1).bit_length() <= 62:
-            order = np.argsort((codes.astype(np.int64) << bits_t) | t_rel, kind="stable")
-        else:
-            order = np.lexsort((t_us, codes))
-    return base[order] if base is not None else order
-
-
 def _first_load_fetch(con) -> dict:
-    """The fixes that passed rules 1-6, as numpy arrays (line, mmsi, t_us, lat, lon)."""
-    d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, {_NORM['lon_deg']} AS lon_deg "
+    """The fixes that passed rules 1-6, as numpy arrays (line, mmsi, t_us, lat, lon), by line."""
+    d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg "
                     f"FROM ais_stage WHERE {_OK}").fetchnumpy()
-    return {"line": np.asarray(d["line"], dtype=np.int64), "mmsi": np.asarray(d["mmsi"], dtype=np.int64),
-            "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat_deg"], dtype=float),
-            "lon": np.asarray(d["lon_deg"], dtype=float)}
+    out = {"line": np.asarray(d["line"], dtype=np.int64), "mmsi": np.asarray(d["mmsi"], dtype=np.int64),
+           "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat_deg"], dtype=float),
+           "lon": np.asarray(d["lon_deg"], dtype=float)}
+    line = out["line"]
+    if len(line) > 1 and not (line[1:] > line[:-1]).all():
+        order = np.argsort(line, kind="stable")
+        out = {k: v[order] for k, v in out.items()}
+    return out
 
 
-def _first_load_kernel(d: dict, max_speed_kn: float) -> dict:
-    """The numpy part of :func:`_first_load_outcomes` (no database: it runs in a thread while
-    DuckDB inserts): sorted by (track, time, line), the rows repeating the key of the row
-    before them (``dup``, with the first row of their run ``ref``) and the speed jumps among
-    the others (:func:`lanes.clean.speed_jump_mask`)."""
-    line, mmsi, t_us = d["line"], d["mmsi"], d["t_us"]
-    if len(line) == 0:
-        return {"dup": np.empty(0, np.int64), "ref": np.empty(0, np.int64), "jump": np.empty(0, np.int64)}
-    order = _track_order(mmsi, t_us, line)
-    line, mmsi, t_us = line[order], mmsi[order], t_us[order]
-    lat, lon = d["lat"][order], d["lon"][order]
-    del order
-    n = len(line)
-    same = np.zeros(n, dtype=bool)
-    same[1:] = (mmsi[1:] == mmsi[:-1]) & (t_us[1:] == t_us[:-1])
-    dup_lines = ref_lines = np.empty(0, np.int64)
-    if same.any():
-        first = np.maximum.accumulate(np.where(~same, np.arange(n), 0))
-        dup = np.flatnonzero(same)
-        dup_lines, ref_lines = line[dup], line[first[dup]]
-        keep = ~same
-        line, mmsi, t_us, lat, lon = line[keep], mmsi[keep], t_us[keep], lat[keep], lon[keep]
-    # Seconds as the pure path computes them (nanoseconds / 1e9), so float ties agree.
-    mask = C.speed_jump_mask(mmsi, (t_us * 1000) / 1e9, lat, lon, max_speed_kn)
-    return {"dup": dup_lines, "ref": ref_lines, "jump": line[mask]}
+def _no_fixes() -> dict:
+    e = np.empty(0)
+    return {"line": e.astype(np.int64), "mmsi": e.astype(np.int64), "t_us": e.astype(np.int64), "lat": e, "lon": e}
+
+
+def _first_load_kernel(scan: dict, exact: dict, max_speed_kn: float) -> dict:
+    """The numpy part of :func:`_first_load_outcomes` (no database): the rows repeating the
+    (mmsi, time) key of an earlier row (``dup``, with the first row of their run ``ref``) and
+    the speed jumps among the others (``jump``), by :func:`lanes._tracks.first_load_rules` over
+    ``scan``'s rows with ``ok`` and ``exact``'s rows, merged by line."""
+    from lanes._tracks import first_load_rules
+
+    if "ok" not in scan:
+        scan = {**scan, "ok": np.ones(len(scan["line"]), dtype=bool)}
+    return first_load_rules(scan, exact, max_speed_kn)
 
 
 def _first_load_finish(con, k: dict) -> tuple[np.ndarray, list]:
@@ -1288,14 +1259,21 @@ def _first_load_finish(con, k: dict) -> tuple[np.ndarray, list]:
     return np.concatenate(out_lines), out_reasons
 
 
-def _first_load_outcomes(con, max_speed_kn: float) -> tuple[np.ndarray, list]:
+def _first_load_outcomes(con, max_speed_kn: float, scan_fixes: dict | None = None) -> tuple[np.ndarray, list]:
     """Rules 7-8 for a file whose (mmsi, time) keys meet no stored position: (lines, reasons)
     of the duplicates and speed jumps among the rows that passed rules 1-6.
 
-    The accepted fixes come to numpy once, sorted by (track, time, line); a row with the key of
-    the row before it duplicates the first row of its run (values compared on those few rows
-    only), and the kept fixes go through :func:`lanes.clean.speed_jump_mask`."""
-    return _first_load_finish(con, _first_load_kernel(_first_load_fetch(con), max_speed_kn))
+    The accepted fixes are sorted by (track, time, line); a row with the key of the row before
+    it duplicates the first row of its run (values compared on those few rows only), and the
+    kept fixes go through :func:`lanes.clean.speed_jump_mask`. ``scan_fixes``: the scanned
+    rows of a scan-staged CSV file, read in place (only the lines typed from their text, in
+    ``ais_exact``, are fetched); else every fix is fetched from the stage."""
+    if scan_fixes is not None:
+        d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg AS lat, lon_deg AS lon "
+                        f"FROM ais_exact WHERE {_OK} ORDER BY line").fetchnumpy()
+        exact = {k: np.asarray(d[k], dtype=v.dtype) for k, v in _no_fixes().items()}
+        return _first_load_finish(con, _first_load_kernel(scan_fixes, exact, max_speed_kn))
+    return _first_load_finish(con, _first_load_kernel(_first_load_fetch(con), _no_fixes(), max_speed_kn))
 
 
 def _line_index(con, meta: dict):
@@ -1364,7 +1342,9 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             # Arrow-backed stage scan and the kernel's Python parts contend for the GIL, and
             # deleting the flagged rows after the insert makes the commit far costlier.)
             con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
-            lines, reasons = _first_load_outcomes(con, float(max_speed_kn))
+            scan_fixes = meta.pop("scan_fixes", None) if _stage_kind(con)[0] == "csvfast" else None
+            lines, reasons = _first_load_outcomes(con, float(max_speed_kn), scan_fixes)
+            del scan_fixes
             out_lines.append(lines)
             out_reasons += reasons
         all_lines = np.concatenate(out_lines) if out_lines else np.empty(0, dtype=np.int64)
