@@ -22,6 +22,14 @@ def _scan(lines, n_threads=1, time_formats=DMA_T, newline=b"\n"):
                     n_threads=n_threads), data
 
 
+def one_hash(text: str, field: int = 4) -> int:
+    """The scan's 64-bit FNV-1a hash of one static field (its bytes, then 256 + its column)."""
+    h = 14695981039346656037
+    for b in [*text.encode(), 256 + field]:
+        h = ((h ^ b) * 1099511628211) % 2**64
+    return h
+
+
 def _epoch_us(y, mo, d, h, mi, s):
     return calendar.timegm((y, mo, d, h, mi, s)) * 1_000_000
 
@@ -110,6 +118,7 @@ def test_mmsi_status_and_line_rules():
     ])
     assert r.kind.tolist() == [KIND_ROW, KIND_ROW, KIND_ROW, KIND_SPECIAL, KIND_SPECIAL, KIND_BLANK, KIND_SPECIAL,
                                KIND_SPECIAL, KIND_SPECIAL, KIND_ROW, KIND_SPECIAL]
+    assert r.line.tolist() == [1, 2, 3, 10]  # the rows' values are packed, with their line numbers
     assert r.mmsi[:3].tolist() == [219000001, -1, -1]
     nav = r.vals[r.fields.index("nav_status")]
     assert nav[0] == 5.0 and nav[1] == 5.0 and np.isnan(nav[2])
@@ -125,24 +134,30 @@ def test_crlf_lines_and_threads_agree():
     one, _ = _scan(rows, n_threads=1, newline=b"\r\n")
     two, data = _scan(rows, n_threads=2, newline=b"\r\n")
     assert (one.kind == KIND_ROW).all() and not one.stray_cr
-    for name in ("starts", "ends", "kind", "mmsi", "t_us", "vals", "shash"):
+    for name in ("starts", "ends", "kind", "line", "mmsi", "t_us", "vals", "shash"):
         assert np.array_equal(getattr(one, name), getattr(two, name), equal_nan=True), name
     assert data[one.starts[5]:one.ends[5]].decode() == rows[5]
     # rows with the same static text share a hash, others do not
     assert one.shash[0] == one.shash[3] != one.shash[1]
 
 
-@pytest.mark.parametrize("n_threads", [1, 2, 3])
-def test_ranges_fill_one_allocation_with_or_without_a_final_newline(n_threads):
-    # The ranges count their lines first and write into one array: every line, blank ones and
-    # a last line without a newline included, must come out once and in file order.
+@pytest.mark.parametrize("n_threads,chunk_lines", [(1, 1 << 20), (2, 1 << 20), (3, 1 << 20), (2, 7), (3, 100)])
+def test_ranges_fill_one_allocation_with_or_without_a_final_newline(n_threads, chunk_lines):
+    # The ranges write into regions of one allocation moved together afterwards (or, small
+    # chunks forced, into arrays of their own joined at the end): every line, blank ones and a
+    # last line without a newline included, must come out once and in file order, and every
+    # row once with its line number.
     lines = [f"01/01/2025 00:00:{i % 60:02d},2190000{i % 90 + 10:02d},{50 + i / 1000:.3f},,N{i}" for i in range(3000)]
     lines[1500] = ""
     for data in ("\n".join(lines) + "\n", "\n".join(lines)):
         buf = np.frombuffer(data.encode(), dtype=np.uint8)
-        r = scan_csv(buf, INDEX, 5, DMA_T, NAV_STATUS_WORDS, ("name",), n_threads=n_threads)
+        r = scan_csv(buf, INDEX, 5, DMA_T, NAV_STATUS_WORDS, ("name",), n_threads=n_threads,
+                     chunk_lines=chunk_lines)
         assert r.n_lines == len(lines)
         got = [data[a:b] for a, b in zip(r.starts.tolist(), r.ends.tolist())]
         assert got == lines
         assert (r.kind == KIND_ROW).sum() == len(lines) - 1
-        assert r.vals[r.fields.index("lat_deg")][r.kind == KIND_ROW][-1] == pytest.approx(52.999)
+        assert r.line.tolist() == [k + 1 for k in range(len(lines)) if k != 1500]
+        lat = r.vals[r.fields.index("lat_deg")]
+        assert lat.tolist() == [pytest.approx(50 + k / 1000) for k in range(len(lines)) if k != 1500]
+        assert r.shash.tolist() == [one_hash(f"N{k}") for k in range(len(lines)) if k != 1500]

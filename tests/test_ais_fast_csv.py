@@ -246,8 +246,8 @@ def test_scan_stage_spot_check_catches_a_wrong_value(tmp_path, monkeypatch):
 
     real = store._scan_table
 
-    def corrupt(con, r, is_row):
-        tbl, fixes = real(con, r, is_row)
+    def corrupt(con, r):
+        tbl, fixes = real(con, r)
         lat = tbl.column("lat_deg").combine_chunks()
         bad = pc.if_else(pa.array(np.arange(len(lat)) == 0), pa.scalar(1.5), lat)
         return tbl.set_column(tbl.column_names.index("lat_deg"), "lat_deg", bad), fixes

@@ -172,20 +172,25 @@ _CLS[44], _CLS[10], _CLS[34], _CLS[13] = 1, 2, 3, 4  # comma, newline, quote, ca
 
 @numba.njit(nogil=True, cache=True)
 def scan(buf, pos, end, n_fields, roles, slots, layout, words, woff, wcode,
-         starts, ends, kind, mmsi, t_us, vals, shash):
+         starts, ends, kind, line, mmsi, t_us, vals, shash):
     """Scan lines from ``pos`` (a line start) until ``end`` or until the outputs are full, in
-    one pass over the bytes. Returns (lines written, position reached)."""
+    one pass over the bytes. Per line: ``starts``, ``ends``, ``kind``; per row (a line of kind
+    :data:`KIND_ROW`, packed): ``line`` (0-based line index of this call), ``mmsi``, ``t_us``,
+    ``vals``, ``shash``. Each row's values are written to the next free row slot while its line
+    is parsed; a line found special leaves the slot to the next one. Returns (lines written,
+    rows written, position reached)."""
     cap = len(starts)
     nvals = vals.shape[0]
     prime = np.uint64(1099511628211)
     n = 0
+    nr = 0
     while pos < end and n < cap:
         mm = np.int64(-1)
         tt = NULL_TIME
         h = np.uint64(14695981039346656037)
         special = False
         for v in range(nvals):
-            vals[v, n] = np.nan
+            vals[v, nr] = np.nan
         f = 0
         fs = pos
         last_cr = -2
@@ -228,7 +233,7 @@ def scan(buf, pos, end, n_fields, roles, slots, layout, words, woff, wcode,
                                 special = True
                         else:
                             special = True
-                    vals[slots[f], n] = x
+                    vals[slots[f], nr] = x
                 elif r == 2:
                     tt = parse_time(buf, fs, fe, layout)
                     if tt == NULL_TIME:
@@ -256,14 +261,25 @@ def scan(buf, pos, end, n_fields, roles, slots, layout, words, woff, wcode,
         ends[n] = le
         if le == pos:
             kind[n] = 2
+        elif special or f != n_fields:
+            kind[n] = 1
         else:
-            kind[n] = 1 if (special or f != n_fields) else 0
-        mmsi[n] = mm
-        t_us[n] = tt
-        shash[n] = h
+            kind[n] = 0
+            line[nr] = n
+            mmsi[nr] = mm
+            t_us[nr] = tt
+            shash[nr] = h
+            nr += 1
         n += 1
         pos = i + 1
-    return n, pos
+    return n, nr, pos
+
+
+@numba.njit(nogil=True, cache=True)
+def _move(a, src, dst, n):
+    """``a[dst:dst + n] = a[src:src + n]``, front to back (``dst <= src``: no temporary)."""
+    for i in range(n):
+        a[dst + i] = a[src + i]
 
 
 
@@ -273,12 +289,13 @@ def _compile():
 
 class ScanResult:
     """What :func:`scan_csv` found: per physical line ``starts``, ``ends``, ``kind``; per line
-    of kind :data:`KIND_ROW` the typed values (``mmsi`` -1 = missing, ``t_us`` NULL_TIME =
-    missing, ``vals`` NaN = missing, one row per name in ``fields``, ``shash``)."""
+    of kind :data:`KIND_ROW` (a *row*, in file order) its 1-based ``line`` number and typed
+    values (``mmsi`` -1 = missing, ``t_us`` NULL_TIME = missing, ``vals`` NaN = missing, one
+    row per name in ``fields``, ``shash``)."""
 
-    def __init__(self, starts, ends, kind, mmsi, t_us, vals, shash, fields, stray_cr, quote_lines):
+    def __init__(self, starts, ends, kind, line, mmsi, t_us, vals, shash, fields, stray_cr, quote_lines):
         self.starts, self.ends, self.kind = starts, ends, kind
-        self.mmsi, self.t_us, self.vals, self.shash = mmsi, t_us, vals, shash
+        self.line, self.mmsi, self.t_us, self.vals, self.shash = line, mmsi, t_us, vals, shash
         self.fields, self.stray_cr, self.quote_lines = fields, stray_cr, quote_lines
 
     @property
@@ -286,13 +303,30 @@ class ScanResult:
         return len(self.starts)
 
 
+def _outputs(cap: int, nv: int) -> tuple:
+    """Empty outputs of :func:`scan` for ``cap`` lines (and rows)."""
+    return (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.uint8), np.empty(cap, np.int64),
+            np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((nv, cap), np.float64), np.empty(cap, np.uint64))
+
+
+_PER_LINE = 3  # the first three outputs are per line, the others per row
+
+
 def scan_csv(buf: np.ndarray, index: dict[str, int], n_fields: int, time_formats: tuple, nav_words: dict,
-             static_fields=(), n_threads: int = 2, chunk_lines: int = 1 << 20) -> ScanResult | None:
+             static_fields=(), n_threads: int = 2, chunk_lines: int = 1 << 26) -> ScanResult | None:
     """Scan ``buf`` (the bytes of a whole file, e.g. a memory map; line 1 is the header and is
     scanned like any line, callers ignore it). ``index``: stage field -> 0-based column;
     ``static_fields`` are hashed; ``time_formats`` the spec's strptime formats, tried in order
     (a string matches at most one of the known layouts, so the order does not matter). None
-    when the time formats have no canonical layout."""
+    when the time formats have no canonical layout. ``chunk_lines``: the most lines per region
+    (tests make it small).
+
+    Memory: every range writes into its own region of one allocation sized from the lines per
+    byte of the file's first 64 KiB; the regions are then moved together in place. (Fresh
+    memory is expensive on this class of machine: the former per-range arrays joined by a
+    concatenation, and the rows picked out of every line by a gather, touched ~3 x the bytes.)
+    A range with more lines than its region continues in arrays of its own, joined at the end.
+    """
     layout = TIME_LAYOUTS.get(tuple(time_formats))
     if layout is None:
         return None
@@ -333,31 +367,60 @@ def scan_csv(buf: np.ndarray, index: dict[str, int], n_fields: int, time_formats
     sample = buf[:1 << 16]
     per_line = max(1.0, len(sample) / max(1, int(np.count_nonzero(sample == 10))))
 
-    def run(a, b):
-        parts = []
-        pos = a
-        while pos < b:
-            # room for the lines expected in the rest of the range (one call for most files)
-            cap = int(min(max((b - pos) / per_line * 1.02 + 1024, 1024), b - pos + 1, max(chunk_lines, 1 << 26)))
-            out = (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.uint8), np.empty(cap, np.int64),
-                   np.empty(cap, np.int64), np.empty((nv, cap), np.float64), np.empty(cap, np.uint64))
-            n, pos = scan(buf, pos, b, n_fields, roles, slots, layout, words, woff, wcode, *out)
-            parts.append(tuple(x[..., :n] for x in out))
-        return parts
+    def room(a, b):
+        # room for the lines expected in a..b (one region for most files)
+        return int(min(max((b - a) / per_line * 1.02 + 1024, 1024), b - a + 1, chunk_lines))
 
     ranges = [(cuts[i], cuts[i + 1]) for i in range(len(cuts) - 1) if cuts[i + 1] > cuts[i]]
+    caps = [room(a, b) for a, b in ranges]
+    offs = np.r_[0, np.cumsum(caps)].astype(np.int64)
+    big = _outputs(int(offs[-1]), nv)
+
+    def region(k):
+        a, b = int(offs[k]), int(offs[k + 1])
+        return tuple(x[..., a:b] for x in big)
+
+    def run(k):
+        """[(outputs, lines, rows), ...] of range k: its region, then arrays of its own."""
+        a, b = ranges[k]
+        parts = []
+        pos = a
+        out = region(k)
+        while pos < b:
+            n, r, pos = scan(buf, pos, b, n_fields, roles, slots, layout, words, woff, wcode, *out)
+            parts.append((out, n, r))
+            out = _outputs(room(pos, b), nv)
+        return parts
+
     if len(ranges) > 1:
         with ThreadPoolExecutor(max_workers=len(ranges)) as pool:
-            results = list(pool.map(lambda r: run(*r), ranges))
+            results = list(pool.map(run, range(len(ranges))))
     else:
-        results = [run(*r) for r in ranges]
+        results = [run(k) for k in range(len(ranges))]
     parts = [p for res in results for p in res]
-    if not parts:
-        e64 = np.empty(0, np.int64)
-        return ScanResult(e64, e64, np.empty(0, np.uint8), e64, e64, np.empty((nv, 0)), np.empty(0, np.uint64),
-                          num_fields, False, e64)
-    cat = [p0 if len(parts) == 1 else np.concatenate([p[j] for p in parts], axis=-1)
-           for j, p0 in enumerate(parts[0])]
+    # 1-based line numbers of the rows (each call numbered its lines from 0)
+    before = 0
+    for out, n, r in parts:
+        out[_PER_LINE][:r] += before + 1
+        before += n
+    if all(len(res) <= 1 for res in results):
+        # move the regions together: views of the one allocation
+        n_at, r_at = 0, 0
+        for k, res in enumerate(results):
+            for out, n, r in res:
+                src = int(offs[k])
+                if src != n_at or src != r_at:
+                    for j, x in enumerate(big):
+                        d = n_at if j < _PER_LINE else r_at
+                        m = n if j < _PER_LINE else r
+                        for row in (x if x.ndim == 2 else (x,)):
+                            _move(row, src, d, m)
+                n_at, r_at = n_at + n, r_at + r
+        cat = [x[..., :(n_at if j < _PER_LINE else r_at)] for j, x in enumerate(big)]
+    else:
+        cat = [np.concatenate([out[j][..., :(n if j < _PER_LINE else r)] for out, n, r in parts], axis=-1)
+               for j in range(len(big))]
+    del big
     starts, ends, kind = cat[0], cat[1], cat[2]
     # Lines with a quote or a \r were marked special; which of them hold a quote / a stray \r
     # (the line index's flags) is found on those few lines only.
@@ -372,5 +435,5 @@ def scan_csv(buf: np.ndarray, index: dict[str, int], n_fields: int, time_formats
             stray = True
     if size and buf[size - 1] == 13:
         stray = True
-    return ScanResult(starts, ends, kind, cat[3], cat[4], cat[5], cat[6], num_fields, stray,
+    return ScanResult(starts, ends, kind, cat[3], cat[4], cat[5], cat[6], cat[7], num_fields, stray,
                       np.asarray(quote, dtype=np.int64))

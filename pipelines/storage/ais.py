@@ -575,7 +575,7 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     """
     import pyarrow as pa
 
-    from lanes.io.csv_scan import KIND_ROW, KIND_SPECIAL, TIME_LAYOUTS, scan_csv
+    from lanes.io.csv_scan import KIND_SPECIAL, TIME_LAYOUTS, scan_csv
     from lanes.io.lineindex import LineIndex
 
     if tuple(spec.time_formats) not in TIME_LAYOUTS:
@@ -598,16 +598,13 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
     if r is None:
         ix.close()
         return None
-    kind = r.kind.copy()
-    if len(kind):
-        kind[0] = 255  # the header line
-    is_row = kind == KIND_ROW
-    special = np.flatnonzero(kind == KIND_SPECIAL) + 1
+    special = np.flatnonzero(r.kind == KIND_SPECIAL) + 1
+    special = special[special > 1]  # line 1 is the header
     if len(special) > max(1000, FAST_MAX_EXACT_FRAC * ix.n_lines):
         ix.close()
         log.info("%s: %d of %d lines not canonical; leaving the scan path", path, len(special), ix.n_lines)
         return None
-    tbl, fixes = _scan_table(con, r, is_row)
+    tbl, fixes = _scan_table(con, r)
     del r, res["scan"]
     times["arrow"] = time.perf_counter() - t0 - times["scan"]
     t1 = time.perf_counter()
@@ -637,7 +634,7 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
 SCAN_BATCH_ROWS = 122_880
 
 
-def _scan_table(con, r, is_row: np.ndarray):
+def _scan_table(con, r):
     """(table, fixes): the Arrow table of the canonical rows of a scan (the columns of
     ``ais_fast``), and the same rows' ``line``, ``mmsi``, ``t_us``, ``lat``, ``lon`` as numpy
     arrays (the table's own buffers) with ``ok`` = no ``reason0``, for the first-load kernel.
@@ -652,21 +649,20 @@ def _scan_table(con, r, is_row: np.ndarray):
 
     from lanes.io.csv_scan import NULL_TIME
 
-    rows = np.flatnonzero(is_row)
-    n = len(rows)
-    mm, t_us = r.mmsi[rows], r.t_us[rows]
-    line = rows + 1
+    skip = 1 if len(r.line) and r.line[0] == 1 else 0  # the header line
+    line, mm, t_us, shash = r.line[skip:], r.mmsi[skip:], r.t_us[skip:], r.shash[skip:]
+    n = len(line)
     cols = {"line": pa.array(line), "parse_error": pa.nulls(n, pa.string()), "mmsi": pa.array(mm, mask=mm < 0),
             "time_utc": pa.array(t_us.view("datetime64[us]"), mask=t_us == NULL_TIME)}
     vals = {}
     for name in (*_NUM_FIELDS, "nav_status"):
         if name in r.fields:
-            v = r.vals[r.fields.index(name)][rows]
+            v = r.vals[r.fields.index(name)][skip:]
             vals[name] = v
             cols[name] = pa.array(v, mask=np.isnan(v))
         else:
             cols[name] = pa.nulls(n, pa.float64())
-    cols["s_hash"] = pa.array(r.shash[rows])
+    cols["s_hash"] = pa.array(shash)
     tmin = int(C.TIME_MIN_UTC.value // 1000)
     tmax = int(C.TIME_MAX_UTC.value // 1000)
     clean = (mm >= C.MMSI_MIN) & (mm <= C.MMSI_MAX) & (t_us >= tmin) & (t_us < tmax)
@@ -681,7 +677,6 @@ def _scan_table(con, r, is_row: np.ndarray):
                 clean &= ok(vals[name])
             elif name in ("lat_deg", "lon_deg"):
                 clean[:] = False
-    del rows
     fixes = {"line": line, "mmsi": mm, "t_us": t_us, "lat": vals.get("lat_deg", np.full(n, np.nan)),
              "lon": vals.get("lon_deg", np.full(n, np.nan)), "ok": clean}
     del vals
