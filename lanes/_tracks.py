@@ -391,3 +391,59 @@ def sorted_fixes(scan: dict, exact: dict) -> dict:
                         np.ascontiguousarray(scan["ok"], dtype=np.bool_),
                         *(np.ascontiguousarray(exact[k], dtype=dt) for k, dt in _KEYS), float(SENTINEL_TOL))
     return dict(zip(("line", "track", "t_us", "lat", "lon", "dup", "ref"), out))
+
+
+@numba.njit(nogil=True, cache=True)
+def _latest_run(mmsi, shash, t_us, line, lo, hi, keys_m, keys_h, used, best_t, best_line, t_max, pos):
+    """:func:`latest_by_static` from row ``pos[0]`` until the end or until the table is half
+    full (then the caller grows it and calls again)."""
+    mask = len(keys_m) - 1
+    n_groups = pos[1]
+    i = pos[0]
+    while i < len(mmsi):
+        m = mmsi[i]
+        if m < lo or m > hi:
+            i += 1
+            continue
+        h = shash[i]
+        s = np.int64(((np.uint64(m) * np.uint64(0x9E3779B97F4A7C15)) ^ h) >> np.uint64(33)) & mask
+        while used[s] and (keys_m[s] != m or keys_h[s] != h):
+            s = (s + 1) & mask
+        if not used[s]:
+            if 2 * (n_groups + 1) > len(keys_m):
+                break
+            used[s] = True
+            keys_m[s], keys_h[s] = m, h
+            best_t[s], best_line[s], t_max[s] = t_us[i], line[i], t_us[i]
+            n_groups += 1
+        else:
+            t = t_us[i]
+            if t > best_t[s] or (t == best_t[s] and line[i] > best_line[s]):
+                best_t[s], best_line[s] = t, line[i]
+            if t > t_max[s]:
+                t_max[s] = t
+        i += 1
+    pos[0], pos[1] = i, n_groups
+    return i >= len(mmsi)
+
+
+def latest_by_static(mmsi, shash, t_us, line, mmsi_min: int, mmsi_max: int) -> dict:
+    """Per (MMSI, static hash) group of rows with an MMSI in ``[mmsi_min, mmsi_max]``: the
+    latest row by (time, line) (``t_us``, ``line``) and the latest time (``t_max``), as arrays
+    with ``mmsi`` and ``shash``: what the vessels merge needs from a file's rows (the
+    ``GROUP BY mmsi, s_hash`` of :func:`pipelines.storage.ais._upsert_vessels`, ~5 x cheaper
+    on a 5 M row scan). Every row must have a time."""
+    args = [np.ascontiguousarray(x, dtype=dt) for x, dt in
+            ((mmsi, np.int64), (shash, np.uint64), (t_us, np.int64), (line, np.int64))]
+    cap = 1 << 14
+    pos = np.zeros(2, dtype=np.int64)
+    while True:
+        table = (np.zeros(cap, np.int64), np.zeros(cap, np.uint64), np.zeros(cap, np.bool_), np.zeros(cap, np.int64),
+                 np.zeros(cap, np.int64), np.zeros(cap, np.int64))
+        pos[:] = 0  # a full table starts over at twice the size (rare: > cap / 2 groups)
+        if _latest_run(*args, int(mmsi_min), int(mmsi_max), *table, pos):
+            break
+        cap *= 4
+    used = table[2]
+    return {"mmsi": table[0][used], "shash": table[1][used], "t_us": table[3][used], "line": table[4][used],
+            "t_max": table[5][used]}

@@ -145,6 +145,16 @@ CASES = {
         "01/01/2025 00:08:00,Class A,219000001,55.0,11.03,Under way using engine,0.0,10.0,1,2,3,4,5,6,7,8,9,0,1,2,3,"
         "4,5,6,7,8,9",  # too many fields
     ]),
+    # Static data that changes: the latest (time, line) row of a vessel is a line typed from its
+    # text (quoted name), or a scanned line after an older typed one, or a scanned line written
+    # before older ones in the file (the vessels merge takes the latest by time, then line).
+    "static_changes": ("\n", False, [
+        dma_row("02/01/2025 01:00:00", "219200002", "54.1", "8.2", name='"RENAMED, LATE"', dest="KIEL"),
+        dma_row("02/01/2025 00:00:01", "219200003", "54.15", "8.0", name='"EARLY"', callsign="EARLY"),
+        dma_row("02/01/2025 01:00:00", "219200004", "54.2", "8.2", name="RENAMED", draught="9.1"),
+        dma_row("02/01/2025 01:00:00", "219200005", "54.25", "8.2", name="SAME TIME A"),
+        dma_row("02/01/2025 01:00:00", "219200005", "54.25", "8.2", name="SAME TIME B"),
+    ]),
 }
 
 
@@ -162,6 +172,10 @@ def test_fast_path_equals_exact_path(tmp_path, monkeypatch, case):
     counts = out["scan"][0]
     assert counts["loaded"] > 1000 and counts["quarantined"] >= 14
     assert counts["line_mapping"] == "scan"
+    if case == "static_changes":
+        names = {row[0]: row[2] for row in out["scan"][1][3]}
+        assert (names[219200002], names[219200003], names[219200004], names[219200005]) == (
+            "RENAMED, LATE", "SHIP 3", "RENAMED", "SAME TIME B")
 
 
 def test_fast_path_without_rejects_numbers_rows_by_rowid(tmp_path, monkeypatch):
