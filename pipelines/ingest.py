@@ -5,7 +5,7 @@
 task (stage the file), a cleaning-and-commit task (the rules of :mod:`lanes.clean` run as SQL
 in :mod:`pipelines.storage.ais`, one transaction per file), and a summary.
 
-Each file is loaded at most once (SHA-256 of its bytes in ``ais_files``); rows whose
+Each file is loaded at most once (BLAKE3 of its bytes in ``ais_files``); rows whose
 (mmsi, time_utc) is already stored count as duplicates, so overlapping files add nothing twice.
 Counts of the summary, per file and in total: ``read = loaded + quarantined + duplicates``.
 For CSV and Parquet ``read`` counts data rows (empty lines are ``ignored``); for NMEA it
@@ -113,6 +113,32 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
     return info
 
 
+def loaded_record(ws, path, suffix: str, quick: str, current=None) -> dict | None:
+    """The ``ais_files`` row of a loaded file with the same bytes (and forced format), or None.
+
+    Hashes the whole file only when a loaded file has the same quick key (or none): in each
+    algorithm the matching files' fingerprints were stored with (the current one first, so
+    that a workspace filled by earlier versions, SHA-256, still recognises its files).
+    ``current``: a future of the current algorithm's fingerprint, already running."""
+    from lanes.io.files import FINGERPRINT_ALGOS, fingerprint
+    from pipelines.storage import ais as store
+
+    if not store.quick_key_known(ws, quick):
+        return None
+    stored = store.fingerprint_algos(ws, quick)
+    for algo in FINGERPRINT_ALGOS:
+        if algo not in stored:
+            continue
+        if algo == FINGERPRINT_ALGOS[0] and current is not None:
+            fp = current.result()
+        else:
+            fp = fingerprint(path, algo) + suffix
+        rec = store.file_record(ws, fp)
+        if rec is not None:
+            return rec
+    return None
+
+
 def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
                 progress: Callable[[int], None] | None = None, before_commit=None) -> dict:
     """Load one AIS file into an open workspace; returns its counts (see module docstring)."""
@@ -126,8 +152,8 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     suffix = identity_suffix(f.path, fmt)  # bytes forced into another format are another input
     quick = quick_key(f.path) + suffix
     pool = ThreadPoolExecutor(max_workers=1)
-    # The SHA-256 of the whole file runs in a thread (hashlib releases the GIL) while the file
-    # is cleaned and committed; it is needed only for the file's row. It starts after the
+    # The fingerprint (BLAKE3) of the whole file runs in a thread (it releases the GIL) while the
+    # file is cleaned and committed; it is needed only for the file's row. It starts after the
     # staging, whose fast scan keeps both cores busy, so that it fills the single-threaded steps
     # of the commit instead. Only when a loaded file has the same quick key (size + first and
     # last MiB) is the full hash computed first, to skip an already loaded file.
@@ -135,7 +161,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     try:
         if store.quick_key_known(ws, quick):
             full = pool.submit(lambda: fingerprint(f.path) + suffix)
-            done = store.file_record(ws, full.result())
+            done = loaded_record(ws, f.path, suffix, quick, full)
         else:
             done = None
     except BaseException:

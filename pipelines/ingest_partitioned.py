@@ -6,7 +6,7 @@ expensive half:
 1. :func:`stage_to_spool` (any process, e.g. a Dask worker): detect the format, hash the file,
    run the same reader as the sequential ingest (:func:`pipelines.ingest.stage_file`) into a
    private in-memory DuckDB and write the typed stage - every row with its line, raw text, kind
-   and parse error - to ``SPOOL/<sha256>.parquet``.
+   and parse error - to ``SPOOL/blake3-<hex>.parquet`` (named by its fingerprint).
 2. :func:`commit_spooled` (the process that owns the workspace, always one writer): load that
    stage back (:func:`pipelines.storage.ais.stage_frame`) and apply the cross-row and
    cross-file rules (duplicates, speed jumps against the stored tracks) with the same
@@ -14,7 +14,7 @@ expensive half:
 
 Files are committed in the sequential ingest's order, so the workspace ends identical to a
 sequential run (tested). :func:`plan_files` skips files already loaded before anything is
-staged (quick key, then the full SHA-256 only when the quick key is known). The spool needs
+staged (quick key, then the full fingerprint only when the quick key is known). The spool needs
 room for one Parquet copy of each staged file (removed once committed); with a remote Dask
 scheduler the input files and the spool folder must be visible to the workers at the same path.
 """
@@ -39,15 +39,14 @@ def skipped_counts(path, fmt: str, file_id: int) -> dict:
 
 def plan_files(ws, files: list, fmt: str | None = None) -> tuple[list[str], dict[str, dict]]:
     """Split ``files`` into those to stage and those already loaded (their skipped counts)."""
-    from lanes.io.files import fingerprint, identity_suffix, inspect, quick_key
-    from pipelines.storage import ais as store
+    from lanes.io.files import identity_suffix, inspect, quick_key
+    from pipelines.ingest import loaded_record
 
     todo, skipped = [], {}
     for p in files:
         f = inspect(p, fmt, with_fingerprint=False)
         suffix = identity_suffix(f.path, fmt)
-        known = store.quick_key_known(ws, quick_key(f.path) + suffix)
-        done = store.file_record(ws, fingerprint(f.path) + suffix) if known else None
+        done = loaded_record(ws, f.path, suffix, quick_key(f.path) + suffix)
         if done is None:
             todo.append(str(p))
         else:
@@ -68,7 +67,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
     f = inspect(path, fmt, with_fingerprint=False)
     suffix = identity_suffix(f.path, fmt)
     with ThreadPoolExecutor(max_workers=1) as pool:
-        # hashlib releases the GIL: the hash overlaps the staging
+        # the hash releases the GIL: it overlaps the staging
         full = pool.submit(lambda: fingerprint(f.path) + suffix)
         mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
         try:

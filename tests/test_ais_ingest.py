@@ -225,6 +225,40 @@ def test_same_head_and_tail_but_different_middle_is_a_new_file(tmp_path, workspa
     assert second["already_loaded"] == 0 and second["reasons"] == {"duplicate": 16000}
 
 
+@pytest.mark.parametrize("no_quick_key", [False, True])
+def test_file_loaded_by_an_earlier_version_is_still_recognised(tmp_path, workspace_path, no_quick_key):
+    # Earlier versions stored "sha256:<hex>" fingerprints (and before that no quick key): the
+    # same bytes must still be skipped, by the sequential and the partitioned planner alike.
+    import hashlib
+
+    from lanes.io.files import fingerprint
+    from pipelines.ingest_partitioned import plan_files
+
+    p = write_dma(tmp_path / "old.csv", DMA_LINES)
+    first = ingest_paths([p], workspace_path)
+    legacy = "sha256:" + hashlib.sha256(p.read_bytes()).hexdigest()
+    with open_workspace(workspace_path) as ws:
+        assert ws.con.execute("SELECT fingerprint FROM ais_files").fetchone()[0] == fingerprint(p)
+        ws.con.execute("UPDATE ais_files SET fingerprint = ?", [legacy])
+        if no_quick_key:
+            ws.con.execute("DELETE FROM ais_file_keys")
+    assert fingerprint(p, "sha256") == legacy and fingerprint(p).startswith("blake3:")
+    again = ingest_paths([p], workspace_path)
+    assert again["already_loaded"] == 1 and again["read"] == 0
+    with open_workspace(workspace_path) as ws:
+        todo, skipped = plan_files(ws, [str(p)])
+        n_files = ws.con.execute("SELECT count(*) FROM ais_files").fetchone()[0]
+    assert todo == [] and list(skipped) == [str(p)] and n_files == 1
+    # other bytes with a legacy workspace: loaded, fingerprinted the current way
+    q = write_dma(tmp_path / "new.csv", DMA_LINES[:-1])
+    assert ingest_paths([q], workspace_path)["already_loaded"] == 0
+    with open_workspace(workspace_path) as ws:
+        fps = sorted(r[0].split(":")[0] for r in ws.con.execute("SELECT fingerprint FROM ais_files").fetchall())
+    assert fps == ["blake3", "sha256"] and first["loaded"] > 0
+    with pytest.raises(ValueError, match="unknown fingerprint algorithm"):
+        fingerprint(p, "md5")
+
+
 def test_bom_and_repeated_header_are_not_records(tmp_path, workspace_path):
     from lanes.clean import clean_positions
     from lanes.io.csv_formats import read_csv_stage

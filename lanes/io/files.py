@@ -34,7 +34,7 @@ class AisFile:
     format: str
     gzip: bool
     size_bytes: int
-    fingerprint: str  # "sha256:<hex>" of the bytes on disk
+    fingerprint: str  # "blake3:<hex>" of the bytes on disk
 
 
 def is_gzip(path: str | Path) -> bool:
@@ -47,8 +47,27 @@ def open_binary(path: str | Path):
     return gzip.open(path, "rb") if is_gzip(path) else open(path, "rb")
 
 
-def fingerprint(path: str | Path, chunk: int = 1 << 22) -> str:
-    """SHA-256 of the file's bytes (as stored, i.e. still compressed): ``"sha256:<hex>"``."""
+#: Algorithm of new fingerprints, then those that earlier versions stored (still recognised).
+FINGERPRINT_ALGOS = ("blake3", "sha256")
+
+
+def fingerprint(path: str | Path, algo: str = FINGERPRINT_ALGOS[0], chunk: int = 1 << 22) -> str:
+    """Cryptographic hash of the file's bytes (as stored, i.e. still compressed):
+    ``"blake3:<hex>"`` (BLAKE3 [1], one thread: 0.19 s for an 846 MB file here, against 0.48 s
+    for SHA-256, and it runs beside DuckDB's two-threaded insert), or ``"sha256:<hex>"``, the
+    fingerprint of files loaded by earlier versions.
+
+    .. [1] J. O'Connor, J.-P. Aumasson, S. Neves, Z. Wilcox-O'Hearn, "BLAKE3: one function,
+       fast everywhere," 2020, https://github.com/BLAKE3-team/BLAKE3-specs.
+    """
+    if algo == "blake3":
+        import blake3
+
+        h = blake3.blake3(max_threads=1)
+        h.update_mmap(str(path))  # releases the GIL
+        return "blake3:" + h.hexdigest()
+    if algo != "sha256":
+        raise ValueError(f"unknown fingerprint algorithm {algo!r} (known: {', '.join(FINGERPRINT_ALGOS)})")
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         while block := fh.read(chunk):

@@ -3,7 +3,8 @@
 Tables (component ``ais``):
 
 ``ais_files``
-    one row per loaded file: ``file_id``, ``fingerprint`` (SHA-256 of the bytes, unique),
+    one row per loaded file: ``file_id``, ``fingerprint`` (``blake3:<hex>`` of the bytes, unique; ``sha256:<hex>`` for
+    files loaded by earlier versions),
     (``ais_file_keys``: ``quick_key`` = size + SHA-256 of the first and last MiB),
     ``path``, ``format``, ``size_bytes``, the counts (``n_read`` = ``n_loaded`` +
     ``n_quarantined`` + ``n_duplicates``; ``n_static``, ``n_ignored``), ``reasons`` (JSON),
@@ -188,6 +189,15 @@ def quick_key_known(ws, quick: str) -> bool:
     return ws.con.execute(
         "SELECT count(*) FROM ais_files f LEFT JOIN ais_file_keys k USING (file_id) "
         "WHERE k.quick_key = ? OR k.quick_key IS NULL", [quick]).fetchone()[0] > 0
+
+
+def fingerprint_algos(ws, quick: str) -> set[str]:
+    """Hash algorithms (the fingerprints' prefixes) of the loaded files that have this quick key
+    or none (files loaded before quick keys existed)."""
+    rows = ws.con.execute(
+        "SELECT DISTINCT split_part(f.fingerprint, ':', 1) FROM ais_files f LEFT JOIN ais_file_keys k USING (file_id) "
+        "WHERE k.quick_key = ? OR k.quick_key IS NULL", [quick]).fetchall()
+    return {r[0] for r in rows}
 
 
 def read_files(ws) -> pd.DataFrame:
