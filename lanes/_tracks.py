@@ -98,7 +98,7 @@ def _broken(t1, lat1, lon1, t2, lat2, lon2, vmax_kn):
 
 
 # Per-track state of the stream: integer and float columns.
-_KEPT, _LAST_T, _LAST_LINE, _FIRST_LINE, _BACK = range(5)
+_KEPT, _LAST_T, _LAST_LINE, _FIRST_LINE, _BACK, _SKIP, _CTX = range(7)
 _LTS, _LLAT, _LLON, _FTS, _FLAT, _FLON = range(6)
 
 
@@ -135,7 +135,7 @@ def _stream_run(line_a, mmsi_a, t_a, lat_a, lon_a, ok_a, line_b, mmsi_b, t_b, la
             ib += 1
         else:
             ia += 1
-        if st_i[c, _BACK]:
+        if st_i[c, _BACK] or st_i[c, _SKIP]:
             continue
         if abs(lo - 180.0) <= lon_tol:
             lo = -180.0
@@ -165,14 +165,42 @@ def _stream_run(line_a, mmsi_a, t_a, lat_a, lon_a, ok_a, line_b, mmsi_b, t_b, la
     return ia >= na and ib >= nb
 
 
-def _stream(*data):
+@numba.njit(nogil=True, cache=True)
+def _seed(keys, vals, st_i, st_f, mmsi, t_us, lat, lon, skip):
+    """Tracks known before the stream (codes 0..k-1): skipped ones, or ones whose first fix is
+    a stored fix (context, line -1: its segment is pinned, it is never flagged)."""
+    for c in range(len(mmsi)):
+        s = _slot(keys, mmsi[c])
+        keys[s] = mmsi[c]
+        vals[s] = c
+        if skip[c]:
+            st_i[c, _SKIP] = 1
+            continue
+        ts = _seconds(t_us[c])
+        st_i[c, _KEPT], st_i[c, _LAST_T], st_i[c, _LAST_LINE], st_i[c, _FIRST_LINE], st_i[c, _CTX] = \
+            1, t_us[c], -1, -1, 1
+        st_f[c, _LTS], st_f[c, _LLAT], st_f[c, _LLON] = ts, lat[c], lon[c]
+        st_f[c, _FTS], st_f[c, _FLAT], st_f[c, _FLON] = ts, lat[c], lon[c]
+
+
+def _stream(*data, context: dict | None = None):
     """One pass over the fixes (the ``ok`` rows of a and every row of b, merged by line):
-    per track its state (``st_i``, ``st_f``), the repeated keys and the cuts."""
-    keys = np.full(4096, _EMPTY, dtype=np.int64)
-    vals = np.empty(4096, dtype=np.int32)
-    st_i, st_f = np.zeros((2048, 5), dtype=np.int64), np.zeros((2048, 6))
-    dup, cut, cut_fix = np.empty((4096, 3), dtype=np.int64), np.empty((4096, 4), dtype=np.int64), np.empty((4096, 6))
+    per track its state (``st_i``, ``st_f``), the repeated keys and the cuts. ``context``:
+    :func:`first_load_rules`'s."""
+    k = 0 if context is None else len(context["mmsi"])
+    size = 4096
+    while size < 2 * (k + 1):
+        size *= 2
+    keys = np.full(size, _EMPTY, dtype=np.int64)
+    vals = np.empty(size, dtype=np.int32)
+    st_i, st_f = np.zeros((max(2048, k + 1), 7), dtype=np.int64), np.zeros((max(2048, k + 1), 6))
     pos = np.zeros(5, dtype=np.int64)
+    if k:
+        _seed(keys, vals, st_i, st_f, *(np.ascontiguousarray(context[n], dtype=dt) for n, dt in
+                                        (("mmsi", np.int64), ("t_us", np.int64), ("lat", np.float64),
+                                         ("lon", np.float64), ("skip", np.bool_))))
+        pos[2] = k
+    dup, cut, cut_fix = np.empty((4096, 3), dtype=np.int64), np.empty((4096, 4), dtype=np.int64), np.empty((4096, 6))
     while not _stream_run(*data, pos, keys, vals, st_i, st_f, dup, cut, cut_fix):
         n_tracks, n_dup, n_cut = pos[2], pos[3], pos[4]
         if 2 * (n_tracks + 1) > len(keys):
@@ -189,13 +217,14 @@ def _stream(*data):
 
 
 @numba.njit(nogil=True, cache=True)
-def _pass_two(keys, vals, back, rej_ptr, rej_lo, rej_hi, line_a, mmsi_a, t_a, lat_a, lon_a, ok_a, line_b,
+def _pass_two(keys, vals, back, skip, kept0, rej_ptr, rej_lo, rej_hi, line_a, mmsi_a, t_a, lat_a, lon_a, ok_a, line_b,
               mmsi_b, t_b, lat_b, lon_b, lon_tol):
     """The stream again, for the rare cases the first pass cannot settle alone: the lines of
     the fixes in rejected segments of more than two fixes (``rej_*``: per track, ordinal
-    ranges), and the fixes of the tracks set aside (``back``)."""
+    ranges), and the fixes of the tracks set aside (``back``; ``skip``: tracks left out).
+    ``kept0``: fixes before the stream (1 for a track with a stored context fix)."""
     n_tracks = len(back)
-    kept = np.zeros(n_tracks, dtype=np.int64)
+    kept = kept0.copy()
     last_t = np.zeros(n_tracks, dtype=np.int64)
     jump = np.empty(1024, dtype=np.int64)
     n_jump = 0
@@ -215,6 +244,8 @@ def _pass_two(keys, vals, back, rej_ptr, rej_lo, rej_hi, line_a, mmsi_a, t_a, la
         else:
             break
         c = vals[_slot(keys, mm)]
+        if skip[c]:
+            continue
         if back[c]:
             if abs(lo - 180.0) <= lon_tol:
                 lo = -180.0
@@ -242,23 +273,34 @@ def _pass_two(keys, vals, back, rej_ptr, rej_lo, rej_hi, line_a, mmsi_a, t_a, la
     return jump[:n_jump], b_fix[:n_back]
 
 
-def first_load_rules(scan: dict, exact: dict, max_speed_kn: float) -> dict:
+def first_load_rules(scan: dict, exact: dict, max_speed_kn: float, context: dict | None = None) -> dict:
     """Rules 7 and 8 on a file's accepted fixes: ``dup`` (lines repeating the (MMSI, time) of
     an earlier fix), ``ref`` (the first line of each one's run) and ``jump`` (lines of
     :func:`lanes.clean.speed_jump_mask`'s quarantined fixes), all as int64 arrays.
 
     ``scan``: ``line``, ``mmsi``, ``t_us``, ``lat``, ``lon`` and ``ok`` (passed rules 1-6) of
     the scanner's rows; ``exact``: the same keys but ``ok`` for the fixes typed from their text
-    that passed rules 1-6. Each source in ascending line order."""
+    that passed rules 1-6. Each source in ascending line order.
+
+    ``context`` (a workspace that already holds positions): per MMSI (``mmsi``, ``skip``,
+    ``t_us``, ``lat``, ``lon``) either ``skip`` (its fixes are left out: the caller judges
+    them) or the stored fix just before the MMSI's first fix in the file, when no stored fix is
+    at or after that time: it opens the track as a fixed fix (its segment pinned, never
+    flagged), as :func:`lanes.clean.speed_jump_mask` treats stored context. A track with context
+    that goes back in time in the file is left out too. ``fallback``: the MMSIs left out."""
     a = [np.ascontiguousarray(scan[k], dtype=dt) for k, dt in _KEYS]
     b = [np.ascontiguousarray(exact[k], dtype=dt) for k, dt in _KEYS]
     ok = np.ascontiguousarray(scan["ok"], dtype=np.bool_)
     data = (*a, ok, *b, float(SENTINEL_TOL))
     vmax = float(max_speed_kn)
-    keys, vals, st_i, st_f, dup, cut, cut_fix = _stream(*data, vmax)
+    keys, vals, st_i, st_f, dup, cut, cut_fix = _stream(*data, vmax, context=context)
+    ctx = st_i[:, _CTX].astype(bool)
     back = st_i[:, _BACK].astype(bool)
-    dup = dup[~back[dup[:, 2]]]
-    keep = ~back[cut[:, 0]]
+    drop = st_i[:, _SKIP].astype(bool) | (back & ctx)
+    aside = back & ~ctx
+    done = ~(drop | aside)  # tracks settled by the stream
+    dup = dup[done[dup[:, 2]]]
+    keep = done[cut[:, 0]]
     cut, cut_fix = cut[keep], cut_fix[keep]
     # The greedy segment step on each track with a cut (cuts come in stream order, so in
     # ordinal order within a track). A rejected segment of one or two fixes is known by the
@@ -276,21 +318,22 @@ def first_load_rules(scan: dict, exact: dict, max_speed_kn: float) -> dict:
         head_line = [int(st_i[c, _FIRST_LINE])] + cut[s:e, 3].tolist()
         tail_line = cut[s:e, 2].tolist() + [int(st_i[c, _LAST_LINE])]
         lengths = [opens[q + 1] - opens[q] for q in range(len(opens) - 1)]
-        for q in rejected_segments(lengths, [False] * len(lengths),
+        pinned = [bool(ctx[c])] + [False] * (len(lengths) - 1)  # the stored fix opens segment 0
+        for q in rejected_segments(lengths, pinned,
                                    lambda p, q, tails=tails, heads=heads: bool(linked(*tails[p], *heads[q], vmax))):
             if lengths[q] <= 2:
                 jumps += {head_line[q], tail_line[q]}
             else:
                 long_rej.setdefault(c, []).append((opens[q], opens[q + 1]))
     ref_out, dup_out = [dup[:, 1]], [dup[:, 0]]
-    if long_rej or back.any():
+    if long_rej or aside.any():
         rej_ptr = np.zeros(len(back) + 1, dtype=np.int64)
         for c, ranges in long_rej.items():
             rej_ptr[c + 1] = len(ranges)
         rej_ptr = np.cumsum(rej_ptr)
         flat = np.array([r for c in sorted(long_rej) for r in long_rej[c]], dtype=np.int64).reshape(-1, 2)
-        more, b_fix = _pass_two(keys, vals, back, rej_ptr, np.ascontiguousarray(flat[:, 0]),
-                                np.ascontiguousarray(flat[:, 1]), *data)
+        more, b_fix = _pass_two(keys, vals, aside, drop, ctx.astype(np.int64), rej_ptr,
+                                np.ascontiguousarray(flat[:, 0]), np.ascontiguousarray(flat[:, 1]), *data)
         jumps += more.tolist()
         if len(b_fix):
             s = sorted_fixes({"line": b_fix[:, 0], "mmsi": b_fix[:, 1], "t_us": b_fix[:, 2],
@@ -301,7 +344,11 @@ def first_load_rules(scan: dict, exact: dict, max_speed_kn: float) -> dict:
             jumps += s["line"][mask].tolist()
             dup_out.append(s["dup"])
             ref_out.append(s["ref"])
-    return {"dup": np.concatenate(dup_out), "ref": np.concatenate(ref_out), "jump": np.array(jumps, dtype=np.int64)}
+    mmsi_of = np.empty(len(back), dtype=np.int64)
+    used = keys != _EMPTY
+    mmsi_of[vals[used]] = keys[used]
+    return {"dup": np.concatenate(dup_out), "ref": np.concatenate(ref_out), "jump": np.array(jumps, dtype=np.int64),
+            "fallback": mmsi_of[drop]}
 
 
 @numba.njit(nogil=True, cache=True)

@@ -178,6 +178,54 @@ def test_fast_path_equals_exact_path(tmp_path, monkeypatch, case):
             "RENAMED, LATE", "SHIP 3", "RENAMED", "SAME TIME B")
 
 
+def test_second_file_against_stored_positions_equals_exact_path(tmp_path, monkeypatch):
+    # A second file into a workspace that holds the first: ships that continue their stored
+    # tracks (the streaming pass with the last stored fix as context; one ship's first new fix
+    # is 1 degree off it, so its new fixes are judged against a pinned fix), a ship whose new
+    # times overlap its stored ones (repeated keys against stored rows: the SQL path for it), a
+    # ship going back in time in the new file, a new ship, and the dirty rows.
+    day1 = _rows(n_vessels=8, n_steps=90, seed=5)
+    later = []
+    for step in range(90, 170):
+        m, sec = divmod(step * 20, 60)
+        h, m = divmod(m, 60)
+        ts = f"02/01/2025 {h:02d}:{m:02d}:{sec:02d}"
+        for v in range(8):
+            lat = 54.0 + v * 0.05 + (1.0 if v == 3 else 0.0)  # ship 3: far from its stored track
+            later.append(dma_row(ts, str(219200000 + v), f"{lat:.6f}", f"{8.0 + step * 0.001:.6f}",
+                                 name=f"SHIP {v}", callsign=f"OX{v:03d}", imo=str(9100000 + v)))
+        later.append(dma_row(ts, "219200099", "50.000000", f"{8.0 + step * 0.001:.6f}", name="NEW"))
+    overlap = [r for r in day1 if ",219200005," in r][40:60]  # same keys as stored rows
+    overlap[3] = overlap[3].replace(",10.0,", ",11.0,")  # same key, other value: duplicate_time
+    back = [r for r in later if ",219200006," in r]
+    later = [r for r in later if ",219200006," not in r] + back[::-1]  # ship 6 written backwards
+    day2 = _mix(later + overlap, DIRTY)
+    monkeypatch.setattr(store, "CSV_BUFFER_BYTES", 1 << 14)
+    snaps = {}
+    for label, min_bytes, engines in (("scan", 0, ("scan",)), ("exact", 1 << 62, ())):
+        monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", min_bytes)
+        monkeypatch.setattr(ingest_mod, "FAST_CSV_ENGINES", engines)
+        db = tmp_path / f"two-{label}.duckdb"
+        counts = []
+        for k, rows in enumerate((day1, day2)):
+            path = tmp_path / f"{label}-{k}.csv"
+            path.write_bytes(("\n".join([DMA_HEADER] + rows) + "\n").encode())
+            with open_workspace(db) as ws:
+                counts.append(ingest_file(ws, path, fmt="dma"))
+        snaps[label] = (counts, _snapshot(db))
+    (cs, ss), (ce, se) = snaps["scan"], snaps["exact"]
+    assert [c["staging"] for c in cs] == ["scan", "scan"]
+    for a, b in zip(cs, ce):
+        for k in ("read", "loaded", "quarantined", "duplicates", "reasons"):
+            assert a[k] == b[k], k
+    for part, a, b in zip(("files", "positions", "quarantine", "vessels"), ss, se):
+        assert a == b, part
+    r2 = cs[1]["reasons"]
+    # the stored keys repeated (19 + 1 with another value) and the dirty rows' own pair
+    assert r2["duplicate"] == 19 + 1 and r2["duplicate_time"] == 1 + 1
+    assert r2["speed_jump"] == 80 + 1  # ship 3's new track is not linked to its stored fix; the dirty jump
+
+
 def test_fast_path_without_rejects_numbers_rows_by_rowid(tmp_path, monkeypatch):
     # Every line has the header's field count and there is no empty line: line = rowid + 2;
     # quoted lines (without commas inside quotes) are still typed from their text.

@@ -134,3 +134,56 @@ def test_sorted_fixes_orders_by_track_time_line():
     assert s["line"].tolist() == [4, 2, 3] and s["track"].tolist() == [0, 0, 1]
     assert s["dup"].tolist() == [5] and s["ref"].tolist() == [4]
     assert s["lon"].tolist() == [-180.0, 0.0, 0.0]
+
+
+def reference_with_context(scan: dict, exact: dict, ctx: dict, leave_out, vmax_kn: float = VMAX_KN) -> dict:
+    """The rules as the SQL path applies them: each MMSI's stored fix before the file is a fixed
+    fix ahead of its track (speed_jump_mask's ``fixed``); MMSIs in ``leave_out`` are ignored."""
+    ok = scan["ok"]
+    cols = {k: np.r_[scan[k][ok], exact[k]] for k in ("line", "mmsi", "t_us", "lat", "lon")}
+    keep = ~np.isin(cols["mmsi"], list(leave_out))
+    cols = {k: v[keep] for k, v in cols.items()}
+    use = ~ctx["skip"] & ~np.isin(ctx["mmsi"], list(leave_out))
+    n_ctx = int(use.sum())
+    line = np.r_[-1 - np.arange(n_ctx), cols["line"]]
+    mmsi = np.r_[ctx["mmsi"][use], cols["mmsi"]]
+    t_us = np.r_[ctx["t_us"][use], cols["t_us"]]
+    lat = np.r_[ctx["lat"][use], cols["lat"]]
+    lon = np.r_[ctx["lon"][use], cols["lon"]]
+    lon = np.where(np.abs(lon - 180.0) <= SENTINEL_TOL, -180.0, lon)
+    order = np.lexsort((line, t_us, mmsi))
+    line, mmsi, t_us, lat, lon = line[order], mmsi[order], t_us[order], lat[order], lon[order]
+    same = np.r_[False, (mmsi[1:] == mmsi[:-1]) & (t_us[1:] == t_us[:-1])]
+    first = np.maximum.accumulate(np.where(~same, np.arange(len(line)), 0))
+    dup, ref = line[same], line[first[same]]
+    k = ~same
+    mask = speed_jump_mask(mmsi[k], (t_us[k] * 1000) / 1e9, lat[k], lon[k], vmax_kn, fixed=line[k] < 0)
+    return {"dup": dup, "ref": ref, "jump": line[k][mask]}
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_stream_with_stored_context_equals_fixed_fixes(seed):
+    # A second file: most ships have a stored fix before their first fix in the file (some
+    # linked to it, some 1 degree away: the new track's first segment is then judged against
+    # a pinned fix), some ships are left to the caller (skip), one ship with context goes back
+    # in time in the file (left out too), the others are new.
+    f = fleet(seed, n_vessels=40, n_steps=50, jumps=15, long_jumps=2, dups=10, shuffle_tracks=2)
+    scan, exact = split(f, seed)
+    rng = np.random.default_rng(seed)
+    ships, first_at = np.unique(f["mmsi"], return_index=True)
+    n = len(ships)
+    skip = rng.random(n) < 0.15
+    has_ctx = ~skip & (rng.random(n) < 0.7)
+    t0 = f["t_us"][first_at]
+    far = rng.random(n) < 0.3
+    ctx = {"mmsi": ships[skip | has_ctx], "skip": skip[skip | has_ctx],
+           "t_us": (t0 - 60_000_000)[skip | has_ctx],
+           "lat": (f["lat"][first_at] + np.where(far, 1.0, 0.0))[skip | has_ctx],
+           "lon": f["lon"][first_at][skip | has_ctx]}
+    got = first_load_rules(scan, exact, VMAX_KN, ctx)
+    leave_out = set(got["fallback"].tolist())
+    assert set(ships[skip].tolist()) <= leave_out
+    assert leave_out - set(ships[skip].tolist()) <= set(ships[has_ctx].tolist())  # back in time, with context
+    want = reference_with_context(scan, exact, ctx, leave_out)
+    assert as_pairs(got) == as_pairs(want)
+    assert len(want["jump"]) >= 10

@@ -1119,7 +1119,7 @@ def read_stage(ws) -> pd.DataFrame:
 _OK = f"kind = '{C.KIND_POSITION}' AND reason0 IS NULL"
 
 
-def _dedupe_sql(has_old: bool) -> str:
+def _dedupe_sql(has_old: bool, stage: str = "ais_stage") -> str:
     """Rows (line, reason) that repeat the (mmsi, time) of an earlier row of the file or of a
     stored row: ``duplicate`` when all normalised values agree, else ``duplicate_time``."""
     firsts = ", ".join(f"first_value({v}) OVER w AS f_{v}" for v in _VALUES)
@@ -1127,9 +1127,9 @@ def _dedupe_sql(has_old: bool) -> str:
         same = " AND ".join(f"(CASE WHEN in_db THEN p_{v} ELSE f_{v} END) IS NOT DISTINCT FROM {v}" for v in _VALUES)
         old = f"""old AS (
             SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS time_utc, {", ".join(f"p.{v} AS p_{v}" for v in _VALUES)}
-            FROM ais_positions p SEMI JOIN (SELECT DISTINCT mmsi FROM ais_stage WHERE {_OK}) USING (mmsi)
-            WHERE p.time_utc BETWEEN (SELECT min(time_utc) FROM ais_stage WHERE {_OK})
-                                 AND (SELECT max(time_utc) FROM ais_stage WHERE {_OK})
+            FROM ais_positions p SEMI JOIN (SELECT DISTINCT mmsi FROM {stage} WHERE {_OK}) USING (mmsi)
+            WHERE p.time_utc BETWEEN (SELECT min(time_utc) FROM {stage} WHERE {_OK})
+                                 AND (SELECT max(time_utc) FROM {stage} WHERE {_OK})
         ),"""
         keys_old = "UNION SELECT mmsi, time_utc FROM old"
         join_old = "LEFT JOIN old USING (mmsi, time_utc)"
@@ -1142,11 +1142,11 @@ def _dedupe_sql(has_old: bool) -> str:
     CREATE OR REPLACE TEMP TABLE ais_dup AS
     WITH {old}
     keys AS (
-        SELECT mmsi, time_utc FROM ais_stage WHERE {_OK} GROUP BY mmsi, time_utc HAVING count(*) > 1
+        SELECT mmsi, time_utc FROM {stage} WHERE {_OK} GROUP BY mmsi, time_utc HAVING count(*) > 1
         {keys_old}
     ),
     cand AS (
-        SELECT s.line, s.mmsi, s.time_utc, {_norm('s')} FROM ais_stage s SEMI JOIN keys USING (mmsi, time_utc)
+        SELECT s.line, s.mmsi, s.time_utc, {_norm('s')} FROM {stage} s SEMI JOIN keys USING (mmsi, time_utc)
         WHERE s.kind = '{C.KIND_POSITION}' AND s.reason0 IS NULL
     ),
     ranked AS (
@@ -1159,7 +1159,7 @@ def _dedupe_sql(has_old: bool) -> str:
     """
 
 
-def _track_sql(has_old: bool) -> str:
+def _track_sql(has_old: bool, stage: str = "ais_stage") -> str:
     """Fixes of the tracks that may hold a speed jump, sorted (line -1 = stored context fix).
 
     A track is fetched when any consecutive pair implies more than 0.999 x the limit: a superset
@@ -1168,7 +1168,7 @@ def _track_sql(has_old: bool) -> str:
     r = float(EARTH_RADIUS_NMI)
     lon = _NORM["lon_deg"]
     new = (f"SELECT s.line, s.mmsi, s.time_utc, s.lat_deg, {lon.replace('lon_deg', 's.lon_deg')} AS lon_deg "
-           f"FROM ais_stage s ANTI JOIN ais_dup d USING (line) WHERE s.kind = '{C.KIND_POSITION}' AND s.reason0 IS NULL")
+           f"FROM {stage} s ANTI JOIN ais_dup d USING (line) WHERE s.kind = '{C.KIND_POSITION}' AND s.reason0 IS NULL")
     ctx = ""
     if has_old:
         ctx = f"""
@@ -1281,6 +1281,66 @@ def _first_load_outcomes(con, max_speed_kn: float, scan_fixes: dict | None = Non
     return _first_load_finish(con, _first_load_kernel(_first_load_fetch(con), _no_fixes(), max_speed_kn))
 
 
+def _stored_sql_outcomes(con, max_speed_kn: float, stage: str = "ais_stage") -> np.ndarray:
+    """Rules 7-8 of the rows of ``stage`` against the stored positions, in SQL: ``ais_dup``
+    (duplicates of a stored row or an earlier row) is created; returns the speed-jump lines
+    (the jump kernel with the stored fixes as fixed context)."""
+    con.execute(_dedupe_sql(True, stage))
+    tr = con.execute(_track_sql(True, stage), {"vmax": float(max_speed_kn)}).fetchnumpy()
+    if not len(tr["line"]):
+        return np.empty(0, np.int64)
+    lines = np.asarray(tr["line"], dtype=np.int64)
+    t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
+    mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"], dtype=float),
+                             np.asarray(tr["lon_deg"], dtype=float), max_speed_kn, fixed=lines < 0)
+    return lines[mask]
+
+
+def _outcomes_with_stored(con, max_speed_kn: float, scan_fixes: dict) -> tuple[np.ndarray, list]:
+    """Rules 7-8 for a scanned file when positions are stored: (lines, reasons).
+
+    An MMSI with no stored fix at or after its first accepted fix in the file (a file that
+    continues the stored tracks, the daily case) goes through the streaming pass of a first
+    load, its last stored fix opening its track as fixed context
+    (:func:`lanes._tracks.first_load_rules`): exactly what the SQL path gives it, since its
+    only context is that fix and no stored key can repeat one of its keys. The other MMSIs
+    (stored fixes inside or after the file's span, or the track going back in time in the
+    file) take the SQL path (:func:`_stored_sql_outcomes` on their rows only)."""
+    import pyarrow as pa
+
+    from lanes._tracks import first_load_rules
+
+    d = con.execute(f"""
+        WITH span AS (SELECT mmsi, min(time_utc) AS t0 FROM ais_stage WHERE {_OK} GROUP BY mmsi),
+        p AS (SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS pt, p.lat_deg, p.lon_deg
+              FROM ais_positions p SEMI JOIN span USING (mmsi))
+        SELECT span.mmsi, bool_or(p.pt >= span.t0) AS later,
+               coalesce(epoch_us(max(p.pt) FILTER (WHERE p.pt < span.t0)), 0) AS t_us,
+               coalesce(arg_max(p.lat_deg, p.pt) FILTER (WHERE p.pt < span.t0), 0.0) AS lat,
+               coalesce(arg_max(p.lon_deg, p.pt) FILTER (WHERE p.pt < span.t0), 0.0) AS lon
+        FROM span JOIN p USING (mmsi) GROUP BY span.mmsi""").fetchnumpy()
+    context = {"mmsi": np.asarray(d["mmsi"], dtype=np.int64), "skip": np.asarray(d["later"], dtype=bool),
+               "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat"], dtype=float),
+               "lon": np.asarray(d["lon"], dtype=float)}
+    e = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg AS lat, lon_deg AS lon "
+                    f"FROM ais_exact WHERE {_OK} ORDER BY line").fetchnumpy()
+    exact = {k: np.asarray(e[k], dtype=v.dtype) for k, v in _no_fixes().items()}
+    k = first_load_rules(scan_fixes, exact, max_speed_kn, context)
+    jumps = np.empty(0, np.int64)
+    if len(k["fallback"]):
+        con.register("ais_fb_df", pa.table({"mmsi": k["fallback"]}))
+        try:
+            con.execute("CREATE OR REPLACE TEMP TABLE ais_fb AS SELECT mmsi FROM ais_fb_df")
+        finally:
+            con.unregister("ais_fb_df")
+        con.execute("CREATE OR REPLACE TEMP VIEW ais_stage_fb AS SELECT * FROM ais_stage SEMI JOIN ais_fb USING (mmsi)")
+        jumps = _stored_sql_outcomes(con, max_speed_kn, "ais_stage_fb")
+    else:
+        con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
+    lines, reasons = _first_load_finish(con, {"dup": k["dup"], "ref": k["ref"], "jump": np.r_[k["jump"], jumps]})
+    return lines, reasons
+
+
 def _line_index(con, meta: dict):
     """The line index of a fast-staged CSV file (from the stage info, else built again)."""
     if meta.get("line_index") is not None:
@@ -1328,18 +1388,15 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
         has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
         out_lines, out_reasons = [], []
-        if has_old:
-            # Duplicates against stored rows need the stored values: a SQL pass, then the jump
-            # kernel with the stored fixes as context.
-            con.execute(_dedupe_sql(True))
-            tr = con.execute(_track_sql(True), {"vmax": float(max_speed_kn)}).fetchnumpy()
-            if len(tr["line"]):
-                lines = np.asarray(tr["line"], dtype=np.int64)
-                t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
-                mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"], dtype=float),
-                                         np.asarray(tr["lon_deg"], dtype=float), max_speed_kn, fixed=lines < 0)
-                out_lines.append(lines[mask])
-                out_reasons += [C.SPEED_JUMP] * int(mask.sum())
+        scan_fixes = meta.get("scan_fixes") if _stage_kind(con)[0] == "csvfast" else None
+        if has_old and scan_fixes is not None:
+            lines, reasons = _outcomes_with_stored(con, float(max_speed_kn), scan_fixes)
+            out_lines.append(lines)
+            out_reasons += reasons
+        elif has_old:
+            jumps = _stored_sql_outcomes(con, float(max_speed_kn))
+            out_lines.append(jumps)
+            out_reasons += [C.SPEED_JUMP] * len(jumps)
         else:
             # First load of these positions: the accepted fixes go to numpy once, sorted by
             # track; repeated (mmsi, time) keys and the jump kernel run there.
@@ -1347,11 +1404,10 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             # Arrow-backed stage scan and the kernel's Python parts contend for the GIL, and
             # deleting the flagged rows after the insert makes the commit far costlier.)
             con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
-            scan_fixes = meta.get("scan_fixes") if _stage_kind(con)[0] == "csvfast" else None
             lines, reasons = _first_load_outcomes(con, float(max_speed_kn), scan_fixes)
-            del scan_fixes
             out_lines.append(lines)
             out_reasons += reasons
+        del scan_fixes
         all_lines = np.concatenate(out_lines) if out_lines else np.empty(0, dtype=np.int64)
         con.register("ais_out_df", pd.DataFrame({"line": all_lines.astype(np.int64),
                                                  "reason": pd.Series(out_reasons, dtype=object)}))
@@ -1513,6 +1569,7 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
 
 
 def _drop_temp(con) -> None:
+    con.execute("DROP VIEW IF EXISTS temp.ais_stage_fb")
     con.execute("DROP VIEW IF EXISTS temp.ais_stage")
     for name in ("ais_scan_src", "ais_spot_fast", "ais_fast_pos", "ais_fast_skip", "ais_raw_df", "ais_latest_raw", "ais_lines_df", "ais_spot_rows"):
         try:
@@ -1520,7 +1577,7 @@ def _drop_temp(con) -> None:
         except Exception:  # noqa: BLE001 - not registered
             pass
     for t in ("ais_stage_t", "ais_dup", "ais_out", "ais_q", "ais_stage_info", "ais_fast", "ais_exact", "ais_spot", "ais_latest", "ais_rejects",
-              "ais_reject_scans"):
+              "ais_reject_scans", "ais_fb"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")
 
 
