@@ -303,10 +303,24 @@ class ScanResult:
         return len(self.starts)
 
 
+def _anonymous(shape, dtype) -> np.ndarray:
+    """An uninitialised array in its own anonymous memory map, without numpy's transparent huge
+    page advice. Measured on the 5 M-row DMA file, whole ingests in fresh processes: 3.25-3.28 s
+    against 3.66-3.81 s with ``np.empty`` (its ``MADV_HUGEPAGE`` makes the kernel compact
+    memory for 2 MiB pages on first touch while the scan waits); a process's later ingests are
+    ~0.25 s slower (4 KiB page faults), still well within the target."""
+    import mmap
+
+    count = int(np.prod(shape))
+    mem = mmap.mmap(-1, max(count * np.dtype(dtype).itemsize, 1), flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    return np.frombuffer(mem, dtype=dtype, count=count).reshape(shape)
+
+
 def _outputs(cap: int, nv: int) -> tuple:
     """Empty outputs of :func:`scan` for ``cap`` lines (and rows)."""
-    return (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.uint8), np.empty(cap, np.int64),
-            np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((nv, cap), np.float64), np.empty(cap, np.uint64))
+    e = _anonymous
+    return (e(cap, np.int64), e(cap, np.int64), e(cap, np.uint8), e(cap, np.int64),
+            e(cap, np.int64), e(cap, np.int64), e((nv, cap), np.float64), e(cap, np.uint64))
 
 
 _PER_LINE = 3  # the first three outputs are per line, the others per row
