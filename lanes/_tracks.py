@@ -6,22 +6,19 @@ sorting ~5 M fixes by track (the numpy version: factorize, sort, five gathers, ~
 ~0.4 s to fetch the fixes from DuckDB), :func:`first_load_rules` reads the fixes in file order
 where they lie (the scanner's arrays) and keeps a few values per track:
 
-* the track's last kept fix: a fix with the same time repeats its key (rule 7, the first fix of
-  the run is the reference); a later one is tested for a link with it, the test of
-  :func:`lanes.clean.speed_jump_mask` (the same compiled haversine, :mod:`lanes._jumps`), and a
-  failed link cuts the track into a new segment;
-* whether the track went back in time: such a track (rare) is set aside and handled by the
-  sorting path (:func:`sorted_fixes`, then :func:`lanes.clean.speed_jump_mask`).
+* the time of the track's last fix: a fix with the same time repeats its key (rule 7, the
+  first fix of the run is the reference); an earlier one means the track went back in time:
+  such a track (rare) is set aside and handled by the sorting path (:func:`sorted_fixes`, then
+  :func:`lanes.clean.speed_jump_mask`);
+* the state of step 1 of the jump rule, the walk of :mod:`lanes._jumps` (last kept fix, the
+  one before it, pending outliers): the very code :func:`lanes.clean.speed_jump_mask` runs
+  track after track, here fed with the tracks interleaved. Its outliers are quarantined at
+  once; its cuts give the segments.
 
-Only the tracks with a cut go through the greedy segment step
+Only the tracks with a cut go through step 2, the greedy choice among segments
 (:func:`lanes.clean.rejected_segments`), which needs each segment's length and end fixes. So
 the result is by construction that of sorting every track and calling
 :func:`lanes.clean.speed_jump_mask` (a test compares both on shuffled and jumpy tracks).
-
-The haversine is skipped for the pairs that are linked for sure: with ``sin x <= x``,
-``cos <= 1`` and ``asin s <= 1.002 s`` for ``s <= 0.1``, the distance is at most
-``1.002 R sqrt(dlat^2 + dlon^2)`` (radians); when that bound, with a 1e-6 margin for rounding,
-is within the allowed distance, the exact formula cannot find a break.
 
 The fixes come from two sources merged by line number on the fly: the scanner's canonical rows
 (``ok`` marks those that passed rules 1-6) and the few lines typed from their text.
@@ -32,12 +29,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from lanes._jumps import _dist_nmi, linked
-from lanes.clean import SENTINEL_TOL, rejected_segments, speed_jump_mask
-from thresholds.units import EARTH_RADIUS_NMI
+from lanes._jumps import (_F_A, _S_A_FIXED, _S_NPEND, _S_STARTED, FEED_ROOM, MAX_OUTLIER_RUN, _append, broken, feed,
+                          flush, walk_outputs, walk_state)
+from lanes.clean import SENTINEL_TOL, rejected_from_walk, speed_jump_mask
 
 _EMPTY = np.int64(-(1 << 62))
-_RAD = np.pi / 180.0
 _KEYS = (("line", np.int64), ("mmsi", np.int64), ("t_us", np.int64), ("lat", np.float64), ("lon", np.float64))
 
 
@@ -85,33 +81,21 @@ def _seconds(t_us):
     return np.float64(t_us * 1000) / 1e9
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
-def _broken(t1, lat1, lon1, t2, lat2, lon2, vmax_kn):
-    """The break test of :func:`lanes._jumps._breaks` for one pair, the bound first."""
-    allowed = vmax_kn * (t2 - t1) / 3600.0
-    dphi = (lat2 - lat1) * _RAD
-    dlam = (lon2 - lon1) * _RAD
-    q = dphi * dphi + dlam * dlam
-    if q <= 0.04 and 1.002 * EARTH_RADIUS_NMI * np.sqrt(q) * (1.0 + 1e-6) <= allowed:
-        return False
-    return _dist_nmi(lat1, lon1, lat2, lon2) > allowed
-
-
-# Per-track state of the stream: integer and float columns.
-_KEPT, _LAST_T, _LAST_LINE, _FIRST_LINE, _BACK, _SKIP, _CTX = range(7)
-_LTS, _LLAT, _LLON, _FTS, _FLAT, _FLON = range(6)
+# Bookkeeping per track besides the walk (lanes._jumps): a fix seen?, the time of the last
+# fix and the first line of its key (rule 7), the track went back in time, is left out, or
+# starts with a stored fix.
+_SEEN, _LAST_T, _LAST_LINE, _BACK, _SKIP, _CTX = range(6)
 
 
 @numba.njit(nogil=True, cache=True)
 def _stream_run(line_a, mmsi_a, t_a, lat_a, lon_a, ok_a, line_b, mmsi_b, t_b, lat_b, lon_b, lon_tol, vmax_kn,
-                pos, keys, vals, st_i, st_f, dup, cut, cut_fix):
-    """The pass of :func:`_stream` from ``pos`` = [ia, ib, tracks, dups, cuts] until the end or
+                max_run, pos, keys, vals, st, si, sf, dup, spikes, cuts, cutf, cnt, rq_f, rq_i):
+    """The pass of :func:`_stream` from ``pos`` = [ia, ib, tracks, dups] until the end or
     until a table is full (then ``pos`` tells where it stopped; the caller grows the tables and
     calls again). No array is reassigned in here: that kept the loop ~2 x faster."""
-    ia, ib, n_tracks, n_dup, n_cut = pos[0], pos[1], pos[2], pos[3], pos[4]
+    ia, ib, n_tracks, n_dup = pos[0], pos[1], pos[2], pos[3]
     na, nb = len(ok_a), len(line_b)
-    full = False
-    while not full:
+    while True:
         while ia < na and not ok_a[ia]:
             ia += 1
         from_b = ib < nb and (ia >= na or line_b[ib] < line_a[ia])
@@ -123,108 +107,133 @@ def _stream_run(line_a, mmsi_a, t_a, lat_a, lon_a, ok_a, line_b, mmsi_b, t_b, la
             break
         slot = _slot(keys, mm)
         if keys[slot] == _EMPTY:
-            if 2 * (n_tracks + 1) > len(keys) or n_tracks == len(st_i):
+            if 2 * (n_tracks + 1) > len(keys) or n_tracks == len(st):
                 break
             keys[slot] = mm
             vals[slot] = n_tracks
             n_tracks += 1
         c = vals[slot]
-        if n_dup == len(dup) or n_cut == len(cut):
+        if n_dup == len(dup) or cnt[0] + FEED_ROOM > len(spikes) or cnt[1] + FEED_ROOM > len(cuts):
             break
         if from_b:
             ib += 1
         else:
             ia += 1
-        if st_i[c, _BACK] or st_i[c, _SKIP]:
+        if st[c, _BACK] or st[c, _SKIP]:
             continue
         if abs(lo - 180.0) <= lon_tol:
             lo = -180.0
-        k = st_i[c, _KEPT]
-        ts = _seconds(tt)
-        if k > 0:
-            if tt < st_i[c, _LAST_T]:
-                st_i[c, _BACK] = 1
+        if st[c, _SEEN]:
+            if tt < st[c, _LAST_T]:
+                st[c, _BACK] = 1
                 continue
-            if tt == st_i[c, _LAST_T]:
-                dup[n_dup, 0], dup[n_dup, 1], dup[n_dup, 2] = li, st_i[c, _LAST_LINE], c
+            if tt == st[c, _LAST_T]:
+                dup[n_dup, 0], dup[n_dup, 1], dup[n_dup, 2] = li, st[c, _LAST_LINE], c
                 n_dup += 1
                 continue
-            if _broken(st_f[c, _LTS], st_f[c, _LLAT], st_f[c, _LLON], ts, la, lo, vmax_kn):
-                cut[n_cut, 0], cut[n_cut, 1], cut[n_cut, 2], cut[n_cut, 3] = c, k, st_i[c, _LAST_LINE], li
-                cut_fix[n_cut, 0], cut_fix[n_cut, 1], cut_fix[n_cut, 2] = st_f[c, _LTS], st_f[c, _LLAT], st_f[c, _LLON]
-                cut_fix[n_cut, 3], cut_fix[n_cut, 4], cut_fix[n_cut, 5] = ts, la, lo
-                n_cut += 1
+        st[c, _SEEN], st[c, _LAST_T], st[c, _LAST_LINE] = 1, tt, li
+        ts = _seconds(tt)
+        if si[c, _S_STARTED] and si[c, _S_NPEND] == 0 and si[c, _S_A_FIXED] == 0 and \
+                not broken(sf[c, _F_A], sf[c, _F_A + 1], sf[c, _F_A + 2], ts, la, lo, vmax_kn):
+            _append(si, sf, c, ts, la, lo, li, 0, cuts, cutf, cnt)  # the common case
         else:
-            st_i[c, _FIRST_LINE] = li
-            st_f[c, _FTS], st_f[c, _FLAT], st_f[c, _FLON] = ts, la, lo
-        st_i[c, _KEPT] = k + 1
-        st_i[c, _LAST_T] = tt
-        st_i[c, _LAST_LINE] = li
-        st_f[c, _LTS], st_f[c, _LLAT], st_f[c, _LLON] = ts, la, lo
-    pos[0], pos[1], pos[2], pos[3], pos[4] = ia, ib, n_tracks, n_dup, n_cut
+            feed(si, sf, c, ts, la, lo, li, 0, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, rq_i)
+    pos[0], pos[1], pos[2], pos[3] = ia, ib, n_tracks, n_dup
     return ia >= na and ib >= nb
 
 
 @numba.njit(nogil=True, cache=True)
-def _seed(keys, vals, st_i, st_f, mmsi, t_us, lat, lon, skip):
+def _seed(keys, vals, st, si, sf, mmsi, t_us, lat, lon, skip, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, rq_i):
     """Tracks known before the stream (codes 0..k-1): skipped ones, or ones whose first fix is
-    a stored fix (context, line -1: its segment is pinned, it is never flagged)."""
+    a stored fix (context, line -1: stored, never flagged)."""
     for c in range(len(mmsi)):
         s = _slot(keys, mmsi[c])
         keys[s] = mmsi[c]
         vals[s] = c
         if skip[c]:
-            st_i[c, _SKIP] = 1
+            st[c, _SKIP] = 1
             continue
-        ts = _seconds(t_us[c])
-        st_i[c, _KEPT], st_i[c, _LAST_T], st_i[c, _LAST_LINE], st_i[c, _FIRST_LINE], st_i[c, _CTX] = \
-            1, t_us[c], -1, -1, 1
-        st_f[c, _LTS], st_f[c, _LLAT], st_f[c, _LLON] = ts, lat[c], lon[c]
-        st_f[c, _FTS], st_f[c, _FLAT], st_f[c, _FLON] = ts, lat[c], lon[c]
+        st[c, _SEEN], st[c, _LAST_T], st[c, _LAST_LINE], st[c, _CTX] = 1, t_us[c], -1, 1
+        feed(si, sf, c, _seconds(t_us[c]), lat[c], lon[c], -1, 1, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f,
+             rq_i)
 
 
-def _stream(*data, context: dict | None = None):
-    """One pass over the fixes (the ``ok`` rows of a and every row of b, merged by line):
-    per track its state (``st_i``, ``st_f``), the repeated keys and the cuts. ``context``:
-    :func:`first_load_rules`'s."""
+@numba.njit(nogil=True, cache=True)
+def _flush_all(si, st, sf, c0, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, rq_i):
+    """End of the stream: :func:`lanes._jumps.flush` on every track from ``c0``; returns the
+    track it stopped at when an output is nearly full (else the number of tracks)."""
+    for c in range(c0, len(si)):
+        if cnt[0] + FEED_ROOM > len(spikes) or cnt[1] + FEED_ROOM > len(cuts):
+            return c
+        if not (st[c, _BACK] or st[c, _SKIP]):
+            flush(si, sf, c, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, rq_i)
+    return len(si)
+
+
+def _stream(*data, vmax_kn: float, context: dict | None = None):
+    """One pass over the fixes (the ``ok`` rows of a and every row of b, merged by line): rule
+    7 and step 1 of the jump rule (the walk of :mod:`lanes._jumps`) per track. ``context``:
+    :func:`first_load_rules`'s. Returns the track table, the bookkeeping and walk states, the
+    repeated keys (line, first line of the key, track), the outliers (line, track), the cuts."""
     k = 0 if context is None else len(context["mmsi"])
     size = 4096
     while size < 2 * (k + 1):
         size *= 2
     keys = np.full(size, _EMPTY, dtype=np.int64)
     vals = np.empty(size, dtype=np.int32)
-    st_i, st_f = np.zeros((max(2048, k + 1), 7), dtype=np.int64), np.zeros((max(2048, k + 1), 6))
-    pos = np.zeros(5, dtype=np.int64)
+    n0 = max(2048, k + 1)
+    st = np.zeros((n0, 6), dtype=np.int64)
+    si, sf = walk_state(n0)
+    spikes, cuts, cutf, cnt, rq_f, rq_i = walk_outputs(4096)
+    pos = np.zeros(4, dtype=np.int64)
+    walk = (float(vmax_kn), MAX_OUTLIER_RUN)
     if k:
-        _seed(keys, vals, st_i, st_f, *(np.ascontiguousarray(context[n], dtype=dt) for n, dt in
+        if len(cuts) < FEED_ROOM * (k + 1):
+            spikes, cuts, cutf, _, _, _ = walk_outputs(FEED_ROOM * (k + 1))
+        _seed(keys, vals, st, si, sf, *(np.ascontiguousarray(context[n], dtype=dt) for n, dt in
                                         (("mmsi", np.int64), ("t_us", np.int64), ("lat", np.float64),
-                                         ("lon", np.float64), ("skip", np.bool_))))
+                                         ("lon", np.float64), ("skip", np.bool_))), *walk,
+              spikes, cuts, cutf, cnt, rq_f, rq_i)
         pos[2] = k
-    dup, cut, cut_fix = np.empty((4096, 3), dtype=np.int64), np.empty((4096, 4), dtype=np.int64), np.empty((4096, 6))
-    while not _stream_run(*data, pos, keys, vals, st_i, st_f, dup, cut, cut_fix):
-        n_tracks, n_dup, n_cut = pos[2], pos[3], pos[4]
+    dup = np.empty((4096, 3), dtype=np.int64)
+
+    def grow(spikes, cuts, cutf):
+        if cnt[0] + FEED_ROOM > len(spikes):
+            spikes = np.concatenate((spikes, np.empty_like(spikes)))
+        if cnt[1] + FEED_ROOM > len(cuts):
+            cuts, cutf = np.concatenate((cuts, np.empty_like(cuts))), np.concatenate((cutf, np.empty_like(cutf)))
+        return spikes, cuts, cutf
+
+    while not _stream_run(*data, *walk, pos, keys, vals, st, si, sf, dup, spikes, cuts, cutf, cnt, rq_f, rq_i):
+        n_tracks, n_dup = pos[2], pos[3]
         if 2 * (n_tracks + 1) > len(keys):
             keys, vals = _grow(keys, vals)
-        if n_tracks == len(st_i):
-            st_i = np.concatenate((st_i, np.zeros_like(st_i)))
-            st_f = np.concatenate((st_f, np.zeros_like(st_f)))
+        if n_tracks == len(st):
+            st = np.concatenate((st, np.zeros_like(st)))
+            si, sf = np.concatenate((si, np.zeros_like(si))), np.concatenate((sf, np.zeros_like(sf)))
         if n_dup == len(dup):
             dup = np.concatenate((dup, np.empty_like(dup)))
-        if n_cut == len(cut):
-            cut, cut_fix = np.concatenate((cut, np.empty_like(cut))), np.concatenate((cut_fix, np.empty_like(cut_fix)))
-    n_tracks, n_dup, n_cut = pos[2], pos[3], pos[4]
-    return keys, vals, st_i[:n_tracks], st_f[:n_tracks], dup[:n_dup], cut[:n_cut], cut_fix[:n_cut]
+        spikes, cuts, cutf = grow(spikes, cuts, cutf)
+    n_tracks, n_dup = pos[2], pos[3]
+    st, si, sf = st[:n_tracks], si[:n_tracks], sf[:n_tracks]
+    c = 0
+    while c < n_tracks:
+        c = _flush_all(si, st, sf, c, *walk, spikes, cuts, cutf, cnt, rq_f, rq_i)
+        spikes, cuts, cutf = grow(spikes, cuts, cutf)
+    return keys, vals, st, si, sf, dup[:n_dup], spikes[:cnt[0]], cuts[:cnt[1]], cutf[:cnt[1]]
 
 
 @numba.njit(nogil=True, cache=True)
-def _pass_two(keys, vals, back, skip, kept0, rej_ptr, rej_lo, rej_hi, line_a, mmsi_a, t_a, lat_a, lon_a, ok_a, line_b,
-              mmsi_b, t_b, lat_b, lon_b, lon_tol):
+def _pass_two(keys, vals, back, skip, kept0, spike_lines, rej_ptr, rej_lo, rej_hi, line_a, mmsi_a, t_a, lat_a, lon_a,
+              ok_a, line_b, mmsi_b, t_b, lat_b, lon_b, lon_tol):
     """The stream again, for the rare cases the first pass cannot settle alone: the lines of
-    the fixes in rejected segments of more than two fixes (``rej_*``: per track, ordinal
-    ranges), and the fixes of the tracks set aside (``back``; ``skip``: tracks left out).
-    ``kept0``: fixes before the stream (1 for a track with a stored context fix)."""
+    the fixes in rejected segments of more than two fixes (``rej_*``: per track, ranges of
+    ordinals, which count the kept fixes - repeated keys and the outliers ``spike_lines``,
+    sorted, left out), and the fixes of the tracks set aside (``back``; ``skip``: tracks left
+    out). ``kept0``: fixes before the stream (1 for a track with a stored context fix)."""
     n_tracks = len(back)
     kept = kept0.copy()
+    seen = kept0.copy()
     last_t = np.zeros(n_tracks, dtype=np.int64)
     jump = np.empty(1024, dtype=np.int64)
     n_jump = 0
@@ -258,9 +267,14 @@ def _pass_two(keys, vals, back, skip, kept0, rej_ptr, rej_lo, rej_hi, line_a, mm
             continue
         if rej_ptr[c + 1] == rej_ptr[c]:
             continue
-        k = kept[c]
-        if k > 0 and tt == last_t[c]:
+        if seen[c] and tt == last_t[c]:
             continue  # a repeated key (already reported)
+        seen[c] = 1
+        last_t[c] = tt
+        s = np.searchsorted(spike_lines, li)
+        if s < len(spike_lines) and spike_lines[s] == li:
+            continue  # an outlier (already reported)
+        k = kept[c]
         for r in range(rej_ptr[c], rej_ptr[c + 1]):
             if rej_lo[r] <= k < rej_hi[r]:
                 if n_jump == len(jump):
@@ -269,7 +283,6 @@ def _pass_two(keys, vals, back, skip, kept0, rej_ptr, rej_lo, rej_hi, line_a, mm
                 n_jump += 1
                 break
         kept[c] = k + 1
-        last_t[c] = tt
     return jump[:n_jump], b_fix[:n_back]
 
 
@@ -285,46 +298,33 @@ def first_load_rules(scan: dict, exact: dict, max_speed_kn: float, context: dict
     ``context`` (a workspace that already holds positions): per MMSI (``mmsi``, ``skip``,
     ``t_us``, ``lat``, ``lon``) either ``skip`` (its fixes are left out: the caller judges
     them) or the stored fix just before the MMSI's first fix in the file, when no stored fix is
-    at or after that time: it opens the track as a fixed fix (its segment pinned, never
-    flagged), as :func:`lanes.clean.speed_jump_mask` treats stored context. A track with context
-    that goes back in time in the file is left out too. ``fallback``: the MMSIs left out."""
+    at or after that time: it opens the track as a stored fix (never flagged), as
+    :func:`lanes.clean.speed_jump_mask` treats stored context. A track with context that goes
+    back in time in the file is left out too. ``fallback``: the MMSIs left out."""
     a = [np.ascontiguousarray(scan[k], dtype=dt) for k, dt in _KEYS]
     b = [np.ascontiguousarray(exact[k], dtype=dt) for k, dt in _KEYS]
     ok = np.ascontiguousarray(scan["ok"], dtype=np.bool_)
     data = (*a, ok, *b, float(SENTINEL_TOL))
     vmax = float(max_speed_kn)
-    keys, vals, st_i, st_f, dup, cut, cut_fix = _stream(*data, vmax, context=context)
-    ctx = st_i[:, _CTX].astype(bool)
-    back = st_i[:, _BACK].astype(bool)
-    drop = st_i[:, _SKIP].astype(bool) | (back & ctx)
+    keys, vals, st, si, sf, dup, spikes, cuts, cutf = _stream(*data, vmax_kn=vmax, context=context)
+    ctx = st[:, _CTX].astype(bool)
+    back = st[:, _BACK].astype(bool)
+    drop = st[:, _SKIP].astype(bool) | (back & ctx)
     aside = back & ~ctx
     done = ~(drop | aside)  # tracks settled by the stream
     dup = dup[done[dup[:, 2]]]
-    keep = done[cut[:, 0]]
-    cut, cut_fix = cut[keep], cut_fix[keep]
-    # The greedy segment step on each track with a cut (cuts come in stream order, so in
-    # ordinal order within a track). A rejected segment of one or two fixes is known by the
+    spike_lines = np.sort(spikes[done[spikes[:, 1]], 0])
+    keep = done[cuts[:, 0]]
+    cuts, cutf = cuts[keep], cutf[keep]
+    # Step 2 on each track with a cut: a rejected segment of one or two fixes is known by the
     # lines at its ends; longer ones need the second pass.
-    jumps = []
+    jumps = spike_lines.tolist()
     long_rej: dict[int, list] = {}
-    order = np.argsort(cut[:, 0], kind="stable")
-    cut, cut_fix = cut[order], cut_fix[order]
-    bounds = np.flatnonzero(np.r_[True, cut[1:, 0] != cut[:-1, 0], True]) if len(cut) else []
-    for s, e in zip(bounds[:-1], bounds[1:]):
-        c = int(cut[s, 0])
-        opens = [0] + cut[s:e, 1].tolist() + [int(st_i[c, _KEPT])]
-        heads = [st_f[c, _FTS:]] + [cut_fix[i, 3:] for i in range(s, e)]  # first fix of each segment
-        tails = [cut_fix[i, :3] for i in range(s, e)] + [st_f[c, _LTS:_FTS]]  # last fix of each segment
-        head_line = [int(st_i[c, _FIRST_LINE])] + cut[s:e, 3].tolist()
-        tail_line = cut[s:e, 2].tolist() + [int(st_i[c, _LAST_LINE])]
-        lengths = [opens[q + 1] - opens[q] for q in range(len(opens) - 1)]
-        pinned = [bool(ctx[c])] + [False] * (len(lengths) - 1)  # the stored fix opens segment 0
-        for q in rejected_segments(lengths, pinned,
-                                   lambda p, q, tails=tails, heads=heads: bool(linked(*tails[p], *heads[q], vmax))):
-            if lengths[q] <= 2:
-                jumps += {head_line[q], tail_line[q]}
-            else:
-                long_rej.setdefault(c, []).append((opens[q], opens[q + 1]))
+    for c, lo, hi, head, tail, _ in rejected_from_walk(si, sf, cuts, cutf, vmax):
+        if hi - lo <= 2:
+            jumps += {head, tail}
+        else:
+            long_rej.setdefault(c, []).append((lo, hi))
     ref_out, dup_out = [dup[:, 1]], [dup[:, 0]]
     if long_rej or aside.any():
         rej_ptr = np.zeros(len(back) + 1, dtype=np.int64)
@@ -332,7 +332,7 @@ def first_load_rules(scan: dict, exact: dict, max_speed_kn: float, context: dict
             rej_ptr[c + 1] = len(ranges)
         rej_ptr = np.cumsum(rej_ptr)
         flat = np.array([r for c in sorted(long_rej) for r in long_rej[c]], dtype=np.int64).reshape(-1, 2)
-        more, b_fix = _pass_two(keys, vals, aside, drop, ctx.astype(np.int64), rej_ptr,
+        more, b_fix = _pass_two(keys, vals, aside, drop, ctx.astype(np.int64), spike_lines, rej_ptr,
                                 np.ascontiguousarray(flat[:, 0]), np.ascontiguousarray(flat[:, 1]), *data)
         jumps += more.tolist()
         if len(b_fix):

@@ -29,8 +29,9 @@ Rules, in order of precedence (the first that fires is the row's reason):
    row (earlier line of the same file, or a row already in the workspace) are ``duplicate``
    when every canonical field equals that row's, ``duplicate_time`` when they conflict. The
    first row wins.
-8. ``speed_jump`` (see :func:`speed_jump_mask`): fixes whose implied speed to the accepted
-   fixes around them exceeds ``max_speed_kn`` (default 60 kn). Evaluated within one file.
+8. ``speed_jump`` (see :func:`speed_jump_mask`): lone outliers and short outlier bursts, and
+   the segments of a track that cannot be reached at ``max_speed_kn`` (default 60 kn) from
+   the fixes kept around them. Evaluated per file, with the stored fixes as context.
 
 References
 ----------
@@ -49,8 +50,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from lanes._jumps import link_breaks
-from lanes._jumps import linked as linked_fixes
+from lanes import _jumps
+from lanes._jumps import link_breaks, walk_sorted
 
 # ---------------------------------------------------------------------------------------------
 # Limits (ITU-R M.1371-5 Annex 2 Table 45, M.585-9 Annex 1) and the default speed-jump limit.
@@ -292,15 +293,26 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
                     fixed=None) -> np.ndarray:
     """Fixes to quarantine as implied-speed jumps (rule 8). Input sorted by (mmsi, time).
 
-    Consecutive fixes of one MMSI are *linked* when the great-circle distance between them is at
-    most ``max_speed_kn`` times the time between them. The links cut each track into segments
-    of mutually consistent fixes. Segments are accepted greedily, largest first (earliest first
-    on ties): a segment is accepted when it is linked to the nearest already accepted fix before
-    it and after it; otherwise all its fixes are quarantined. So an isolated outlier, a bad first
-    fix or a second transmitter using the same MMSI is removed while the bulk of the track is
-    kept, and afterwards no two consecutive kept fixes imply more than ``max_speed_kn`` (unless
-    both were ``fixed``). Fixes marked ``fixed`` (already stored) are context: their segments are
-    accepted first and unconditionally, and they are never flagged.
+    Two fixes of one MMSI are *linked* when the great-circle distance between them is at most
+    ``max_speed_kn`` times the time between them. Each track is walked in time order (step 1,
+    :func:`lanes._jumps.feed`), keeping a *last kept fix*; the next fix
+
+    * continues the segment when it is linked to the last kept fix;
+    * else, when the last kept fix is new and the fix before it (in its segment) is linked to
+      this one, the last kept fix was a lone outlier: it is quarantined, this one continues;
+    * else, when one of the next :data:`lanes._jumps.MAX_OUTLIER_RUN` new fixes is linked to the
+      last kept fix, the fixes before it were an outlier burst: quarantined, and that fix
+      continues the segment;
+    * else the track is cut: this fix opens a new segment.
+
+    A segment never mixes stored (``fixed``) and new fixes. Step 2 (:func:`rejected_segments`)
+    accepts the segments greedily, the stored ones first, then largest first (earliest on
+    ties): a segment is accepted when it is linked to the nearest accepted fix before it and
+    after it; the fixes of the others are quarantined. So a lone outlier or a short burst is
+    removed even where a coverage gap brings the next fix within reach of it, a bad first fix
+    or a second transmitter using the same MMSI is removed while the bulk of the track is kept,
+    and afterwards no two consecutive kept fixes of a track imply more than ``max_speed_kn``
+    unless both are stored. Stored fixes are context and are never flagged.
 
     Parameters
     ----------
@@ -340,30 +352,53 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
     same = mmsi[1:] == mmsi[:-1]
     brk = link_breaks(same, t, lat, lon, max_speed_kn)
     if not brk.any():
-        return bad
-
-    def linked(i: int, j: int) -> bool:
-        return bool(linked_fixes(t[i], lat[i], lon[i], t[j], lat[j], lon[j], float(max_speed_kn)))
-
+        return bad  # every consecutive pair linked: nothing to remove, whatever is stored
     starts = np.flatnonzero(np.r_[True, ~same])
     ends = np.r_[starts[1:], n]
     track_of_link = np.cumsum(np.r_[True, ~same])[:-1] - 1  # track index of link i (fix i -> i+1)
-    for k in np.unique(track_of_link[brk]):
-        s, e = int(starts[k]), int(ends[k])
-        cuts = [s] + [int(i) + 1 for i in np.flatnonzero(brk[s:e - 1]) + s] + [e]
-        segs = list(zip(cuts[:-1], cuts[1:]))
-        pinned = [bool(fixed[a:b].any()) for a, b in segs]
-        for q in rejected_segments([b - a for a, b in segs], pinned,
-                                   lambda p, q, segs=segs: linked(segs[p][1] - 1, segs[q][0])):
-            bad[segs[q][0]:segs[q][1]] = True
+    sel = np.unique(track_of_link[brk])
+    si, sf, spikes, cuts, cutf = walk_sorted(starts[sel], ends[sel], t, lat, lon, fixed, max_speed_kn)
+    bad[spikes] = True
+    for k, _, _, head, _, next_head in rejected_from_walk(si, sf, cuts, cutf, max_speed_kn):
+        bad[head:(ends[sel[k]] if next_head < 0 else next_head)] = True
     return bad & ~fixed
+
+
+def rejected_from_walk(si, sf, cuts, cutf, max_speed_kn: float) -> list[tuple]:
+    """Step 2 of :func:`speed_jump_mask` on the segments of a walk (:mod:`lanes._jumps`): the
+    rejected segments of every track with a cut, as ``(track, first ordinal, end ordinal,
+    first line, last line, first line of the next segment or -1)``; ordinals count the kept
+    fixes of the track (outliers left out) from 0."""
+    J = _jumps
+    out = []
+    if not len(cuts):
+        return out
+    order = np.argsort(cuts[:, 0], kind="stable")  # a track's cuts stay in walk (time) order
+    cuts, cutf = cuts[order], cutf[order]
+    bounds = np.flatnonzero(np.r_[True, cuts[1:, 0] != cuts[:-1, 0], True])
+    vmax = float(max_speed_kn)
+    for s, e in zip(bounds[:-1], bounds[1:]):
+        c = int(cuts[s, 0])
+        opens = [0] + cuts[s:e, 1].tolist() + [int(si[c, J._S_K])]
+        heads = [tuple(sf[c, J._F_FIRST:J._F_FIRST + 3])] + [tuple(x) for x in cutf[s:e, 3:6]]
+        tails = [tuple(x) for x in cutf[s:e, 0:3]] + [tuple(sf[c, J._F_A:J._F_A + 3])]
+        head_line = [int(si[c, J._S_FIRST_LINE])] + cuts[s:e, 3].tolist()
+        tail_line = cuts[s:e, 2].tolist() + [int(si[c, J._S_A_LINE])]
+        pinned = [bool(si[c, J._S_FIRST_FIXED])] + cuts[s:e, 4].astype(bool).tolist()
+        lengths = [opens[q + 1] - opens[q] for q in range(len(opens) - 1)]
+        for q in rejected_segments(lengths, pinned,
+                                   lambda p, q, tails=tails, heads=heads: not J.broken(*tails[p], *heads[q], vmax)):
+            out.append((c, opens[q], opens[q + 1], head_line[q], tail_line[q],
+                        head_line[q + 1] if q + 1 < len(head_line) else -1))
+    return out
 
 
 def rejected_segments(lengths, pinned, linked_seg) -> list[int]:
     """The greedy step of :func:`speed_jump_mask` on one track cut into segments.
 
     ``lengths[q]``: number of fixes of segment q (segments in time order); ``pinned[q]``: the
-    segment holds a fixed (stored) fix; ``linked_seg(p, q)`` (p < q): whether the last fix of
+    segment's fixes are stored ones (a segment never mixes stored and new fixes);
+    ``linked_seg(p, q)`` (p < q): whether the last fix of
     segment p and the first fix of segment q are linked. Segments are taken pinned first, then
     largest first, earliest first on ties; one is accepted when it is linked to the nearest
     accepted segment before it and after it. Returns the rejected segments, in the order they

@@ -118,6 +118,92 @@ def test_limit_is_a_parameter():
     assert C.speed_jump_mask(m, t, lat, lon, 10.0).sum() == 2
 
 
+# An outlier next to a coverage gap. 10 kn east along 55N: 10 s steps of 0.000484 deg of
+# longitude (10 kn x 10 s = 1/36 nmi; 1 deg of longitude at 55N = 60 cos 55 = 34.41 nmi). The
+# outlier sits 0.5 deg of latitude (30 nmi) off, 10 s after the last good fix: 10,800 kn from
+# it. A 40-minute gap follows it: 30 nmi in 40 min is 45 kn, so the outlier *is* linked to the
+# first fix after the gap (at 60 kn), while that fix is 40 min and 0.194 deg (6.7 nmi, 10 kn)
+# from the last good fix before the outlier.
+def _gap_track(n_before: int, n_after: int, outliers=(0.5,), outlier_first: bool = True):
+    step = 0.000484
+    t, lat, lon = [], [], []
+    for k in range(n_before):
+        t.append(10.0 * k), lat.append(55.0), lon.append(10.0 + k * step)
+    t0 = 10.0 * n_before
+    if outlier_first:
+        for j, off in enumerate(outliers):
+            t.append(t0 + 10.0 * j), lat.append(55.0 + off), lon.append(10.0 + n_before * step)
+        t0 += 10.0 * len(outliers) + 2400.0
+    else:
+        t0 += 2400.0
+        for j, off in enumerate(outliers):
+            t.append(t0 + 10.0 * j), lat.append(55.0 + off), lon.append(10.0 + n_before * step + 0.194)
+        t0 += 10.0 * len(outliers)
+    for k in range(n_after):
+        t.append(t0 + 10.0 * k), lat.append(55.0), lon.append(10.0 + n_before * step + 0.194 + k * step)
+    n = len(t)
+    return np.ones(n, dtype=np.int64), np.asarray(t), np.asarray(lat), np.asarray(lon)
+
+
+@pytest.mark.parametrize("n_before, n_after", [(200, 120), (100, 120), (1, 120), (120, 1)])
+def test_outlier_followed_by_a_gap_is_removed_alone(n_before, n_after):
+    # The outlier reaches the fix after the gap; a walk that only compared consecutive fixes
+    # chained it to the fixes after the gap and then rejected that whole segment (or, when it
+    # was the larger one, kept the outlier and rejected the fixes before it).
+    m, t, lat, lon = _gap_track(n_before, n_after)
+    bad = C.speed_jump_mask(m, t, lat, lon)
+    assert np.flatnonzero(bad).tolist() == [n_before]
+
+
+def test_outlier_preceded_by_a_gap_is_removed_alone():
+    # The mirror case: after the gap the outlier is within reach of the last good fix (30 nmi
+    # in 40 min), but the next fix is not within reach of it, while the fix before it is.
+    m, t, lat, lon = _gap_track(150, 100, outlier_first=False)
+    assert np.flatnonzero(C.speed_jump_mask(m, t, lat, lon)).tolist() == [150]
+
+
+@pytest.mark.parametrize("burst", [2, 3])
+def test_outlier_burst_followed_by_a_gap_is_removed(burst):
+    m, t, lat, lon = _gap_track(100, 120, outliers=(0.5,) * burst)
+    assert np.flatnonzero(C.speed_jump_mask(m, t, lat, lon)).tolist() == list(range(100, 100 + burst))
+
+
+def test_a_longer_burst_is_a_segment_judged_as_a_whole():
+    # Four fixes off (more than MAX_OUTLIER_RUN) are a segment of their own, chained to the
+    # fixes after the gap: the larger part wins as before, here the 100 + 4 after the gap.
+    from lanes._jumps import MAX_OUTLIER_RUN
+
+    assert MAX_OUTLIER_RUN == 3
+    m, t, lat, lon = _gap_track(50, 100, outliers=(0.5,) * 4)
+    assert np.flatnonzero(C.speed_jump_mask(m, t, lat, lon)).tolist() == list(range(50))
+
+
+def test_new_fixes_between_stored_fixes_are_judged_against_both():
+    # Stored fixes at 0 and 600 s, 9 nmi apart; new fixes at 60 s, 0.9 nmi behind the first
+    # (54 kn from it) and at 540 s, 0.9 nmi past the second (54 kn to it): each is linked to
+    # its stored neighbour, but the two are 10.8 nmi apart in 8 min (81 kn) and neither reaches
+    # the stored fix on its far side (9.9 nmi in 9 min, 66 kn): both go.
+    t = np.array([0.0, 60.0, 540.0, 600.0])
+    lat = np.array([55.0, 55 - 0.9 / 60, 55 + 9.9 / 60, 55 + 9 / 60])
+    fixed = np.array([True, False, False, True])
+    assert C.speed_jump_mask(np.ones(4), t, lat, np.full(4, 11.0), fixed=fixed).tolist() == [False, True, True, False]
+    # The first new fix 0.5 nmi north of the first stored one instead (30 kn from it, 8.5 nmi
+    # in 9 min = 56.7 kn to the second): it stays, the other (70.5 kn from it) goes.
+    lat2 = lat.copy()
+    lat2[1] = 55 + 0.5 / 60
+    assert C.speed_jump_mask(np.ones(4), t, lat2, np.full(4, 11.0), fixed=fixed).tolist() == [False, False, True, False]
+
+
+def test_a_stored_fix_is_never_an_outlier_and_can_end_a_burst():
+    # new, new (off), stored: the stored fix is within reach of the first: the one between is
+    # the outlier. Then new (off), stored out of reach of it and of the fix before: the new
+    # one goes, the stored one stays.
+    t = np.array([0.0, 60.0, 120.0, 180.0, 240.0])
+    lat = np.array([55.0, 56.0, 55 + 2 * D, 57.0, 55 + 4 * D])
+    fixed = np.array([False, False, True, False, False])
+    assert C.speed_jump_mask(np.ones(5), t, lat, np.zeros(5), fixed=fixed).tolist() == [False, True, False, True, False]
+
+
 @settings(max_examples=150, deadline=None)
 @given(
     n_tracks=st.integers(1, 4),
@@ -125,23 +211,33 @@ def test_limit_is_a_parameter():
     limit=st.sampled_from([20.0, 60.0]),
 )
 def test_no_kept_pair_exceeds_the_limit(n_tracks, data, limit):
-    mm, tt, la, lo = [], [], [], []
+    mm, tt, la, lo, fx = [], [], [], [], []
+    with_stored = data.draw(st.booleans())
     for k in range(n_tracks):
         n = data.draw(st.integers(1, 25))
         dts = data.draw(st.lists(st.floats(1.0, 600.0), min_size=n, max_size=n))
+        # near-track positions as well as wild ones, so that outliers, bursts and gaps all occur
+        wild = data.draw(st.lists(st.booleans(), min_size=n, max_size=n))
         lats = data.draw(st.lists(st.floats(-60.0, 60.0), min_size=n, max_size=n))
         lons = data.draw(st.lists(st.floats(-179.0, 179.0), min_size=n, max_size=n))
+        t_k = np.cumsum(dts)
+        lats = [la_ if w else 40.0 + t_ * 2e-5 for la_, w, t_ in zip(lats, wild, t_k)]
+        lons = [lo_ if w else 5.0 for lo_, w in zip(lons, wild)]
         mm += [k] * n
-        tt += list(np.cumsum(dts))
+        tt += list(t_k)
         la += lats
         lo += lons
-    m, t, lat, lon = map(np.asarray, (mm, tt, la, lo))
-    bad = C.speed_jump_mask(m, t, lat, lon, limit)
+        fx += data.draw(st.lists(st.booleans(), min_size=n, max_size=n)) if with_stored else [False] * n
+    m, t, lat, lon, fixed = map(np.asarray, (mm, tt, la, lo, fx))
+    bad = C.speed_jump_mask(m, t, lat, lon, limit, fixed=fixed)
+    assert not (bad & fixed).any()  # stored fixes are never flagged
     keep = ~bad
-    km, kt, kla, klo = m[keep], t[keep], lat[keep], lon[keep]
+    km, kt, kla, klo, kfx = m[keep], t[keep], lat[keep], lon[keep], fixed[keep]
     same = km[1:] == km[:-1]
     d = haversine_nmi(kla[:-1], klo[:-1], kla[1:], klo[1:])
-    assert np.all(~same | (d <= limit * (kt[1:] - kt[:-1]) / 3600.0 + 1e-9))
+    ok = d <= limit * (kt[1:] - kt[:-1]) / 3600.0 + 1e-9
+    # no two consecutive kept fixes of a track exceed the limit, unless both are stored
+    assert np.all(~same | ok | (kfx[:-1] & kfx[1:]))
     # Every track keeps at least one fix.
     assert set(km.tolist()) == set(m.tolist())
     # A track without any jump loses nothing.
