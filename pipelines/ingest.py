@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
+import time
 from pathlib import Path
 from typing import Callable, Iterable, Optional
 
@@ -25,6 +27,7 @@ from lanes.clean import DEFAULT_MAX_SPEED_KN
 from lanes.io.files import AisFile, expand_paths, inspect
 from pipelines.ingest_partitioned import skipped_counts
 from pipelines.runners import retry_transient
+from thresholds.errors import StormlaneError
 
 log = logging.getLogger(__name__)
 
@@ -58,18 +61,56 @@ def add_to_summary(summary: dict, counts: dict) -> dict:
     return summary
 
 
+def csv_layout(f: AisFile) -> tuple:
+    """(spec, header line, header fields, stage field -> column) of a DMA/NOAA CSV file;
+    :class:`lanes.errors.AisFormatError` when its header lacks a needed column."""
+    from lanes.io.csv_formats import SPECS, resolve_columns, split_csv_line
+    from lanes.io.files import head_text
+
+    spec = SPECS[f.format]
+    first = head_text(f.path, 1 << 16).split("\n", 1)[0].rstrip("\r")
+    header = split_csv_line(first)
+    return spec, first, header, resolve_columns(spec, header, f.path)
+
+
+def check_inputs(files: list, fmt: str | None = None) -> None:
+    """What can be checked of every file before any is loaded, so that a batch with a file of
+    unknown format or a CSV header or Parquet schema lacking a needed column fails with nothing
+    committed: the format (detected or forced), the CSV header, the Parquet columns. (Bad rows
+    are never an error; a truncated gzip file is found while it is read.)"""
+    import duckdb
+
+    from lanes.io.parquet import column_mapping
+    from pipelines.storage import ais as store
+
+    con = None
+    try:
+        for p in files:
+            f = inspect(p, fmt, with_fingerprint=False)
+            if f.format in ("dma", "noaa"):
+                csv_layout(f)
+            elif f.format == "parquet" and not f.gzip:
+                if con is None:
+                    con = duckdb.connect()
+                column_mapping([c for c, _ in store.parquet_columns(_Connection(con), f.path)], f.path)
+    finally:
+        if con is not None:
+            con.close()
+
+
+class _Connection:
+    """A bare DuckDB connection where a workspace is expected (readers only use ``con``)."""
+
+    def __init__(self, con):
+        self.con = con
+
+
 def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) -> dict:
     """Reader step: put one file's typed rows into the workspace's temporary stage."""
     from pipelines.storage import ais as store
 
     if f.format in ("dma", "noaa"):
-        from lanes.io.csv_formats import SPECS, resolve_columns, split_csv_line
-        from lanes.io.files import head_text
-
-        spec = SPECS[f.format]
-        first = head_text(f.path, 1 << 16).split("\n", 1)[0].rstrip("\r")
-        header = split_csv_line(first)
-        index = resolve_columns(spec, header, f.path)
+        spec, first, header, index = csv_layout(f)
         info = None
         if not f.gzip and f.size_bytes >= FAST_CSV_MIN_BYTES:
             # The fast stages in FAST_CSV_ENGINES order; None = that one cannot be trusted with
@@ -100,8 +141,9 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
     elif f.format == "parquet":
         from lanes.io.parquet import column_mapping
 
-        cols = [c for c, _ in store.parquet_columns(ws, f.path)]
-        info = store.stage_parquet(ws, f.path, column_mapping(cols, f.path))
+        with _plain_file(f) as src:  # DuckDB reads Parquet from a plain file only
+            cols = [c for c, _ in store.parquet_columns(ws, src, shown=f.path)]
+            info = store.stage_parquet(ws, src, column_mapping(cols, f.path))
     else:
         from lanes.io.nmea import read_nmea
 
@@ -111,6 +153,40 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
     if progress is not None:
         progress(f.size_bytes // 2)
     return info
+
+
+@contextlib.contextmanager
+def _plain_file(f: AisFile):
+    """The path of ``f``'s content as a plain file: itself, or (gzip) a temporary decompressed
+    copy, removed on exit (the stage is a table by then)."""
+    if not f.gzip:
+        yield f.path
+        return
+    import tempfile
+
+    from lanes.io.files import gunzip_into
+
+    fd, tmp = tempfile.mkstemp(prefix="stormlane-", suffix=".parquet")
+    try:
+        with os.fdopen(fd, "wb") as out:
+            gunzip_into(f.path, out.write)
+        yield Path(tmp)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def stage_or_gzip_error(ws, f: AisFile, full, progress: Callable[[int], None] | None = None) -> dict:
+    """:func:`stage_file`; when that fails on a gzip file whose fingerprint (``full``, a future
+    reading the whole stream) found it truncated or corrupt, that error is raised instead of
+    whatever the reader made of the partial content."""
+    from lanes.errors import AisInputError
+
+    try:
+        return stage_file(ws, f, progress)
+    except Exception as err:
+        if full is not None and f.gzip and isinstance(full.exception(), AisInputError):
+            raise full.exception() from err
+        raise
 
 
 def loaded_record(ws, path, suffix: str, quick: str, current=None) -> dict | None:
@@ -173,15 +249,29 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         if progress is not None:
             progress(f.size_bytes)
         return skipped_counts(f.path, f.format, done["file_id"])
+    if full is None and f.gzip:
+        # A gzip file's fingerprint reads the whole stream, which proves it complete: started
+        # at once, beside the staging (whose gzip reading is single-threaded).
+        full = pool.submit(lambda: fingerprint(f.path) + suffix)
     info = None
+    t_stage = time.perf_counter()
     try:
-        info = stage_file(ws, f, progress)
+        info = stage_or_gzip_error(ws, f, full, progress)
+        t_stage = time.perf_counter() - t_stage
         if full is None:
             full = pool.submit(lambda: fingerprint(f.path) + suffix)
         meta = {"fingerprint": full, "quick_key": quick, "path": str(f.path), "format": f.format,
                 "size_bytes": f.size_bytes, "ignored": info["ignored"], "line_index": info.get("line_index"),
                 "scan_fixes": info.pop("scan_fixes", None)}
         counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit)
+    except store.AlreadyLoaded as same:
+        # the same content under another name or compression (x.csv and x.csv.gz), found by
+        # its fingerprint only now: nothing was committed
+        store.discard_stage(ws)
+        log.info("%s: same content as file %s (%s), skipped", f.path, same.record["file_id"], same.record["path"])
+        if progress is not None:
+            progress(f.size_bytes - f.size_bytes // 2)
+        return skipped_counts(f.path, f.format, same.record["file_id"])
     except BaseException:
         store.discard_stage(ws)
         raise
@@ -193,8 +283,11 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         progress(f.size_bytes - f.size_bytes // 2)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", f.path, f.format, counts["read"],
              counts["loaded"], counts["quarantined"], counts["duplicates"])
+    # Wall seconds: the stage (and its own phases, when it reports them), then the commit's steps.
+    timings = {"stage": t_stage, **{f"stage_{k}": v for k, v in (info.get("timings") or {}).items()},
+               **meta.get("timings", {})}
     return {"path": str(f.path), "format": f.format, **counts, "already_loaded": False,
-            "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping")}
+            "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping"), "timings": timings}
 
 
 def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
@@ -223,15 +316,30 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
     from pipelines.storage import open_workspace
 
     files = expand_paths(paths)
+    check_inputs(files, fmt)
     summary = empty_summary()
     per_file = []
     with open_workspace(db) as ws:
         for p in files:
-            counts = ingest_file(ws, p, fmt=fmt, max_speed_kn=max_speed_kn, progress=progress)
+            try:
+                counts = ingest_file(ws, p, fmt=fmt, max_speed_kn=max_speed_kn, progress=progress)
+            except StormlaneError as err:
+                raise _with_committed(err, per_file)
             add_to_summary(summary, counts)
             per_file.append(counts)
     summary["per_file"] = per_file
     return summary
+
+
+def _with_committed(err: Exception, per_file: list) -> Exception:
+    """``err`` (same type) with a note naming the files of the batch committed before it
+    failed: each file is its own transaction, so they stay loaded and a rerun skips them."""
+    done = [c["path"] for c in per_file if not c.get("already_loaded")]
+    if done and err.args:
+        shown = ", ".join(done[:3]) + (f" and {len(done) - 3} more" if len(done) > 3 else "")
+        err.args = (f"{err.args[0]} (the {len(done)} file(s) before it are loaded and stay so: {shown}; "
+                    "a rerun skips them)",) + err.args[1:]
+    return err
 
 
 def total_bytes(paths: Iterable) -> int:
@@ -243,8 +351,10 @@ def total_bytes(paths: Iterable) -> int:
 # Prefect flow (thin: discovery -> per file: stage, clean + commit -> summary). Built on first
 # access so that the CLI and ``ingest_paths`` do not pay Prefect's import time.
 # ---------------------------------------------------------------------------------------------
-def _discover(paths: list[str]) -> list[str]:
-    return [str(p) for p in expand_paths(paths)]
+def _discover(paths: list[str], fmt: Optional[str] = None) -> list[str]:
+    files = expand_paths(paths)
+    check_inputs(files, fmt)
+    return [str(p) for p in files]
 
 
 #: Workspaces the flow's file tasks share (one connection per flow run and workspace: opening
@@ -334,7 +444,7 @@ def _build_flow() -> dict:
         files are partitioned: each is staged by a task submitted to the flow's task runner
         (e.g. Dask workers, see :mod:`pipelines.ingest_partitioned`) while this process commits
         them one by one in the same order, so the workspace ends the same."""
-        files = discover_task(paths)
+        files = discover_task(paths, fmt)
         try:
             if spool_dir is None:
                 per_file = [ingest_file_task(db, p, fmt, max_speed_kn) for p in files]

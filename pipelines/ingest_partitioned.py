@@ -61,7 +61,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
     import pyarrow.parquet as pq
 
     from lanes.io.files import fingerprint, identity_suffix, inspect, quick_key
-    from pipelines.ingest import stage_file
+    from pipelines.ingest import stage_or_gzip_error
     from pipelines.storage import ais as store
 
     f = inspect(path, fmt, with_fingerprint=False)
@@ -71,7 +71,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
         full = pool.submit(lambda: fingerprint(f.path) + suffix)
         mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
         try:
-            info = stage_file(mem, f)
+            info = stage_or_gzip_error(mem, f, full)
             try:
                 stage = store.read_stage(mem)
             finally:
@@ -96,7 +96,7 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
     from pipelines.storage import ais as store
 
     done = store.file_record(ws, staged["fingerprint"])
-    if done is not None:  # the same bytes twice in one batch: the first commit wins
+    if done is not None:  # the same content twice in one batch: the first commit wins
         Path(staged["spool"]).unlink(missing_ok=True)
         return skipped_counts(staged["path"], staged["format"], done["file_id"])
     try:

@@ -63,13 +63,18 @@ def test_reingest_adds_nothing_and_overlap_counts_duplicates(tmp_path, workspace
     first = ingest_paths([src], workspace_path)
     again = ingest_paths([src], workspace_path)
     assert again["already_loaded"] == 1 and again["read"] == 0 and again["loaded"] == 0
-    # Same content under another name (and gzipped: other bytes) -> skipped / all duplicates.
+    # Same content under another name, or gzipped (other bytes, same content) -> skipped.
     copy = tmp_path / "copy.csv"
     shutil.copy(src, copy)
     assert ingest_paths([copy], workspace_path)["already_loaded"] == 1
     gz = tmp_path / "day_csv_without_suffix"
     gz.write_bytes(gzip.compress(src.read_bytes()))
-    s = ingest_paths([gz], workspace_path)
+    assert ingest_paths([gz], workspace_path)["already_loaded"] == 1
+    # Other content repeating the loaded rows (one more, empty, line) -> all duplicates.
+    over = tmp_path / "overlap_without_suffix"
+    over.write_bytes(gzip.compress(src.read_bytes() + b"\n"))
+    s = ingest_paths([over], workspace_path)
+    assert s["ignored"] == first["ignored"] + 1
     _adds_up(s)
     assert s["loaded"] == 0
     # Everything loaded the first time is now a duplicate of the stored row.
@@ -271,3 +276,162 @@ def test_bom_and_repeated_header_are_not_records(tmp_path, workspace_path):
     assert s["read"] == 21 and s["loaded"] == len(DMA_LOADED_LINES) + 1
     pure = clean_positions(read_csv_stage(p)[0])
     assert pure.counts["read"] == 21 and pure.counts["reasons"] == s["reasons"]
+
+
+# --- whole-file problems: truncated gzip, foreign databases, batches, odd paths ---------------
+def _nothing_loaded(db) -> None:
+    with open_workspace(db) as ws:
+        assert ws.con.execute("SELECT count(*) FROM ais_files").fetchone()[0] == 0
+        assert ws.con.execute("SELECT count(*) FROM ais_positions").fetchone()[0] == 0
+        assert ws.con.execute("SELECT count(*) FROM ais_quarantine").fetchone()[0] == 0
+
+
+def _big_dma(path, n=3000):
+    rows = [dma_row(f"01/01/2025 {i // 3600:02d}:{i // 60 % 60:02d}:{i % 60:02d}", str(219000001 + i % 7),
+                    f"{55 + i * 1e-5:.6f}", "11.000000") for i in range(n)]
+    path.write_text("\n".join([DMA_LINES[0]] + rows) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("keep", [0.3, 0.9, "all but the trailer"])
+def test_truncated_gzip_csv_is_an_error_naming_it(tmp_path, workspace_path, keep):
+    # A partial download: DuckDB's gzip reader would stage the lines it got; the fingerprint,
+    # which reads the whole stream, finds the end missing and nothing is committed.
+    data = gzip.compress(_big_dma(tmp_path / "day.csv").read_bytes())
+    cut = len(data) - 4 if keep == "all but the trailer" else int(len(data) * keep)
+    gz = tmp_path / "day.csv.gz"
+    gz.write_bytes(data[:cut])
+    with pytest.raises(AisInputError, match=r"day\.csv\.gz: truncated gzip: the [\d,]+-byte file ends inside"):
+        ingest_paths([gz], workspace_path)
+    _nothing_loaded(workspace_path)
+
+
+def test_truncated_and_corrupt_gzip_nmea_are_errors(tmp_path, workspace_path):
+    body = "".join(f"!AIVDM,1,1,,A,15M67FC000G?ufbE`FepT@3n00Sa,0*5F\n" for _ in range(4000)).encode()
+    data = gzip.compress(body)
+    cut = tmp_path / "cut.nmea.gz"
+    cut.write_bytes(data[: len(data) // 2])
+    with pytest.raises(AisInputError, match=r"cut\.nmea\.gz: truncated gzip"):
+        ingest_paths([cut], workspace_path)
+    bad = bytearray(data)
+    bad[-6] ^= 0xFF  # inside the CRC-32 / length trailer
+    flipped = tmp_path / "flipped.nmea.gz"
+    flipped.write_bytes(bytes(bad))
+    with pytest.raises(AisInputError, match=r"flipped\.nmea\.gz: corrupt gzip"):
+        ingest_paths([flipped], workspace_path)
+    _nothing_loaded(workspace_path)
+
+
+def test_gzip_members_and_zero_padding_are_one_content(tmp_path, workspace_path):
+    # Concatenated gzip files (two members) padded with zeros: the same content as the plain
+    # file, so the same fingerprint (one file loaded, the other skipped).
+    src = _big_dma(tmp_path / "day.csv")
+    raw = src.read_bytes()
+    two = tmp_path / "two.csv.gz"
+    two.write_bytes(gzip.compress(raw[:5000]) + gzip.compress(raw[5000:]) + b"\0" * 1000)
+    first = ingest_paths([two], workspace_path)
+    assert first["loaded"] == 3000
+    assert ingest_paths([src], workspace_path)["already_loaded"] == 1
+
+
+def test_gzipped_parquet_loads_like_the_plain_file(tmp_path, workspace_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = pd.date_range("2025-01-01", periods=50, freq="min", tz="UTC")
+    plain = tmp_path / "day.parquet"
+    pq.write_table(pa.table({"mmsi": [219000001] * 50, "time_utc": t, "lat_deg": 55 + np.arange(50) * 1e-3,
+                             "lon_deg": [11.0] * 50}), plain)
+    gz = tmp_path / "day.parquet.gz"
+    gz.write_bytes(gzip.compress(plain.read_bytes()))
+    s = ingest_paths([gz], workspace_path)
+    assert (s["loaded"], s["files"]) == (50, 1)
+    assert ingest_paths([plain], workspace_path)["already_loaded"] == 1  # same content
+
+
+def test_repeated_header_lines_count_as_ignored(tmp_path):
+    # Two files concatenated with their headers, and empty lines: lines = 1 + read + ignored.
+    rows = [dma_row(f"01/01/2025 00:0{i}:00", "219000001", f"{55 + i * 0.001:.6f}", "11.0") for i in range(6)]
+    p = tmp_path / "cat.csv"
+    p.write_text("\n".join([DMA_LINES[0]] + rows[:3] + [DMA_LINES[0], ""] + rows[3:] + [""]) + "\n")
+    s = ingest_paths([p], tmp_path / "w.duckdb")
+    assert (s["read"], s["loaded"], s["ignored"]) == (6, 6, 3)
+    assert 1 + s["read"] + s["ignored"] == len(p.read_text().splitlines())
+
+
+def test_a_foreign_duckdb_database_is_not_turned_into_a_workspace(tmp_path):
+    import duckdb
+
+    from pipelines.storage import WorkspaceError
+
+    for name, table in (("clash.duckdb", "ais_positions"), ("other.duckdb", "orders")):
+        db = tmp_path / name
+        con = duckdb.connect(str(db))
+        con.execute(f"CREATE TABLE {table} (x INTEGER)")
+        con.close()
+        with pytest.raises(WorkspaceError, match=rf"{name} is a DuckDB database but not a stormlane workspace "
+                                                 rf"\(it holds {table} and no schema_version table\)"):
+            ingest_paths([write_dma(tmp_path / "day.csv")], db)
+        con = duckdb.connect(str(db), read_only=True)
+        assert [r[0] for r in con.execute("SHOW TABLES").fetchall()] == [table]  # untouched
+        con.close()
+
+
+def test_a_batch_is_checked_before_anything_is_loaded(tmp_path, workspace_path):
+    good = write_dma(tmp_path / "a.csv")
+    nolat = tmp_path / "b.csv"
+    nolat.write_text("MMSI,BaseDateTime,LON,SOG\n219000001,2025-01-01T00:00:00,11.0,10\n")
+    with pytest.raises(AisFormatError, match=r"b\.csv:1: NOAA CSV header lacks column\(s\) lat"):
+        ingest_paths([good, nolat], workspace_path)
+    _nothing_loaded(workspace_path)
+
+
+def test_an_error_after_committed_files_names_them(tmp_path, workspace_path):
+    # A truncated gzip is only found while it is read: the files before it stay loaded, and
+    # the error says so (a rerun skips them).
+    good = write_dma(tmp_path / "a.csv")
+    data = gzip.compress(_big_dma(tmp_path / "big.csv").read_bytes())
+    cut = tmp_path / "b.csv.gz"
+    cut.write_bytes(data[: len(data) // 2])
+    with pytest.raises(AisInputError, match=r"b\.csv\.gz: truncated gzip.*\(the 1 file\(s\) before it are loaded and "
+                                            r"stay so: .*a\.csv; a rerun skips them\)"):
+        ingest_paths([good, cut], workspace_path)
+    assert ingest_paths([good], workspace_path)["already_loaded"] == 1
+
+
+def test_odd_paths(tmp_path, workspace_path, caplog):
+    with pytest.raises(AisInputError, match="empty path"):
+        ingest_paths([""], workspace_path)
+    d = tmp_path / "drop"
+    d.mkdir()
+    write_dma(d / "a.csv")
+    write_dma(d / ".b.csv")  # an editor's or a sync tool's hidden copy
+    (d / "gone.csv").symlink_to(tmp_path / "nowhere.csv")
+    with caplog.at_level("WARNING"):
+        s = ingest_paths([d], workspace_path)
+    assert s["files"] == 1
+    assert "hidden file" in caplog.text and "link to nothing" in caplog.text
+    assert ingest_paths([d / ".b.csv"], workspace_path)["already_loaded"] == 1  # named alone: read (same content)
+
+
+@pytest.mark.parametrize("case", ["empty path", "foreign database", "truncated gzip"])
+def test_cli_whole_file_errors_are_one_line(tmp_path, capsys, case):
+    import duckdb
+
+    from cli_runner import run_cli
+
+    db = tmp_path / "w.duckdb"
+    if case == "empty path":
+        args, expect = [""], "error: '': empty path"
+    elif case == "foreign database":
+        con = duckdb.connect(str(db))
+        con.execute("CREATE TABLE ais_positions (x INTEGER)")
+        con.close()
+        args, expect = [str(write_dma(tmp_path / "a.csv"))], "is a DuckDB database but not a stormlane workspace"
+    else:
+        data = gzip.compress(_big_dma(tmp_path / "big.csv").read_bytes())
+        (tmp_path / "b.csv.gz").write_bytes(data[: len(data) // 3])
+        args, expect = [str(tmp_path / "b.csv.gz")], "b.csv.gz: truncated gzip"
+    code, out, err = run_cli(capsys, "ingest-ais", *args, "--db", str(db), "--json")
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ") and expect in err

@@ -42,6 +42,8 @@ def _pyais_position_messages(path):
             types[d.msg_type] += 1
             if d.msg_type in POSITION_TYPES:
                 decoded.append(d)
+            if d.msg_type in (5, 24) and not 201_000_000 <= int(d.mmsi) <= 775_999_999:
+                types["static_bad_mmsi"] += 1  # joinable to no ship: quarantined as bad_mmsi
     return types, decoded
 
 
@@ -55,7 +57,7 @@ def test_nmea_position_messages_match_pyais_and_every_sentence_is_accounted_for(
     path = shared_file(shared_data, rel)
     types, _ = _pyais_position_messages(path)
     n_pos_pyais = sum(n for t, n in types.items() if t in POSITION_TYPES)
-    n_static_pyais = types[5] + types[24]
+    n_static_pyais = types[5] + types[24] - types["static_bad_mmsi"]
     stage, meta = read_nmea(path)
     assert meta["position_messages"] == n_pos_pyais
     assert meta["static"] == n_static_pyais
@@ -63,6 +65,14 @@ def test_nmea_position_messages_match_pyais_and_every_sentence_is_accounted_for(
     s = ingest_paths([path], tmp_path / "ws.duckdb")
     _adds_up(s)
     assert s["static"] == n_static_pyais
+    if rel == AISLIB_NMEA:  # 498 static messages, 3 of them from MMSIs outside the ship range
+        assert (n_static_pyais, types["static_bad_mmsi"]) == (495, 3)
+        from pyais import decode
+
+        with open_workspace(tmp_path / "ws.duckdb") as ws:
+            raws = [r[0] for r in ws.con.execute("SELECT raw FROM ais_quarantine WHERE reason = 'bad_mmsi'").fetchall()]
+        static_raws = [r for r in raws if decode(*r.split("\n")).msg_type in (5, 24)]
+        assert len(static_raws) == 3  # each kept with its raw sentences
     # Every AIS sentence of the file belongs to exactly one item (a message or a rejected
     # sentence/fragment group); items are loaded, static, quarantined or duplicates.
     opener = gzip.open if str(path).endswith(".gz") else open

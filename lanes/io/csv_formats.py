@@ -54,7 +54,7 @@ from lanes.clean import (
     conform_stage,
 )
 from lanes.errors import AisFormatError
-from lanes.io.files import normalise_header_name, open_binary
+from lanes.io.files import normalise_header_name, read_content
 
 #: DMA navigational status texts (lower case) -> ITU-R M.1371-5 code.
 NAV_STATUS_WORDS = {
@@ -225,8 +225,7 @@ def resolve_columns(spec: CsvSpec, header: list[str], path) -> dict[str, int]:
 def read_lines(path) -> list[str]:
     """Physical lines of a text file (gzip transparent): split on ``\\n``, one trailing ``\\r``
     removed, UTF-8 with undecodable bytes replaced. A final newline does not add a line."""
-    with open_binary(path) as fh:
-        data = fh.read()
+    data = read_content(path)
     parts = data.split(b"\n")
     if parts and parts[-1] == b"":
         parts.pop()

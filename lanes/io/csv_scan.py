@@ -312,6 +312,8 @@ def _anonymous(shape, dtype) -> np.ndarray:
     import mmap
 
     count = int(np.prod(shape))
+    if not hasattr(mmap, "MAP_ANONYMOUS"):  # not a POSIX system: numpy's own allocation
+        return np.empty(shape, dtype=dtype)
     mem = mmap.mmap(-1, max(count * np.dtype(dtype).itemsize, 1), flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
     return np.frombuffer(mem, dtype=dtype, count=count).reshape(shape)
 

@@ -62,8 +62,9 @@ from lanes.clean import (
     KIND_STATIC,
     OTHER_MSG_TYPE,
     conform_stage,
+    valid_mmsi,
 )
-from lanes.io.files import open_binary
+from lanes.io.files import read_content
 
 #: Message types stored as positions, and those joined as static vessel data.
 POSITION_TYPES = frozenset({1, 2, 3, 18, 19, 27})
@@ -698,8 +699,7 @@ def _decode_columns(line, raw, perr, t, payloads, sentences, single) -> tuple[pd
 def iter_lines(path) -> list[str]:
     """Physical lines of a (possibly gzipped) text file: split on ``\\n``, non-ASCII bytes
     replaced (NMEA is ASCII). A final newline does not add a line."""
-    with open_binary(path) as fh:
-        data = fh.read()
+    data = read_content(path)
     lines = data.decode("ascii", errors="replace").split("\n")
     if lines and lines[-1] == "":
         lines.pop()
@@ -719,4 +719,10 @@ def read_nmea(path, progress=None, fast: bool = True) -> tuple[pd.DataFrame, dic
     stage, meta = parse_fast(lines) if fast else parse_lines(lines, progress=progress)
     if progress is not None and fast:
         progress(len(lines))
+    # A static message (5, 24) with no valid ship MMSI can be joined to no vessel: it is a
+    # message like any position report, quarantined as bad_mmsi, rather than lost.
+    orphan = (stage["kind"].to_numpy() == KIND_STATIC) & ~valid_mmsi(stage["mmsi"])
+    if orphan.any():
+        stage.loc[orphan, "kind"] = KIND_POSITION
+        meta = {**meta, "static": int(meta["static"]) - int(orphan.sum())}
     return stage, {"format": "nmea", "path": str(Path(path)), **meta}

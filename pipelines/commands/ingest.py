@@ -13,7 +13,8 @@ from pipelines.commands._common import DbOption, JsonOption, emit_json, interact
 def register(app: typer.Typer) -> None:
     @app.command("ingest-ais")
     def ingest_ais(
-        paths: List[Path] = typer.Argument(..., help="AIS files, or directories (every AIS file inside, recursively)."),
+        # Text, not Path: typer would turn an empty argument into "." (the whole working folder).
+        paths: List[str] = typer.Argument(..., help="AIS files, or directories (every AIS file inside, recursively)."),
         db: Path = DbOption,
         fmt: Optional[str] = typer.Option(
             None, "--format", help="Force the format instead of detecting it: dma, noaa, nmea or parquet."
@@ -36,7 +37,8 @@ def register(app: typer.Typer) -> None:
         """Clean and load AIS files; bad rows go to the quarantine with a reason code.
 
         Prints read = loaded + quarantined + duplicates (per reason code). Files already loaded
-        (same SHA-256) are skipped; rows whose MMSI and time are already stored are duplicates.
+        (same bytes: BLAKE3 fingerprint) are skipped; rows whose MMSI and time are already stored are
+        duplicates.
         With --task-runner dask[:ADDRESS] the files are staged in parallel on Dask workers and
         committed by this process in the same order: the workspace ends the same as sequentially.
         """

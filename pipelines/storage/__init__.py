@@ -94,6 +94,19 @@ def _check_is_duckdb(path: Path) -> None:
                              "give --db a stormlane workspace or a new file name")
 
 
+def _check_is_workspace(con, path: Path) -> None:
+    """A DuckDB database with tables must be a stormlane workspace (it has ``schema_version``):
+    another application's database is never migrated into one (nor half-migrated, when one of
+    its tables has a workspace table's name)."""
+    names = [r[0] for r in con.execute(
+        "SELECT table_name FROM information_schema.tables WHERE table_catalog = current_database() "
+        "AND table_schema = 'main' ORDER BY table_name").fetchall()]
+    if names and "schema_version" not in names:
+        shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+        raise WorkspaceError(f"workspace {path} is a DuckDB database but not a stormlane workspace (it holds "
+                             f"{shown} and no schema_version table); give --db a stormlane workspace or a new file name")
+
+
 class Workspace:
     """An open DuckDB workspace. Use as a context manager; ``con`` is the DuckDB connection."""
 
@@ -109,8 +122,13 @@ class Workspace:
                 raise WorkspaceError(f"workspace {self.path}: cannot create its folder ({err.strerror or err}: {err.filename})") from None
         self.con = duckdb.connect(str(self.path), read_only=read_only)
         self.read_only = read_only
-        if not read_only:
-            migrate(self.con)
+        try:
+            _check_is_workspace(self.con, self.path)
+            if not read_only:
+                migrate(self.con)
+        except BaseException:
+            self.con.close()
+            raise
 
     @contextmanager
     def transaction(self):

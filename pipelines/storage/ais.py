@@ -930,16 +930,17 @@ def _static_typing(col: str) -> str:
     return f"CASE WHEN NOT list_contains($null_words::VARCHAR[], lower({t})) THEN {t} END"
 
 
-def parquet_columns(ws, path: Path) -> list[tuple[str, str]]:
-    """(name, DuckDB type) of the columns of a Parquet file; :class:`AisFormatError` when it is
-    not one (e.g. ``--format parquet`` forced on a CSV file)."""
+def parquet_columns(ws, path: Path, shown=None) -> list[tuple[str, str]]:
+    """(name, DuckDB type) of the columns of a Parquet file; :class:`AisFormatError` (naming
+    ``shown``, default ``path``) when it is not one (e.g. ``--format parquet`` forced on a CSV
+    file)."""
     try:
         rows = ws.con.execute("DESCRIBE SELECT * FROM read_parquet(?)", [str(path)]).fetchall()
     except (duckdb.InvalidInputException, duckdb.IOException) as err:
         from lanes.errors import AisFormatError
 
         why = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise AisFormatError(path, f"not a readable Parquet file ({why})") from None
+        raise AisFormatError(shown or path, f"not a readable Parquet file ({why})") from None
     return [(r[0], r[1]) for r in rows]
 
 
@@ -1371,6 +1372,14 @@ def _fill_raw(con, meta: dict) -> None:
         con.unregister("ais_raw_df")
 
 
+class AlreadyLoaded(Exception):
+    """The file's fingerprint is already in ``ais_files`` (``record``): nothing is committed."""
+
+    def __init__(self, record: dict):
+        super().__init__(f"already loaded as file {record['file_id']} ({record['path']})")
+        self.record = record
+
+
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
@@ -1384,6 +1393,15 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     """
     con = ws.con
     _prepare(con)
+    # Wall seconds of each step, for the benchmark's breakdown (``meta["timings"]``).
+    timings = meta.setdefault("timings", {})
+    clock = [time.perf_counter()]
+
+    def lap(name: str) -> None:
+        now = time.perf_counter()
+        timings[name] = now - clock[0]
+        clock[0] = now
+
     with ws.transaction():
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
         has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
@@ -1419,6 +1437,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             )
         finally:
             con.unregister("ais_out_df")
+        lap("rules_7_8")
 
         loaded = con.execute(
             f"""INSERT INTO ais_positions
@@ -1426,6 +1445,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             FROM ais_stage ANTI JOIN ais_out USING (line) WHERE {_OK}""",
             [file_id],
         ).fetchone()[0]
+        lap("insert")
         con.execute(
             """CREATE OR REPLACE TEMP TABLE ais_q AS
             SELECT s.line, coalesce(s.reason0, o.reason) AS reason, s.raw,
@@ -1442,7 +1462,16 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             "SELECT count(*) FILTER (WHERE kind = ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
             [C.KIND_POSITION, C.KIND_STATIC],
         ).fetchone()
+        ignored = int(meta.get("ignored", 0))
+        if meta.get("format") in ("dma", "noaa"):
+            # lines repeating the header (files concatenated with their headers) are not data
+            # either: with the empty lines, lines = 1 + read + ignored
+            ignored += int(con.execute(
+                "SELECT count(*) FROM ais_stage WHERE kind = ? AND line > 1 AND raw IS NOT NULL AND raw <> ''",
+                [C.KIND_IGNORED]).fetchone()[0])
+        lap("quarantine")
         _upsert_vessels(con, file_id, meta)
+        lap("vessels")
         dups = int(sum(v for k, v in reasons.items() if k in C.DUPLICATE_CODES))
         counts = {
             "file_id": file_id,
@@ -1451,7 +1480,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             "quarantined": int(sum(reasons.values())) - dups,
             "duplicates": dups,
             "static": int(static),
-            "ignored": int(meta.get("ignored", 0)),
+            "ignored": ignored,
             "reasons": {str(k): int(v) for k, v in reasons.items()},
         }
         if counts["read"] != counts["loaded"] + counts["quarantined"] + counts["duplicates"]:
@@ -1459,8 +1488,10 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         fingerprint = meta["fingerprint"]
         if isinstance(fingerprint, Future):
             fingerprint = fingerprint.result()
-        if file_record(ws, fingerprint) is not None:
-            raise RuntimeError(f"{meta['path']}: fingerprint already loaded (by another ingest meanwhile)")
+        lap("fingerprint_wait")
+        rec = file_record(ws, fingerprint)
+        if rec is not None:  # the same content under another name or compression: roll back
+            raise AlreadyLoaded(rec)
         con.execute(
             """INSERT INTO ais_files (file_id, fingerprint, path, format, size_bytes, n_read, n_loaded, n_quarantined,
                    n_duplicates, n_static, n_ignored, reasons, max_speed_kn)
@@ -1473,6 +1504,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             con.execute("INSERT INTO ais_file_keys VALUES (?, ?)", [file_id, meta["quick_key"]])
         if before_commit is not None:
             before_commit()
+    lap("commit")
     _drop_temp(con)
     return counts
 
