@@ -64,11 +64,19 @@ def add_to_summary(summary: dict, counts: dict) -> dict:
 def csv_layout(f: AisFile) -> tuple:
     """(spec, header line, header fields, stage field -> column) of a DMA/NOAA CSV file;
     :class:`lanes.errors.AisFormatError` when its header lacks a needed column."""
+    from lanes.errors import AisFormatError
     from lanes.io.csv_formats import SPECS, resolve_columns, split_csv_line
     from lanes.io.files import head_text
 
     spec = SPECS[f.format]
-    first = head_text(f.path, 1 << 16).split("\n", 1)[0].rstrip("\r")
+    first = head_text(f.path, 1 << 16).split("\n", 1)[0]
+    if "\r" in first.rstrip("\r"):
+        raise AisFormatError(f.path, "lines end in a carriage return alone (classic Mac OS line ends): convert "
+                                     "them to LF or CRLF", line=1)
+    first = first.rstrip("\r")
+    if not first.strip():
+        raise AisFormatError(f.path, f"line 1 is empty: the {f.format.upper()} CSV header must be the first line",
+                             line=1)
     header = split_csv_line(first)
     return spec, first, header, resolve_columns(spec, header, f.path)
 

@@ -435,3 +435,16 @@ def test_cli_whole_file_errors_are_one_line(tmp_path, capsys, case):
     code, out, err = run_cli(capsys, "ingest-ais", *args, "--db", str(db), "--json")
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and err.startswith("error: ") and expect in err
+
+
+def test_cr_only_line_ends_and_a_blank_first_line_are_errors(tmp_path, workspace_path):
+    text = "\n".join(DMA_LINES[:4])
+    cr = tmp_path / "mac.csv"
+    cr.write_bytes(text.replace("\n", "\r").encode() + b"\r")
+    with pytest.raises(AisFormatError, match=r"mac\.csv:1: lines end in a carriage return alone"):
+        ingest_paths([cr], workspace_path)
+    blank = tmp_path / "blank_first.csv"
+    blank.write_text("\n" + text + "\n")
+    with pytest.raises(AisFormatError, match=r"blank_first\.csv:1: line 1 is empty: the DMA CSV header"):
+        ingest_paths([blank], workspace_path)
+    _nothing_loaded(workspace_path)
