@@ -152,6 +152,21 @@ def _append(si, sf, c, t, la, lo, li, fx, cuts, cutf, cnt):
 
 
 @numba.njit(nogil=True, cache=True)
+def _cut_at_pending(si, sf, c, cuts, cutf, cnt, rq_f, rq_i):
+    """The pending fixes never came back within reach of the last kept fix: the first opens a
+    new segment, the others go to ``rq_*`` (rows 0..m-1) to be fed again; returns m."""
+    m = 0
+    for j in range(1, si[c, _S_NPEND]):
+        p = _F_PEND + 3 * j
+        rq_f[m, 0], rq_f[m, 1], rq_f[m, 2] = sf[c, p], sf[c, p + 1], sf[c, p + 2]
+        rq_i[m, 0], rq_i[m, 1] = si[c, _S_PEND + j], 0
+        m += 1
+    si[c, _S_NPEND] = 0
+    _cut(si, sf, c, sf[c, _F_PEND], sf[c, _F_PEND + 1], sf[c, _F_PEND + 2], si[c, _S_PEND], 0, cuts, cutf, cnt)
+    return m
+
+
+@numba.njit(nogil=True, cache=True)
 def _step(si, sf, c, t, la, lo, li, fx, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, rq_i):
     """One fix of track ``c`` through the walk. Returns how many fixes it put in ``rq_*`` to be
     fed again, in order, before any other fix of the track (0 nearly always)."""
@@ -181,18 +196,10 @@ def _step(si, sf, c, t, la, lo, li, fx, vmax_kn, max_run, spikes, cuts, cutf, cn
             return 0
         # never back within reach: a real cut before the first pending fix; the others and
         # this one are fed again after it
-        m = 0
-        for j in range(1, n_pend):
-            p = _F_PEND + 3 * j
-            rq_f[m, 0], rq_f[m, 1], rq_f[m, 2] = sf[c, p], sf[c, p + 1], sf[c, p + 2]
-            rq_i[m, 0], rq_i[m, 1] = si[c, _S_PEND + j], 0
-            m += 1
+        m = _cut_at_pending(si, sf, c, cuts, cutf, cnt, rq_f, rq_i)
         rq_f[m, 0], rq_f[m, 1], rq_f[m, 2] = t, la, lo
         rq_i[m, 0], rq_i[m, 1] = li, fx
-        m += 1
-        si[c, _S_NPEND] = 0
-        _cut(si, sf, c, sf[c, _F_PEND], sf[c, _F_PEND + 1], sf[c, _F_PEND + 2], si[c, _S_PEND], 0, cuts, cutf, cnt)
-        return m
+        return m + 1
     if not broken(at, ala, alo, t, la, lo, vmax_kn):
         _append(si, sf, c, t, la, lo, li, fx, cuts, cutf, cnt)
         return 0
@@ -256,15 +263,7 @@ def flush(si, sf, c, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, rq_i):
     fix open a segment (and are walked again after its first fix); repeated until none is
     pending. The outputs need :data:`FEED_ROOM` free rows."""
     while si[c, _S_NPEND] > 0:
-        n_pend = si[c, _S_NPEND]
-        m = 0
-        for j in range(1, n_pend):
-            p = _F_PEND + 3 * j
-            rq_f[m, 0], rq_f[m, 1], rq_f[m, 2] = sf[c, p], sf[c, p + 1], sf[c, p + 2]
-            rq_i[m, 0], rq_i[m, 1] = si[c, _S_PEND + j], 0
-            m += 1
-        si[c, _S_NPEND] = 0
-        _cut(si, sf, c, sf[c, _F_PEND], sf[c, _F_PEND + 1], sf[c, _F_PEND + 2], si[c, _S_PEND], 0, cuts, cutf, cnt)
+        m = _cut_at_pending(si, sf, c, cuts, cutf, cnt, rq_f, rq_i)
         if m:
             _drain(si, sf, c, m, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, rq_i)
 

@@ -14,21 +14,9 @@ VMAX_KN = 60.0
 def reference(scan: dict, exact: dict, vmax_kn: float = VMAX_KN) -> dict:
     """Merge by line, sort each MMSI's fixes by (time, line) with numpy, take repeated keys
     out and call speed_jump_mask: the rules as written in lanes.clean."""
-    ok = scan["ok"]
-    line = np.r_[scan["line"][ok], exact["line"]]
-    mmsi = np.r_[scan["mmsi"][ok], exact["mmsi"]]
-    t_us = np.r_[scan["t_us"][ok], exact["t_us"]]
-    lat = np.r_[scan["lat"][ok], exact["lat"]]
-    lon = np.r_[scan["lon"][ok], exact["lon"]]
-    lon = np.where(np.abs(lon - 180.0) <= SENTINEL_TOL, -180.0, lon)
-    order = np.lexsort((line, t_us, mmsi))
-    line, mmsi, t_us, lat, lon = line[order], mmsi[order], t_us[order], lat[order], lon[order]
-    same = np.r_[False, (mmsi[1:] == mmsi[:-1]) & (t_us[1:] == t_us[:-1])]
-    first = np.maximum.accumulate(np.where(~same, np.arange(len(line)), 0))
-    dup, ref = line[same], line[first[same]]
-    keep = ~same
-    mask = speed_jump_mask(mmsi[keep], (t_us[keep] * 1000) / 1e9, lat[keep], lon[keep], vmax_kn)
-    return {"dup": dup, "ref": ref, "jump": line[keep][mask]}
+    no_ctx = {"mmsi": np.empty(0, np.int64), "skip": np.empty(0, bool), "t_us": np.empty(0, np.int64),
+              "lat": np.empty(0), "lon": np.empty(0)}
+    return reference_with_context(scan, exact, no_ctx, (), vmax_kn)
 
 
 def as_pairs(d: dict) -> tuple:
