@@ -88,9 +88,11 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
     import tempfile
 
     from lanes.io.files import expand_paths
-    from pipelines.ingest import commit_progress, flow_with_runner
+    from pipelines.ingest import check_inputs, commit_progress, flow_with_runner
 
-    files = [str(p) for p in expand_paths(paths)]  # bad paths fail here, before the cluster starts
+    found = expand_paths(paths)
+    check_inputs(found, fmt)  # bad paths, formats and headers fail here, before the cluster starts
+    files = [str(p) for p in found]
     db = Path(db)
     db.parent.mkdir(parents=True, exist_ok=True)
     own = spool is None
