@@ -262,11 +262,10 @@ def _csv_runs(kind: str, csv_path: Path, tmp: Path, layout: str, repeat: int, db
             dt = time.perf_counter() - t
             assert summary["read"] == summary["loaded"] + summary["quarantined"] + summary["duplicates"]
             n = summary["read"]
-            phases = {k: v for k, v in summary["per_file"][0].get("timings", {}).items()
-                      if k in ("stage", "stage_scan", "stage_arrow", "stage_spot_check", "stage_exact_lines", "rules_7_8",
-                               "insert", "quarantine", "vessels", "fingerprint_wait", "commit")}
-            top = ("stage", "rules_7_8", "insert", "quarantine", "vessels", "fingerprint_wait", "commit")
-            phases["other"] = dt - sum(phases.get(k, 0.0) for k in top)  # quick key, open, checkpoint + close
+            # the file's timings: the stage, its own parts (stage_*, of which stage_total repeats
+            # the stage), then the commit's steps; other = quick key, open, checkpoint + close
+            phases = {k: v for k, v in summary["per_file"][0].get("timings", {}).items() if k != "stage_total"}
+            phases["other"] = dt - sum(v for k, v in phases.items() if not k.startswith("stage_"))
             extra = {"phases": phases, "summary": {k: v for k, v in summary.items() if k != "per_file"},
                      "staging": summary["per_file"][0].get("staging"),
                      "line_mapping": summary["per_file"][0].get("line_mapping")}

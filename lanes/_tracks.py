@@ -188,8 +188,6 @@ def _stream(*data, vmax_kn: float, context: dict | None = None):
     pos = np.zeros(4, dtype=np.int64)
     walk = (float(vmax_kn), MAX_OUTLIER_RUN)
     if k:
-        if len(cuts) < FEED_ROOM * (k + 1):
-            spikes, cuts, cutf, _, _, _ = walk_outputs(FEED_ROOM * (k + 1))
         _seed(keys, vals, st, si, sf, *(np.ascontiguousarray(context[n], dtype=dt) for n, dt in
                                         (("mmsi", np.int64), ("t_us", np.int64), ("lat", np.float64),
                                          ("lon", np.float64), ("skip", np.bool_))), *walk,

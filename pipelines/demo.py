@@ -62,7 +62,7 @@ def step_ingest(ctx: DemoContext) -> dict:
 
     Prints the ingest summary and checks it against the scenario's ground truth
     (``expected_ingest`` and the dirty rows of ``scenario.json``). Files already in the
-    workspace (same bytes, e.g. a rerun of the demo) are skipped by the ingest.
+    workspace (same content, e.g. a rerun of the demo) are skipped by the ingest.
     """
     import json
 

@@ -25,7 +25,7 @@ from typing import Callable, Iterable, Optional
 
 from lanes.clean import DEFAULT_MAX_SPEED_KN
 from lanes.io.files import AisFile, expand_paths, inspect
-from pipelines.ingest_partitioned import skipped_counts
+from pipelines.ingest_partitioned import _Scratch, skipped_counts
 from pipelines.runners import retry_transient
 from thresholds.errors import StormlaneError
 
@@ -100,17 +100,10 @@ def check_inputs(files: list, fmt: str | None = None) -> None:
             elif f.format == "parquet" and not f.gzip:
                 if con is None:
                     con = duckdb.connect()
-                column_mapping([c for c, _ in store.parquet_columns(_Connection(con), f.path)], f.path)
+                column_mapping([c for c, _ in store.parquet_columns(_Scratch(con), f.path)], f.path)
     finally:
         if con is not None:
             con.close()
-
-
-class _Connection:
-    """A bare DuckDB connection where a workspace is expected (readers only use ``con``)."""
-
-    def __init__(self, con):
-        self.con = con
 
 
 def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) -> dict:
@@ -236,6 +229,10 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     suffix = identity_suffix(f.path, fmt)  # bytes forced into another format are another input
     quick = quick_key(f.path) + suffix
     pool = ThreadPoolExecutor(max_workers=1)
+
+    def content_fingerprint() -> str:
+        return fingerprint(f.path) + suffix
+
     # The fingerprint (BLAKE3) of the whole file runs in a thread (it releases the GIL) while the
     # file is cleaned and committed; it is needed only for the file's row. It starts after the
     # staging, whose fast scan keeps both cores busy, so that it fills the single-threaded steps
@@ -244,7 +241,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     full = None
     try:
         if store.quick_key_known(ws, quick):
-            full = pool.submit(lambda: fingerprint(f.path) + suffix)
+            full = pool.submit(content_fingerprint)
             done = loaded_record(ws, f.path, suffix, quick, full)
         else:
             done = None
@@ -260,14 +257,14 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     if full is None and f.gzip:
         # A gzip file's fingerprint reads the whole stream, which proves it complete: started
         # at once, beside the staging (whose gzip reading is single-threaded).
-        full = pool.submit(lambda: fingerprint(f.path) + suffix)
+        full = pool.submit(content_fingerprint)
     info = None
     t_stage = time.perf_counter()
     try:
         info = stage_or_gzip_error(ws, f, full, progress)
         t_stage = time.perf_counter() - t_stage
         if full is None:
-            full = pool.submit(lambda: fingerprint(f.path) + suffix)
+            full = pool.submit(content_fingerprint)
         meta = {"fingerprint": full, "quick_key": quick, "path": str(f.path), "format": f.format,
                 "size_bytes": f.size_bytes, "ignored": info["ignored"], "line_index": info.get("line_index"),
                 "scan_fixes": info.pop("scan_fixes", None)}

@@ -37,7 +37,7 @@ def register(app: typer.Typer) -> None:
         """Clean and load AIS files; bad rows go to the quarantine with a reason code.
 
         Prints read = loaded + quarantined + duplicates (per reason code). Files already loaded
-        (same bytes: BLAKE3 fingerprint) are skipped; rows whose MMSI and time are already stored are
+        (same content, compressed or not: BLAKE3 fingerprint) are skipped; rows whose MMSI and time are already stored are
         duplicates.
         With --task-runner dask[:ADDRESS] the files are staged in parallel on Dask workers and
         committed by this process in the same order: the workspace ends the same as sequentially.
