@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -206,3 +207,23 @@ def test_mutated_lines_among_clean_ones_through_each_fast_stage(tmp_path_factory
                 assert counts["staging"] not in ("lines", "python"), (engine, counts["staging"])
     finally:
         ingest_mod.FAST_CSV_MIN_BYTES, ingest_mod.FAST_CSV_ENGINES = old
+
+
+@pytest.mark.parametrize("junk", [b"\x01", b"x\x01", b"a,b\x01\n\x01\n", b"\x01\x01"])
+def test_the_raw_line_readers_delimiter_byte_at_a_line_end(tmp_path, junk):
+    # DuckDB's raw-lines read splits on \x01 and silently drops one that ends a line ("x\x01"
+    # read as "x", "\x01" as an empty line): such content must go to Python's splitter, so that
+    # every path counts and keeps the line as the pure twin does (found by the test above).
+    path = tmp_path / "ctl.csv"
+    path.write_bytes((DMA_HEADER + "\n").encode() + junk)
+    pure = clean_positions(read_csv_stage(path)[0])
+    for min_bytes in (1 << 62, 0):
+        old, ingest_mod.FAST_CSV_MIN_BYTES = ingest_mod.FAST_CSV_MIN_BYTES, min_bytes
+        try:
+            with memory_ws() as ws:
+                counts = ingest_file(ws, path, fmt="dma")
+                raws = sorted(r[0] for r in ws.con.execute("SELECT raw FROM ais_quarantine").fetchall())
+        finally:
+            ingest_mod.FAST_CSV_MIN_BYTES = old
+        check(counts, pure)
+        assert raws == sorted(pure.quarantine["raw"].tolist())

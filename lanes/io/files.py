@@ -57,6 +57,20 @@ def read_content(path: str | Path) -> bytes:
     return b"".join(parts)
 
 
+def content_has(path: str | Path, byte: bytes) -> bool:
+    """Whether the content (decompressed when gzip) holds ``byte`` (a single byte)."""
+    if is_gzip(path):
+        found = []
+        gunzip_into(path, lambda block: found or (byte in block and found.append(True)))
+        return bool(found)
+    if Path(path).stat().st_size == 0:
+        return False
+    import mmap
+
+    with open(path, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as m:
+        return m.find(byte) >= 0
+
+
 #: Algorithm of new fingerprints, then those that earlier versions stored (still recognised).
 FINGERPRINT_ALGOS = ("blake3", "sha256")
 

@@ -44,6 +44,7 @@ import numpy as np
 import pandas as pd
 
 from lanes import clean as C
+from lanes.io.files import content_has
 from lanes.io.csv_formats import MMSI_RE, NAV_STATUS_WORDS, NULL_WORDS, SHIP_TYPE_WORDS, WS, CsvSpec, split_csv_line
 from thresholds.units import EARTH_RADIUS_NMI
 
@@ -286,6 +287,8 @@ def _create_stage(con, typed_sql: str, extra_params: dict | None = None, line_fr
         con.execute(f"CREATE OR REPLACE TEMP VIEW ais_stage AS SELECT {line}* FROM ais_stage_t")
 
 
+#: The delimiter of DuckDB's raw-lines read (one column per line: a byte no AIS text holds).
+_LINE_DELIM = "\x01"
 _CSV_LINES = ("read_csv(?, columns={'raw': 'VARCHAR'}, header=false, delim=?, quote='', escape='', "
               "auto_detect=false, compression=?, max_line_size=?)")
 #: DuckDB CSV buffer size, None = DuckDB's default. Tests set it small so that even a small file
@@ -387,9 +390,13 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
     params = _csv_params(spec, header)
     fallback = False
     try:
+        if content_has(path, _LINE_DELIM.encode()):
+            # DuckDB drops a delimiter that ends a line ('x\x01' reads as 'x'; one inside a
+            # line is an error): such content goes to Python's splitter
+            raise duckdb.InvalidInputException(f"the content holds the line reader's delimiter {_LINE_DELIM!r}")
         sql = _csv_split_typing(index, n_fields, _CSV_LINES.replace("?", "$p_path", 1).replace("?", "$p_delim", 1)
                                 .replace("?", "$p_comp", 1).replace("?", "$p_max", 1)[:-1] + _buffer_option() + ")")
-        _create_stage(con, sql, {**params, "p_path": str(path), "p_delim": "\x01",
+        _create_stage(con, sql, {**params, "p_path": str(path), "p_delim": _LINE_DELIM,
                                  "p_comp": "gzip" if gz else "none",
                                  "p_max": (1 << 24) if CSV_BUFFER_BYTES is None else int(CSV_BUFFER_BYTES) // 2},
                       line_from_rowid=True)
