@@ -534,7 +534,10 @@ def astar(
     heuristic_speed,
     radius,
 ):
-    """Label-setting A* from ``start`` to ``goal``; returns (g, parent, expanded, scanned, reached).
+    """Label-setting A* from ``start`` to ``goal``; returns (g, parent, expanded, scanned, computed, reached).
+
+    ``scanned`` counts the allowed edges looked at from expanded nodes; ``computed`` those of
+    them whose cost was computed (the edges to closed nodes are skipped before that).
 
     Edge cost: distance (``distance_mode``) or sailing time
     ``L * (pace(u) + pace(v)) / 2`` with both paces taken in the weather interpolated at the
@@ -580,6 +583,7 @@ def astar(
     keys, vals, size = _heap_push(keys, vals, size, g[start] + h0, start)
     expanded = 0
     scanned = 0
+    computed = 0
     reached = False
     while size > 0:
         f, u, size = _heap_pop(keys, vals, size)
@@ -603,6 +607,7 @@ def astar(
             scanned += 1
             if closed[v]:
                 continue
+            computed += 1
             L = elen[ju, k]
             if distance_mode:
                 c = L
@@ -624,7 +629,7 @@ def astar(
                         hv = h_scale * math.asin(math.sqrt(min(1.0, srow[jv] + crow[jv] * scol[v - jv * nx])))
                         hcache[v] = hv
                 keys, vals, size = _heap_push(keys, vals, size, ng + hv, v)
-    return g, parent, expanded, scanned, reached
+    return g, parent, expanded, scanned, computed, reached
 
 
 @njit(inline="always")

@@ -171,6 +171,7 @@ class SearchResult:
     time_h: float | None = None  # sailing time (time searches)
     exposure_h: float = 0.0  # hours on edges touching unsafe cells (safety searches)
     horizon_hit: bool = False  # the safety flags did not reach far enough in time
+    computed: int = 0  # edges whose cost was computed (plain searches; scanned minus edges to closed nodes)
 
 
 def search(
@@ -223,7 +224,7 @@ def search(
     else:
         h_speed = ship.max_speed_kn(wx.hs_max_m) + wx.current_max_kn
     t0 = _time.perf_counter()
-    gvals, parent, expanded, scanned, reached = _kernels.astar(
+    gvals, parent, expanded, scanned, computed, reached = _kernels.astar(
         g.nx, mesh.allowed, mesh.steps[:, 0].copy(), mesh.steps[:, 1].copy(), elen, ecos, esin,
         np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg), wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, p,
         int(start), int(goal), float(t_start_h), distance_mode, float(h_speed), EARTH_RADIUS_NMI,
@@ -240,7 +241,7 @@ def search(
     nodes = _path_nodes(parent, start, goal)
     total = float(gvals[goal]) - (0.0 if distance_mode else float(t_start_h))
     return SearchResult(nodes, total, int(expanded), int(scanned), seconds,
-                        time_h=None if distance_mode else total)
+                        time_h=None if distance_mode else total, computed=int(computed))
 
 
 def _path_nodes(parent: np.ndarray, start: int, goal: int) -> np.ndarray:
