@@ -69,9 +69,10 @@ def map_extent(routes: dict, weather: WeatherSnapshot | None = None, pad_frac: f
 def land_mask(lon0: float, lon1: float, lat0: float, lat1: float, n: int = 500):
     """Boolean land grid over the box from ``global_land_mask`` (30" mask), ``n`` samples on the long side.
 
+    The pixels are read from the memory-mapped cache of :mod:`thresholds.land_raster`.
     Returns ``(lon_centres, lat_centres, is_land[lat, lon])``.
     """
-    from global_land_mask import globe
+    from thresholds.land_raster import is_land
 
     span = max(lon1 - lon0, lat1 - lat0)
     step = span / n
@@ -79,7 +80,7 @@ def land_mask(lon0: float, lon1: float, lat0: float, lat1: float, n: int = 500):
     lat = np.arange(lat0 + step / 2, lat1, step)
     lon_w = (lon + 180.0) % 360.0 - 180.0
     lat_g, lon_g = np.meshgrid(lat, lon_w, indexing="ij")
-    return lon, lat, globe.is_land(lat_g, lon_g)
+    return lon, lat, is_land(lat_g, lon_g)
 
 
 def route_map_png(

@@ -452,9 +452,9 @@ class Scenario:
 
 
 def _land(lat, lon) -> np.ndarray:
-    from global_land_mask import globe
+    from thresholds.land_raster import is_land  # the 30" mask, read pixel by pixel from its cache
 
-    return np.asarray(globe.is_land(np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)), dtype=bool)
+    return np.asarray(is_land(np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)), dtype=bool)
 
 
 def densify(waypoints: np.ndarray, step_nmi: float = 0.5) -> tuple[np.ndarray, np.ndarray]:

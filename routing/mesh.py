@@ -30,6 +30,8 @@ import numpy as np
 
 from routing import _kernels
 from routing.errors import LandPointError, MeshSizeError, OutsideMeshError
+from routing.land import PX_PER_DEG as _MASK_PX_PER_DEG
+from routing.land import LandMask, land_window
 from thresholds.geodesy import haversine_nmi, initial_bearing_deg
 from thresholds.units import EARTH_RADIUS_NMI
 
@@ -39,8 +41,6 @@ LAND_CHECKS = ("cells", "end_node")
 STENCIL_SIZES = (8, 16, 24, 48)
 #: Largest mesh built (nodes); beyond it a MeshSizeError asks for a coarser spacing.
 MAX_NODES = 30_000_000
-#: Mask pixels per degree of global-land-mask (30 arc-seconds).
-_MASK_PX_PER_DEG = 120
 
 
 def stencil(n_edges: int) -> np.ndarray:
@@ -161,77 +161,16 @@ class MeshGrid:
         )
 
 
-@dataclass(frozen=True)
-class LandMask:
-    """A window of a global 30 arc-second land/ocean raster (global-land-mask / GLOBE).
-
-    Pixel (r, c) of the global raster covers lat (90 - (r+1)/120, 90 - r/120] and lon
-    [-180 + c/120, -180 + (c+1)/120) (global-land-mask's own indexing); this window holds rows
-    ``r0 ..`` and columns ``c0 ..``. Pixel coordinates of a point: ``y = (90 - lat)*120 - r0``,
-    ``x = (lon + 180)*120 - c0``; pixel (r, c) is the square [c, c+1) x [r, r+1).
-    """
-
-    ocean: np.ndarray  # bool (rows, cols), True = ocean
-    r0: int
-    c0: int
-    px_per_deg: int = _MASK_PX_PER_DEG
-
-    def pixel_xy(self, lat_deg, lon_deg):
-        return (
-            (np.asarray(lon_deg, dtype=float) + 180.0) * self.px_per_deg - self.c0,
-            (90.0 - np.asarray(lat_deg, dtype=float)) * self.px_per_deg - self.r0,
-        )
-
-    def is_ocean(self, lat_deg, lon_deg) -> np.ndarray:
-        """Ocean at points (outside the window counts as land)."""
-        x, y = self.pixel_xy(lat_deg, lon_deg)
-        r = np.floor(y).astype(np.int64)
-        c = np.floor(x).astype(np.int64)
-        inside = (r >= 0) & (r < self.ocean.shape[0]) & (c >= 0) & (c < self.ocean.shape[1])
-        out = np.zeros(np.shape(r), dtype=bool)
-        out[inside] = self.ocean[r[inside], c[inside]]
-        return out
-
-    def land_fraction(self, grid: "MeshGrid") -> np.ndarray:
-        """Fraction of land pixels overlapping each mesh cell (border pixels count for both cells). (ny, nx)"""
-        rows, cols = self.ocean.shape
-        ppd = self.px_per_deg
-        y_top, y_bot = (90.0 - (grid.lat_deg + 0.5 * grid.dlat_deg)) * ppd - self.r0, (90.0 - (grid.lat_deg - 0.5 * grid.dlat_deg)) * ppd - self.r0
-        x_lo, x_hi = (grid.lon_deg - 0.5 * grid.dlon_deg + 180.0) * ppd - self.c0, (grid.lon_deg + 0.5 * grid.dlon_deg + 180.0) * ppd - self.c0
-        r0 = np.clip(np.floor(y_top + 1e-9).astype(np.int64), 0, rows - 1)
-        r1 = np.clip(np.ceil(y_bot - 1e-9).astype(np.int64), 1, rows)
-        c0 = np.clip(np.floor(x_lo + 1e-9).astype(np.int64), 0, cols - 1)
-        c1 = np.clip(np.ceil(x_hi - 1e-9).astype(np.int64), 1, cols)
-        r1 = np.maximum(r1, r0 + 1)
-        c1 = np.maximum(c1, c0 + 1)
-        sat = _kernels.land_summed_area(self.ocean)  # summed-area table of land pixels
-        R0, C0 = np.meshgrid(r0, c0, indexing="ij")
-        R1, C1 = np.meshgrid(r1, c1, indexing="ij")
-        land = sat[R1, C1] - sat[R0, C1] - sat[R1, C0] + sat[R0, C0]
-        frac = land / ((R1 - R0) * (C1 - C0))
-        return frac
-
-
 def global_land_mask_window(grid: "MeshGrid") -> LandMask:
-    """The global-land-mask raster around a mesh (one cell of margin), as a :class:`LandMask`.
+    """The global-land-mask raster around a mesh (1.5 cells of margin), as a :class:`LandMask`.
 
-    global-land-mask ships the GLOBE-derived 30" mask (~0.93 km) [2]; importing it loads the
-    whole raster (0.9 GB, ~2 s) once per process.
+    global-land-mask ships the GLOBE-derived 30" mask (~0.93 km) [2]; the window is read from
+    the memory-mapped cache of :mod:`thresholds.land_raster` (only the box's rows and columns).
     """
-    from global_land_mask import globe  # heavy: imported only when a real land mask is needed
-
-    mask = globe._mask  # (21600, 43200), True = ocean
-    n_rows, n_cols = mask.shape
-    ppd = _MASK_PX_PER_DEG
-    lat_hi = grid.lat_deg[-1] + 1.5 * grid.dlat_deg
-    lat_lo = grid.lat_deg[0] - 1.5 * grid.dlat_deg
-    lon_lo = grid.lon_deg[0] - 1.5 * grid.dlon_deg
-    lon_hi = grid.lon_deg[-1] + 1.5 * grid.dlon_deg
-    r0 = int(np.clip(np.floor((90.0 - lat_hi) * ppd), 0, n_rows - 1))
-    r1 = int(np.clip(np.ceil((90.0 - lat_lo) * ppd), r0 + 1, n_rows))
-    c0 = int(np.clip(np.floor((lon_lo + 180.0) * ppd), 0, n_cols - 1))
-    c1 = int(np.clip(np.ceil((lon_hi + 180.0) * ppd), c0 + 1, n_cols))
-    return LandMask(np.ascontiguousarray(mask[r0:r1, c0:c1]), r0, c0, ppd)
+    return land_window(
+        grid.lat_deg[0] - 1.5 * grid.dlat_deg, grid.lat_deg[-1] + 1.5 * grid.dlat_deg,
+        grid.lon_deg[0] - 1.5 * grid.dlon_deg, grid.lon_deg[-1] + 1.5 * grid.dlon_deg,
+    )  # fmt: skip
 
 
 _NO_PX = np.ones((1, 1), dtype=bool)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from global_land_mask import globe
+from thresholds import land_raster as globe  # the package's 30" mask through its cache
 
 from dashboards.model import LaneDeparture, NightlyReport, Provenance, RouteSet, SpeedLossCurve, VoyageAudit, WeatherSnapshot
 from routing.route import Route

@@ -243,7 +243,7 @@ def generate_weather(seed: int = 0, *, land_mask=None, start=None, end=None) -> 
     seed : int
         Deterministic: the same seed gives identical arrays.
     land_mask : callable(lat2d, lon2d) -> bool array, optional
-        Land test for the wave grid (default ``global_land_mask.globe.is_land``).
+        Land test for the wave grid (default :func:`thresholds.land_raster.is_land`, the 30" mask).
     start, end : datetime-like (UTC), optional
         Window to generate (default the demo's 2025-01-01T00Z -> 2025-02-02T06Z). The fields are
         functions of absolute time, so a window equals the same slice of a longer run; outside the
@@ -254,9 +254,9 @@ def generate_weather(seed: int = 0, *, land_mask=None, start=None, end=None) -> 
     ScenarioWeather
     """
     if land_mask is None:
-        from global_land_mask import globe
+        from thresholds.land_raster import is_land  # the 30" mask, read pixel by pixel from its cache
 
-        land_mask = globe.is_land
+        land_mask = is_land
     storms = make_storms(seed)
 
     wlat, wlon = _grid(WIND_STEP_DEG)
