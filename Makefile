@@ -21,6 +21,7 @@ venv: $(STAMP)
 
 demo: $(STAMP)
 	$(VENV)/bin/stormlane demo --workdir $(WORKDIR)
+	@echo "the stormlane command: $(VENV)/bin/stormlane (or run '. $(VENV)/bin/activate' to put it on PATH)"
 
 # The browser test needs headless Chromium: install Debian's package when it is missing
 # (as root, or through sudo), and make that test fail rather than skip when it is absent.

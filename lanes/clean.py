@@ -110,7 +110,7 @@ RECORD_CODES = (BAD_LINE, BAD_SENTENCE, BAD_CHECKSUM, INCOMPLETE_MULTIPART, BAD_
 FIELD_CODES = (BAD_LAT, BAD_LON, BAD_SOG, BAD_COG, BAD_HEADING, BAD_NAV_STATUS)
 #: Codes counted as duplicates; every other code counts as quarantined.
 DUPLICATE_CODES = (DUPLICATE, DUPLICATE_TIME, DUPLICATE_PAYLOAD)
-#: Every reason code with a one-line description (README and ``--help`` list them).
+#: Every reason code with a one-line description (docs/ingest.md and ``--help`` list them).
 REASONS = {
     BAD_LINE: "CSV line with the wrong number of fields",
     BAD_SENTENCE: "not a parsable NMEA sentence",

@@ -42,7 +42,7 @@ class LanesSettings(BaseModel):
 
     Defaults suit open-sea traffic at a few hundred positions per vessel-day (the demo scenario);
     dense multi-month areas (the Ushant set) want a smaller ``eps_nmi`` and a larger
-    ``min_density`` (see the README, "Traffic lanes").
+    ``min_density`` (see docs/lanes.md).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)

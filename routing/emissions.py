@@ -452,7 +452,7 @@ def simroute_legacy_emissions(leg_time_h, leg_speed_kn, calm_speed_kn, engine: E
       ``EL_i``, so CO2 stays proportional to fuel).
 
     On R6 this reproduces SIMROUTE's published split (CO2 saving 16.14 %, fuel 13.98 %) to
-    within about half a point (see the README); :func:`steam2_legs` is the model stormlane reports.
+    within about half a point (see docs/methods.md); :func:`steam2_legs` is the model stormlane reports.
 
     Returns
     -------

@@ -91,7 +91,7 @@ def test_r6_lane_deviation_and_astar_meet_lower_seas(r6):
     assert s["deviation"]["mean_hs_m"] < s["lane"]["mean_hs_m"]
     # The time-optimal A* route against the same path sailed through the weather (both slowed by
     # Bowditch): lower mean Hs, shorter, less fuel, fewer hours over the limits. Its maximum Hs is
-    # not lower (6.96 against 6.87 m): it minimises time, not wave height (README).
+    # not lower (6.96 against 6.87 m): it minimises time, not wave height (docs/evaluation.md).
     a, b = s["optimal"], s["lane_in_weather"]
     assert a["mean_hs_m"] < b["mean_hs_m"] and a["time_h"] < b["time_h"] - 2.0
     assert a["fuel_t"] < b["fuel_t"] and a["adverse_h"] < b["adverse_h"]

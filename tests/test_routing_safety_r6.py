@@ -53,7 +53,7 @@ def test_r6_feeder_safe_route_lowers_max_and_mean_hs(gloria):
     ev = {name: evaluate_route(plan.routes[name], sampler, feeder, limits=limits).summary
           for name in ("min_distance", "optimal_smoothed", "safe_optimal_smoothed")}
     safe, opt, md = ev["safe_optimal_smoothed"], ev["optimal_smoothed"], ev["min_distance"]
-    # README "Routing": 6.7 m / 4.6 m against 6.9 / 5.5 (min-distance) and 7.0 / 5.2 (time-optimal)
+    # docs/routing.md: 6.7 m / 4.6 m against 6.9 / 5.5 (min-distance) and 7.0 / 5.2 (time-optimal)
     assert safe["max_hs_m"] < md["max_hs_m"] - 0.1 and safe["max_hs_m"] < opt["max_hs_m"] - 0.1
     assert safe["mean_hs_m"] < md["mean_hs_m"] - 0.5 and safe["mean_hs_m"] < opt["mean_hs_m"] - 0.5
     assert safe["adverse_h"] < opt["adverse_h"] - 1.0 and safe["adverse_h"] < md["adverse_h"] - 1.0

@@ -47,7 +47,7 @@ def test_gloria_share_of_unsafe_sea_cells_per_hour(shared_data):
     np.testing.assert_allclose(table["unsafe_frac"].to_numpy(), n_unsafe / n_sea, rtol=1e-12)
     np.testing.assert_array_equal(table["n_hs"].to_numpy(), (sea & (hs > 6.0)).sum(axis=(1, 2)))
     assert table["n_high_waves"].sum() == 0
-    # the numbers the README reports
+    # the numbers docs/methods.md reports
     assert n_sea[0] == 7914
     assert table["unsafe_frac"].min() == pytest.approx(n_unsafe.min() / 7914)
     assert table["unsafe_frac"].max() > 0.95 and table.index.tz is not None

@@ -70,7 +70,7 @@ def column_mapping(columns, path) -> dict[str, str]:
             hint = (" (this looks like the Ushant trajectory set: anonymised trajectory ids, no MMSI and times "
                     "relative to each trajectory's start, so it cannot enter the AIS tables; read it with "
                     "lanes.io.ushant.read_ushant(path, epoch_utc) and run the lanes chain on it, as "
-                    "bench/lanes.py does - see the README, 'Traffic lanes')")
+                    "bench/lanes.py does - see docs/lanes.md)")
         raise AisFormatError(
             path, f"Parquet file lacks column(s) for {', '.join(missing)}; columns are {', '.join(columns)}{hint}"
         )

@@ -107,7 +107,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Serve the nightly reroute as a Prefect deployment on a cron schedule (runs until stopped).
 
-        It registers the deployment 'nightly-reroute/<name>' with the Prefect API in PREFECT_API_URL (start one with `prefect server start`) and runs each scheduled night in a subprocess; the forecast time of a run is its scheduled time. Stop it with Ctrl-C or SIGTERM. See the README for running it under systemd.
+        It registers the deployment 'nightly-reroute/<name>' with the Prefect API in PREFECT_API_URL (start one with `prefect server start`) and runs each scheduled night in a subprocess; the forecast time of a run is its scheduled time. Stop it with Ctrl-C or SIGTERM. docs/nightly.md shows how to run it under systemd.
         """  # noqa: E501
         _quiet_prefect()
         from prefect.schedules import Cron
