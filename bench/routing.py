@@ -1,309 +1,376 @@
-"""Benchmark: the routing engine against SIMROUTE's R6 case and a MEDSEA-size case.
+"""Benchmark of the routing engine (issues 5 and 18), every figure beside a baseline of the same run.
 
-Prints, in one run:
+Groups (each interleaved A B A B, cold = first run of a fresh process, warm = a later run; see
+:mod:`bench._harness`):
 
-1. R6 (Palma -> Barcelona, Storm Gloria) from the two CMEMS NetCDF files to both routes:
-   cold (a fresh process: imports, numba cache load, land mask) and warm (same process again);
-   plus a cold start with an empty numba cache (compilation included);
-2. both A* searches alone on the R6 mesh (warm);
-3. edges scanned per second of the compiled core (Dijkstra over the MEDSEA-size mesh);
-4. a MEDSEA-size case: 1/24 deg mesh over 6 W - 36 E, 30 - 46 N (387 k nodes), Gibraltar ->
-   Port Said through a generated storm on a CMEMS-GLOBAL-like grid (1/12 deg, 3-hourly), then
-   the same in safe mode (hard limits: Hs <= 6 m, wind);
-5. R6 in safe mode (``safety="hard"``, container feeder, default operator profile + IMO rules):
-   NetCDF to all routes, warm, with the time of the safety flags and of the safe search.
-
-Baselines (issue 5, SIMROUTE's own code on these machines): R6 takes about 18.7 s, of which
-14.1 s interpolate the waves onto its mesh and 4.35 s are its two A* searches. Targets: both
-searches < 45 ms warm, R6 from NetCDF to both routes < 0.5 s warm, core >= 30 M edges/s,
-MEDSEA-size route < 2 s; R6 in safe mode still < 0.5 s warm.
-
-Run: ``.venv/bin/python bench/routing.py`` (needs ../shared/data or STORMLANE_SHARED_DATA for
-R6). The machine has 2 cores shared with other jobs: figures are noisy.
+1. **R6 as a user runs it** (SIMROUTE's Storm Gloria case, the two CMEMS NetCDF files):
+   ``stormlane route ... --json`` as a fresh process (wall from spawn to exit, peak RSS), warm
+   = the same command in one process; against SIMROUTE's own end-to-end figure, an *external*
+   measurement (2026-11-27, ANCHORS.md; never compared with a warm figure). ``stormlane
+   --help`` against a bare interpreter start (``python -c pass``, the floor of any Python CLI).
+   Both R6 searches alone (setup: weather and mesh built) against SIMROUTE's two searches
+   (external). Weather onto the mesh (``WeatherField.on_mesh``) against xarray's own
+   ``Dataset.interp`` of the same variables onto the same nodes.
+2. **Algorithmic reference**: our time-dependent Dijkstra against a plain-Python one
+   (:mod:`bench._td_reference`, same edge model, same optimum) on a small mesh.
+3. **MEDSEA size** (1/24 deg over 6 W - 36 E, 30 - 46 N, 387 k nodes, Gibraltar -> Port Said
+   through a generated storm): the whole plan against its floor, ``scipy.sparse.csgraph.dijkstra``
+   of static distances over the same mesh; safe mode against the plain plan; the core's
+   throughput (edges whose cost was computed per second) and static shortest paths against the
+   same scipy Dijkstra.
+4. **R6 safe mode** (container feeder, default operator profile) against the plain R6 plan of
+   the same vessel.
 """
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
+if __name__ == "__main__":  # run as a file: import `bench`, and never this file as `routing`
+    import sys
+    from pathlib import Path
+
+    _here = Path(__file__).resolve().parent
+    sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _here]
+    sys.path.insert(0, str(_here.parent))
+
 import sys
-import tempfile
-import time
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
+from bench import _routing_cases as cases
+from bench._harness import Group, Measure, Side, Target, script_main
 
-ROOT = Path(__file__).resolve().parents[1]
-# this file is bench/routing.py: keep its folder off sys.path so that `import routing` is the package
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-sys.path.append(str(ROOT))  # fallback when the project is not installed
-
-SHARED = Path(os.environ.get("STORMLANE_SHARED_DATA", ROOT.parent / "shared" / "data"))
-if not SHARED.is_dir():
-    SHARED = Path("/work/shared/data")
-R6_FILES = [SHARED / "weather/simroute_cmems_medsea_wav" / f"Waves_MEDSEA_2020012{d}.nc" for d in (0, 1)]
-SIMROUTE = {"total_s": 18.7, "interp_s": 14.1, "astar_s": 4.35}
-TARGETS = {"searches_ms": 45.0, "r6_warm_s": 0.5, "core_medges_s": 30.0, "medsea_s": 2.0}
-
-R6_SNIPPET = r"""
-import json, sys, time
-t0 = time.perf_counter()
-sys.path.append({root!r})
-import pandas as pd
-from pipelines.config import load_vessel
-from pipelines.routing_weather import load_weather
-from routing.astar import ShipModel
-from routing.planner import RouteRequest, plan_routes
-def run():
-    t = time.perf_counter()
-    field, _ = load_weather({files!r})
-    read.append(time.perf_counter() - t)
-    v = load_vessel({vessel!r})
-    req = RouteRequest((39.225, 2.900), (41.500, 2.775), pd.Timestamp("2020-01-20T09:00Z"), ShipModel.from_vessel(v, "bowditch"),
-                       spacing_deg=0.025, bbox=(2.0, 38.95, 5.1, 41.65), edges=48, vessel_name=v.name)
-    if {safety!r} == "none":
-        return plan_routes(req, field)
-    from pipelines.config import load_operator_profile
-    return plan_routes(req, field, safety={safety!r}, vessel=v, limits=load_operator_profile("default"))
-read = []
-plan = run()
-cold = time.perf_counter() - t0
-warm = []
-warm_cpu = []
-for _ in range({n_warm}):
-    t = time.perf_counter(); c = time.process_time(); plan = run(); warm.append(time.perf_counter() - t); warm_cpu.append(time.process_time() - c)
-r = plan.routes
-print(json.dumps({{"cold_s": cold, "cold_cpu_s": time.process_time(), "warm_s": warm, "warm_cpu_s": warm_cpu, "read_s": read[-1], "stats": plan.stats,
-    "routes": {{k: [v.time_h, v.dist_nmi, v.max_hs_m] for k, v in r.items()}},
-    "over": {{k: v.properties.get("hours_over_limits") for k, v in r.items()}}}}))
-"""
+SIMROUTE_R6 = {
+    "label": "SIMROUTE's own code, R6 end to end",
+    "date": "2026-11-27",
+    "machine": "these 2-core machines (same class as this run's), measured by a coordinator, not in this run",
+    "method": "end to end as a user runs it: two cold processes (wave interpolation, then routing), "
+              "OPENBLAS_NUM_THREADS=1, median of 5 (ANCHORS.md)",
+    "cold_s": 35.0,
+    "peak_mb": 163.0,
+    "parts": {"interpolation_s": "~28", "routing_s": "5-6"},
+    "earlier": "2026-11-21: routing 4.35 s + interpolation 14.1 s, timed separately (the figures of issue 5)",
+}
+SIMROUTE_SEARCHES = {
+    "label": "SIMROUTE's two A* searches of R6",
+    "date": "2026-11-27",
+    "machine": SIMROUTE_R6["machine"],
+    "method": "the routing part (both searches) of SIMROUTE's cold end-to-end run, median of 5 (ANCHORS.md: 5-6 s)",
+    "cold_s": 5.5,
+}
 
 
-def run_r6_subprocess(n_warm: int, numba_cache_dir: str | None = None, safety: str = "none", vessel: str = "simroute-r6") -> dict:
-    env = dict(os.environ)
-    if numba_cache_dir:
-        env["NUMBA_CACHE_DIR"] = numba_cache_dir
-    code = R6_SNIPPET.format(root=str(ROOT), files=[str(f) for f in R6_FILES], n_warm=n_warm, safety=safety, vessel=vessel)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True, cwd=tempfile.gettempdir())
-    return json.loads(out.stdout.strip().splitlines()[-1])
+SAME_KERNELS = ("not repeated: the same compiled kernels (mesh, weather onto the mesh, search, smoothing) compile in "
+                "route_cli's empty-cache runs")
+SAFE_KERNELS = "not repeated: the safe-mode kernels compile in r6_safe's empty-cache runs"
 
 
-def bench_r6() -> dict | None:
-    if not all(f.exists() for f in R6_FILES):
-        print(f"R6: skipped, {R6_FILES[0].parent} not found")
-        return None
-    res = run_r6_subprocess(n_warm=5)
-    with tempfile.TemporaryDirectory() as empty_cache:
-        compile_res = run_r6_subprocess(n_warm=0, numba_cache_dir=empty_cache)
-    warm = float(np.median(res["warm_s"]))
-    warm_cpu = float(np.median(res["warm_cpu_s"]))
-    cold_cpu = res["cold_cpu_s"] - sum(res["warm_cpu_s"])
-    t = res["stats"]["timings"]
-    r = res["routes"]
-    print("== R6 Palma -> Barcelona (Storm Gloria), 1.5 nmi mesh 125 x 109, 48 edges, Bowditch, 16.1 kn")
-    print(f"  from NetCDF to both routes: cold {res['cold_s']:.2f} s wall / {cold_cpu:.2f} s CPU (new process: imports, "
-          f"numba cache on disk, land mask load), cold with compilation {compile_res['cold_s']:.1f} s wall, "
-          f"warm {warm * 1000:.0f} ms wall / {warm_cpu * 1000:.0f} ms CPU (median of {len(res['warm_s'])})  "
-          f"target < {TARGETS['r6_warm_s']} s; SIMROUTE {SIMROUTE['total_s']} s")  # fmt: skip
-    print(f"  last warm run: read NetCDF {res['read_s'] * 1000:.0f} ms, land mask {t['land_mask_s'] * 1000:.0f} ms, weather to mesh {t['weather_to_mesh_s'] * 1000:.0f} ms "
-          f"(SIMROUTE interpolation {SIMROUTE['interp_s']} s), mesh {t['mesh_s'] * 1000:.0f} ms, time search "
-          f"{t['search_time_s'] * 1000:.1f} ms, distance search {t['search_distance_s'] * 1000:.1f} ms, "
-          f"re-time + smooth {t['retime_smooth_s'] * 1000:.1f} ms")  # fmt: skip
-    sim = {"optimal": (14.97, 161.56), "min_distance": (16.93, 151.38), "min_distance_calm": (9.40, 151.38)}
-    k = (10800.0 / np.pi) / 3440.069528
-    print("  route              ours time_h / dist_nmi (1 nmi = 1')   SIMROUTE           diff time")
-    for name in ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm"):
-        th, dn, hs = r[name]
-        ref = sim.get(name, sim["optimal"] if name == "optimal_smoothed" else None)
-        print(f"  {name:<19}{th:7.2f} h / {dn * k:7.2f} nmi  max Hs {hs:4.2f} m   {ref[0]:6.2f} h / {ref[1]:6.2f}   {100 * (th / ref[0] - 1):+5.1f} %")
-    return {"warm_s": warm, "warm_cpu_s": warm_cpu, "cold_s": res["cold_s"], "compile_cold_s": compile_res["cold_s"]}
+def _stormlane() -> list[str]:
+    exe = Path(sys.executable).with_name("stormlane")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "pipelines.cli"]
 
 
-def bench_r6_searches() -> float | None:
-    if not all(f.exists() for f in R6_FILES):
-        return None
-    from pipelines.config import load_vessel
+# --------------------------------------------------------------------------- command lines
+
+
+def parse_route_json(stdout: str) -> dict:
+    import json
+
+    out = json.loads(stdout)
+    return {k: [round(out[k]["time_h"], 3), round(out[k]["dist_nmi"], 2)] for k in ("optimal", "min_distance") if k in out}
+
+
+def setup_cli(argv: list[str]) -> dict:
+    return {"argv": list(argv)}
+
+
+def run_cli(st: dict) -> dict:
+    """``stormlane`` in this process (``pipelines.cli.main``), output captured."""
+    import contextlib
+    import io
+
+    from pipelines.cli import main
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        try:
+            main(st["argv"])
+        except SystemExit as err:
+            if err.code not in (0, None):
+                raise
+    text = buf.getvalue()
+    return parse_route_json(text) if st["argv"][:1] == ["route"] else {"chars": len(text)}
+
+
+# --------------------------------------------------------------------------- R6 pieces
+
+
+def setup_r6_mesh() -> dict:
     from pipelines.routing_weather import load_weather
-    from routing.astar import ShipModel, WeatherArrays, search
-    from routing.planner import RouteRequest, plan_routes
 
-    field, _ = load_weather([str(f) for f in R6_FILES])
-    v = load_vessel("simroute-r6")
-    req = RouteRequest((39.225, 2.900), (41.500, 2.775), pd.Timestamp("2020-01-20T09:00Z"), ShipModel.from_vessel(v, "bowditch"),
-                       spacing_deg=0.025, bbox=(2.0, 38.95, 5.1, 41.65), edges=48)  # fmt: skip
-    plan = plan_routes(req, field)
-    mesh = plan.mesh
-    mw = field.on_mesh(mesh.grid.lat_deg, mesh.grid.lon_deg, req.depart_utc.value, node_sea=mesh.sea)
-    wx = WeatherArrays.build(mesh, mw)
-    s, g = plan.stats["start_node"], plan.stats["goal_node"]
-    t0 = wx.rel_h(req.depart_utc.value)
-    runs, cpus = [], []
-    for _ in range(20):
-        t = time.perf_counter()
-        c = time.process_time()
-        a = search(mesh, wx, req.ship, s, g, t_start_h=t0)
-        b = search(mesh, wx, req.ship, s, g, cost="distance")
-        runs.append(time.perf_counter() - t)
-        cpus.append(time.process_time() - c)
-    best, med = min(runs), float(np.median(runs))
-    print(f"  both A* searches (warm, 20 runs): median {med * 1000:.1f} ms wall / {np.median(cpus) * 1000:.1f} ms CPU, "
-          f"best {best * 1000:.1f} ms wall "
-          f"(time: {a.expanded:,} nodes expanded / {a.scanned:,} edges; distance: {b.expanded:,} / {b.scanned:,})  "
-          f"target < {TARGETS['searches_ms']:.0f} ms; SIMROUTE {SIMROUTE['astar_s']} s")  # fmt: skip
-    return med
+    field, _ = load_weather([str(f) for f in cases.r6_files()])
+    req, _ = cases.r6_request()
+    return cases.prepared_mesh(field, req)
 
 
-# --------------------------------------------------------------------------- MEDSEA-size case
+def run_searches(st: dict) -> dict:
+    from routing.astar import search
 
-MED_BBOX = (-6.0, 30.0, 36.0, 46.0)
-GIBRALTAR = (35.95, -5.55)
-PORT_SAID = (31.40, 32.35)
-MED_T0 = pd.Timestamp("2025-01-30T00:00Z")
-
-
-def make_storm_field():
-    """CMEMS-GLOBAL-like waves (1/12 deg, 3-hourly, 7 days): swell plus a storm moving east
-    along the Algerian basin into the Strait of Sicily, where it meets the ship about 30 h after
-    departure; Hs up to 9 m, waves from the west-north-west."""
-    from routing.field import WeatherField
-
-    lat = np.round(np.arange(29.5, 46.5001, 1 / 12), 6)
-    lon = np.round(np.arange(-6.5, 36.5001, 1 / 12), 6)
-    times = pd.date_range(MED_T0, periods=57, freq="3h")
-    lon2, lat2 = np.meshgrid(lon, lat)
-    h = (np.arange(times.size) * 3.0)[:, None, None]
-    xc = 2.0 + 0.15 * h  # storm centre [deg E]: 2 E at t0, 6.5 E after 30 h, 20 E after 5 days
-    yc = 38.8 - 0.02 * h
-    r2 = ((lon2 - xc) / 3.0) ** 2 + ((lat2 - yc) / 1.6) ** 2
-    hs = (0.8 + 8.2 * np.exp(-r2)).astype(np.float32)
-    # waves from the north-west around the storm (mistral-like), turning with the position
-    wave_from = ((300.0 + 20.0 * np.tanh((lon2 - xc) / 3.0)) % 360.0).astype(np.float32)
-    return WeatherField(times.asi8, lat, lon, {"hs_m": hs, "wave_from_deg": np.broadcast_to(wave_from, hs.shape).copy()})
+    a = search(st["mesh"], st["wx"], st["ship"], st["start"], st["goal"], t_start_h=st["t0_h"])
+    b = search(st["mesh"], st["wx"], st["ship"], st["start"], st["goal"], cost="distance")
+    return {"work": a.computed + b.computed, "time_h": round(a.time_h, 4), "expanded": [a.expanded, b.expanded],
+            "scanned": [a.scanned, b.scanned], "computed": [a.computed, b.computed]}
 
 
-def bench_medsea() -> dict:
-    from pipelines.config import load_vessel
-    from routing.astar import ShipModel, WeatherArrays, search
-    from routing.planner import RouteRequest, plan_routes
+def setup_r6_grid() -> dict:
+    """The R6 weather, mesh nodes and land, without the weather on the mesh (that is the run)."""
+    import numpy as np
 
-    t = time.perf_counter()
-    field = make_storm_field()
-    gen_s = time.perf_counter() - t
-    v = load_vessel("container-large")
-    ship = ShipModel.from_vessel(v, "bowditch")
-    req = RouteRequest(GIBRALTAR, PORT_SAID, MED_T0 + pd.Timedelta("6h"), ship, spacing_deg=1 / 24, bbox=MED_BBOX, edges=48,
-                       vessel_name=v.name)  # fmt: skip
-    plan = plan_routes(req, field)  # first call: land mask import, compilation or cache load
-    runs, cpus = [], []
-    for _ in range(3):
-        t = time.perf_counter()
-        c = time.process_time()
-        plan = plan_routes(req, field)
-        runs.append(time.perf_counter() - t)
-        cpus.append(time.process_time() - c)
-    total = float(np.median(runs))
-    total_cpu = float(np.median(cpus))
-    tm = plan.stats["timings"]
-    g = plan.mesh.grid
-    print(f"== MEDSEA-size: 1/24 deg mesh {g.ny} x {g.nx} = {g.n_nodes:,} nodes ({plan.mesh.n_sea:,} sea), 48 edges, "
-          f"Gibraltar -> Port Said, {v.name} {ship.speed_kn:g} kn, Bowditch, generated storm on a 1/12 deg 3-hourly grid "
-          f"({field.shape[0]} times; generated in {gen_s:.2f} s)")  # fmt: skip
-    print(f"  field to both routes (warm, median of 3): {total:.2f} s wall / {total_cpu:.2f} s CPU  target < {TARGETS['medsea_s']} s")
-    print(f"  land mask {tm['land_mask_s']:.2f} s, weather to mesh {tm['weather_to_mesh_s']:.2f} s, mesh + edge masks "
-          f"{tm['mesh_s']:.2f} s, time search {tm['search_time_s']:.3f} s ({plan.stats['expanded_time']:,} nodes, "
-          f"{plan.stats['scanned_time']:,} edges), distance search {tm['search_distance_s']:.3f} s, re-time + smooth "
-          f"{tm['retime_smooth_s']:.3f} s")  # fmt: skip
-    for name, r in plan.routes.items():
-        print(f"  {name:<19}{r.time_h:8.2f} h {r.dist_nmi:9.1f} nmi  max Hs {r.max_hs_m:4.1f} m  {r.n_waypoints} waypoints")
-    print(f"  great circle {plan.great_circle_nmi:.1f} nmi (crosses land)")
+    from pipelines.routing_weather import load_weather
+    from routing.mesh import MeshGrid, global_land_mask_window
 
-    # core throughput: Dijkstra (no heuristic) over the whole sea in time mode
-    mesh = plan.mesh
-    mw = field.on_mesh(g.lat_deg, g.lon_deg, req.depart_utc.value, node_sea=mesh.sea)
-    wx = WeatherArrays.build(mesh, mw)
-    s, goal = plan.stats["start_node"], plan.stats["goal_node"]
-    rates, cpu_rates = [], []
-    for _ in range(3):
-        c = time.process_time()
-        res = search(mesh, wx, ship, s, goal, t_start_h=wx.rel_h(req.depart_utc.value), heuristic=False)
-        cpu = time.process_time() - c
-        rates.append(res.scanned / res.seconds / 1e6)
-        cpu_rates.append(res.scanned / cpu / 1e6)
-    dist_rates = []
-    for _ in range(3):
-        res_d = search(mesh, wx, ship, s, goal, cost="distance", heuristic=False)
-        dist_rates.append(res_d.scanned / res_d.seconds / 1e6)
-    print(f"== core throughput (Dijkstra over the MEDSEA mesh): time-dependent cost {max(rates):.1f} M edges/s wall, "
-          f"{max(cpu_rates):.1f} M edges/s per CPU second "
-          f"({res.scanned:,} edges scanned, {res.expanded:,} nodes, {res.seconds:.3f} s), distance cost "
-          f"{max(dist_rates):.1f} M edges/s  target >= {TARGETS['core_medges_s']:.0f} M edges/s")  # fmt: skip
-    # safe mode on the same case: Hs <= 6 m and wind (profile hs-wind-only, container-large), hard constraints
+    field, _ = load_weather([str(f) for f in cases.r6_files()])
+    req, _ = cases.r6_request()
+    grid = MeshGrid.from_bbox(req.bbox, req.spacing_deg, anchor=req.start)
+    lat2d, lon2d = np.meshgrid(grid.lat_deg, grid.lon_deg, indexing="ij")
+    node_sea = global_land_mask_window(grid).is_ocean(lat2d, lon2d)
+    depart_ns = int(req.depart_utc.value)
+    return {"field": field, "grid": grid, "node_sea": node_sea, "depart_ns": depart_ns,
+            "ds": cases.field_dataset(field, depart_ns)}
+
+
+def run_w2m(st: dict) -> dict:
+    g = st["grid"]
+    mw = st["field"].on_mesh(g.lat_deg, g.lon_deg, st["depart_ns"], node_sea=st["node_sea"])
+    return {"work": int(mw.wave.shape[0] * mw.wave.shape[1]), "sea_nodes": int(mw.wave.shape[1]), "times": int(mw.n_times)}
+
+
+def run_w2m_xarray(st: dict) -> dict:
+    g = st["grid"]
+    out = cases.xarray_to_mesh(st["ds"], g.lat_deg, g.lon_deg)
+    hs = out["hs_m"]
+    return {"work": int(hs.shape[0] * int(st["node_sea"].sum())), "nodes": int(hs.shape[1] * hs.shape[2]), "times": int(hs.shape[0])}
+
+
+# --------------------------------------------------------------------------- small mesh, reference
+
+
+def setup_small() -> dict:
+    import pandas as pd
+
+    from routing.astar import ShipModel
+    from routing.planner import RouteRequest
+
+    field = cases.make_storm_field(lat_range=(37.5, 42.0), lon_range=(0.0, 6.0))
+    req = RouteRequest(cases.SMALL_START, cases.SMALL_GOAL, pd.Timestamp(cases.MED_T0) + pd.Timedelta("6h"),
+                       ShipModel(16.1, "bowditch"), spacing_deg=0.1, bbox=cases.SMALL_BBOX, edges=48)
+    return cases.prepared_mesh(field, req)
+
+
+def run_small_ours(st: dict) -> dict:
+    from routing.astar import search
+
+    r = search(st["mesh"], st["wx"], st["ship"], st["start"], st["goal"], t_start_h=st["t0_h"], heuristic=False)
+    return {"work": r.computed, "time_h": round(r.time_h, 9), "expanded": r.expanded, "nodes": st["mesh"].grid.n_nodes}
+
+
+def run_small_python(st: dict) -> dict:
+    from bench._td_reference import td_dijkstra
+
+    r = td_dijkstra(st["mesh"], st["wx"], st["ship"].speed_kn, st["ship"].floor_kn, st["start"], st["goal"], st["t0_h"])
+    return {"work": r["computed"], "time_h": round(r["time_h"], 9), "expanded": r["expanded"]}
+
+
+# --------------------------------------------------------------------------- MEDSEA size
+
+
+def setup_medsea(safety: bool = False) -> dict:
     from pipelines.config import load_operator_profile
 
-    lim = load_operator_profile("hs-wind-only")
-    for _ in range(2):  # the first call loads the compiled safe kernels
-        t = time.perf_counter()
-        c = time.process_time()
-        sp = plan_routes(req, field, safety="hard", vessel=v, limits=lim)
-        safe_s, safe_cpu = time.perf_counter() - t, time.process_time() - c
-    st = sp.stats["timings"]
-    a, b = sp.routes["optimal_smoothed"], sp.routes["safe_optimal_smoothed"]
-    print(f"== MEDSEA-size safe mode (hs-wind-only: Hs <= 6 m, wind <= 22.6 m/s; safety='hard', ran {sp.stats['safety']['mode']}): "
-          f"{safe_s:.2f} s wall / {safe_cpu:.2f} s CPU (flags {st['safety_flags_s']:.2f} s for {sp.stats['safety']['flag_slices']} "
-          f"slices, safe search {st['search_safe_s']:.2f} s)")  # fmt: skip
-    for r in (a, b):
-        print(f"  {r.name:<23}{r.time_h:8.2f} h {r.dist_nmi:8.1f} nmi  max Hs {r.max_hs_m:4.1f} m  "
-              f"{r.properties['hours_over_limits']:5.1f} h over the limits")
-    return {"medsea_s": total, "medsea_cpu_s": total_cpu, "core_medges_s": max(rates), "core_cpu_medges_s": max(cpu_rates),
-            "medsea_safe_s": safe_s}
+    req, v = cases.medsea_request()
+    st = {"field": cases.make_storm_field(), "req": req, "vessel": v}
+    if safety:
+        st["limits"] = load_operator_profile("hs-wind-only")
+    return st
 
 
-def bench_r6_safe() -> dict | None:
-    """R6 with the safety-constrained search (container feeder, default profile), NetCDF to all routes."""
-    if not all(f.exists() for f in R6_FILES):
-        return None
-    res = run_r6_subprocess(n_warm=5, safety="hard", vessel="container-feeder")
-    warm = float(np.median(res["warm_s"]))
-    warm_cpu = float(np.median(res["warm_cpu_s"]))
-    t = res["stats"]["timings"]
-    sf = res["stats"]["safety"]
-    print("== R6 safe mode: container feeder 17 kn, default operator profile (Lpp < 200 m: Hs <= 4.5 m, no beam seas at "
-          "Hs >= 2.5 m) + IMO rules, 16 heading sectors, safety='hard'")
-    print(f"  from NetCDF to all six routes, warm: {warm * 1000:.0f} ms wall / {warm_cpu * 1000:.0f} ms CPU (median of "
-          f"{len(res['warm_s'])})  target < {TARGETS['r6_warm_s']} s")
-    print(f"  last warm run: safety flags {t['safety_flags_s'] * 1000:.0f} ms ({sf['flag_slices']} of {sf['weather_slices']} "
-          f"hourly slices x all sea nodes), safe search(es) {t['search_safe_s'] * 1000:.0f} ms "
-          f"({res['stats']['expanded_safe']:,} nodes), smoothing + hours over the limits {t['safety_routes_s'] * 1000:.0f} ms; "
-          f"plain part {(t['total_s'] - t['safety_flags_s'] - t['search_safe_s'] - t['safety_routes_s']) * 1000:.0f} ms")  # fmt: skip
-    print(f"  ran {sf['mode']}" + (" (hard found no route within the limits: fell back to soft, 10 h per hour over them)" if sf["fallback"] else ""))
-    for name in ("optimal_smoothed", "min_distance", "safe_optimal_smoothed"):
-        th, dn, hs = res["routes"][name]
-        print(f"  {name:<23}{th:7.2f} h {dn:8.2f} nmi  max Hs {hs:4.2f} m  {res['over'][name]:5.2f} h over the limits")
-    return {"warm_s": warm, "warm_cpu_s": warm_cpu, "flags_s": t["safety_flags_s"], "search_safe_s": t["search_safe_s"]}
+def run_medsea(st: dict) -> dict:
+    from routing.planner import plan_routes
+
+    if "limits" in st:
+        plan = plan_routes(st["req"], st["field"], safety="hard", vessel=st["vessel"], limits=st["limits"])
+    else:
+        plan = plan_routes(st["req"], st["field"])
+    r = plan.routes
+    info = {k: [round(r[k].time_h, 2), round(r[k].dist_nmi, 1), round(r[k].max_hs_m, 2)] for k in r}
+    if "limits" in st:
+        info["mode"] = plan.stats["safety"]["mode"]
+    return info
 
 
-def main() -> None:
-    print(f"stormlane routing benchmark ({os.cpu_count()} cores, shared; timings are noisy)")
-    r6 = bench_r6()
-    searches = bench_r6_searches()
-    med = bench_medsea()
-    safe = bench_r6_safe()
-    print("== summary (ours vs target)")
-    if r6:
-        print(f"  R6 NetCDF -> both routes, warm: {r6['warm_s'] * 1000:.0f} ms wall ({r6['warm_cpu_s'] * 1000:.0f} ms CPU) vs < {TARGETS['r6_warm_s'] * 1000:.0f} ms "
-              f"(SIMROUTE {SIMROUTE['total_s']} s, {SIMROUTE['total_s'] / r6['warm_s']:.0f}x faster)")  # fmt: skip
-    if searches:
-        print(f"  R6 both searches, warm: {searches * 1000:.1f} ms vs < {TARGETS['searches_ms']:.0f} ms "
-              f"(SIMROUTE {SIMROUTE['astar_s']} s, {SIMROUTE['astar_s'] / searches:.0f}x faster)")  # fmt: skip
-    print(f"  core: {med['core_medges_s']:.1f} M edges/s wall ({med['core_cpu_medges_s']:.1f} per CPU second) vs >= {TARGETS['core_medges_s']:.0f}")
-    print(f"  MEDSEA-size route: {med['medsea_s']:.2f} s wall ({med['medsea_cpu_s']:.2f} s CPU) vs < {TARGETS['medsea_s']:.0f} s")
-    if safe:
-        print(f"  R6 safe mode NetCDF -> all routes, warm: {safe['warm_s'] * 1000:.0f} ms wall ({safe['warm_cpu_s'] * 1000:.0f} ms CPU) "
-              f"vs < {TARGETS['r6_warm_s'] * 1000:.0f} ms (flags {safe['flags_s'] * 1000:.0f} ms, safe search {safe['search_safe_s'] * 1000:.0f} ms)")
-    print("  (CPU seconds are what this process used; on the shared 2-core machine wall time includes waiting for a core)")
+def setup_medsea_mesh(with_graph: bool = False, farthest_goal: bool = False) -> dict:
+    field = cases.make_storm_field()
+    req, _ = cases.medsea_request()
+    st = cases.prepared_mesh(field, req)
+    if with_graph or farthest_goal:
+        import numpy as np
+        from scipy.sparse.csgraph import dijkstra
+
+        st["graph"] = cases.mesh_graph(st["mesh"])
+        dist = dijkstra(st["graph"], directed=True, indices=st["start"])
+        reach = np.isfinite(dist)
+        st["graph_edges_reachable"] = int(np.diff(st["graph"].indptr)[reach].sum())
+        if farthest_goal:
+            st["goal"] = int(np.argmax(np.where(reach, dist, -1.0)))
+    return st
+
+
+def run_core_time(st: dict) -> dict:
+    from routing.astar import search
+
+    r = search(st["mesh"], st["wx"], st["ship"], st["start"], st["goal"], t_start_h=st["t0_h"], heuristic=False)
+    return {"work": r.computed, "scanned": r.scanned, "expanded": r.expanded, "search_s": round(r.seconds, 4)}
+
+
+def run_core_distance(st: dict) -> dict:
+    from routing.astar import search
+
+    r = search(st["mesh"], st["wx"], st["ship"], st["start"], st["goal"], cost="distance", heuristic=False)
+    return {"work": r.computed, "scanned": r.scanned, "expanded": r.expanded, "dist_nmi": round(r.cost, 3)}
+
+
+def run_scipy_dijkstra(st: dict) -> dict:
+    import numpy as np
+    from scipy.sparse.csgraph import dijkstra
+
+    d = dijkstra(st["graph"], directed=True, indices=st["start"])
+    # counted like our counter on a full expansion: each undirected edge once
+    return {"work": st["graph_edges_reachable"] // 2, "reached": int(np.isfinite(d).sum()),
+            "dist_nmi_to_goal": round(float(d[st["goal"]]), 3)}
+
+
+# --------------------------------------------------------------------------- R6 safe mode
+
+
+def setup_r6_feeder(safety: bool) -> dict:
+    from pipelines.config import load_operator_profile
+
+    req, v = cases.r6_request("container-feeder")
+    return {"req": req, "vessel": v, "files": [str(f) for f in cases.r6_files()],
+            "limits": load_operator_profile("default") if safety else None}
+
+
+def run_r6_feeder(st: dict) -> dict:
+    """From the NetCDF files to every route (the safe ones too when the state holds limits)."""
+    from pipelines.routing_weather import load_weather
+    from routing.planner import plan_routes
+
+    field, _ = load_weather(st["files"])
+    if st["limits"] is not None:
+        plan = plan_routes(st["req"], field, safety="hard", vessel=st["vessel"], limits=st["limits"])
+    else:
+        plan = plan_routes(st["req"], field)
+    info = {k: round(v.time_h, 3) for k, v in plan.routes.items()}
+    if st["limits"] is not None:
+        info["mode"] = plan.stats["safety"]["mode"]
+    return info
+
+
+# --------------------------------------------------------------------------- the groups
+
+
+def build(cfg):
+    here = "bench.routing"
+    r6 = cases.r6_files()
+    route = _stormlane() + cases.r6_route_args()
+    g_r6 = Group(
+        "r6", "R6 (Palma -> Barcelona, Storm Gloria): the CLI, the searches, weather onto the mesh", needs=r6,
+        sides=[
+            Side("route_cli", "`stormlane route` R6 --json, a fresh process (NetCDF read, land mask, weather on the mesh, "
+                 "both searches, smoothing, JSON out)", argv=route, parse=f"{here}:parse_route_json",
+                 warm_setup=f"{here}:setup_cli", warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args()}),
+            Side("help_cli", "`stormlane --help`, a fresh process", argv=_stormlane() + ["--help"],
+                 warm_setup=f"{here}:setup_cli", warm_run=f"{here}:run_cli", warm_kwargs={"argv": ["--help"]}),
+            Side("python_start", "`python -c pass`: the interpreter's own start (the floor of any Python command)",
+                 argv=[sys.executable, "-c", "pass"], ours=False, warm_na="a bare interpreter start has no warm state"),
+            Side("searches", "both R6 A* searches (time, then distance) on the built mesh", setup=f"{here}:setup_r6_mesh",
+                 run=f"{here}:run_searches", work="edges whose cost was computed (both searches)", empty_cache=SAME_KERNELS),
+            Side("w2m", "R6 weather onto the mesh (WeatherField.on_mesh: bilinear over sea points, hourly steps)",
+                 setup=f"{here}:setup_r6_grid", run=f"{here}:run_w2m", work="node-times filled (sea nodes x time steps)"),
+            Side("w2m_xarray", "xarray Dataset.interp (linear) of Hs and the direction's unit vector onto every mesh node",
+                 setup=f"{here}:setup_r6_grid", run=f"{here}:run_w2m_xarray", ours=False,
+                 work="node-times (sea nodes x time steps, for comparison)"),
+        ],
+        measures=[
+            Measure("r6_route", "R6 `stormlane route`, NetCDF to both routes", "route_cli", external=SIMROUTE_R6,
+                    targets=[Target("cold process <= 2 s", "cold.wall_s", "<=", 2.0, "s", "issue 18"),
+                             Target("cold peak <= 400 MB", "cold.peak_mb", "<=", 400.0, "MB", "issue 18"),
+                             Target("warm < 0.5 s", "warm.wall_s", "<", 0.5, "s", "issue 5")]),
+            Measure("help", "`stormlane --help`", "help_cli", "python_start",
+                    relation="the interpreter start alone: the part of a CLI start no code of ours can remove",
+                    targets=[Target("cold <= 0.5 s", "cold.wall_s", "<=", 0.5, "s", "issue 18")]),
+            Measure("r6_searches", "R6 both A* searches", "searches", external=SIMROUTE_SEARCHES,
+                    targets=[Target("warm < 45 ms", "warm.wall_s", "<", 0.045, "s", "issue 5")]),
+            Measure("r6_w2m", "R6 weather onto the mesh", "w2m", "w2m_xarray",
+                    relation="same fields, nodes and times; xarray interpolates every node with NaN next to land, "
+                             "ours only sea nodes with the weights renormalised over sea points"),
+        ])
+    g_ref = Group(
+        "reference", "Time-dependent Dijkstra against a plain-Python reference (small mesh)",
+        sides=[
+            Side("td_ours", "our time-dependent Dijkstra (compiled core, no heuristic), 0.1 deg Balearic mesh, 48 edges",
+                 setup=f"{here}:setup_small", run=f"{here}:run_small_ours", work="edges whose cost was computed",
+                 empty_cache=SAME_KERNELS),
+            Side("td_python", "plain-Python time-dependent Dijkstra (bench/_td_reference.py), same mesh, weather and model",
+                 setup=f"{here}:setup_small", run=f"{here}:run_small_python", ours=False, work="edges whose cost was computed"),
+        ],
+        measures=[Measure("td_reference", "time-dependent Dijkstra, small mesh", "td_ours", "td_python",
+                          relation="same algorithm, edge model and optimum (checked: time_h in both results)")])
+    g_med = Group(
+        "medsea", "MEDSEA size (387 k nodes, generated storm): plan, safe mode, core throughput",
+        sides=[
+            Side("medsea_plan", "plan_routes: field to both routes (land mask, weather on the mesh, mesh, searches, smoothing)",
+                 setup=f"{here}:setup_medsea", run=f"{here}:run_medsea", empty_cache=SAME_KERNELS),
+            Side("medsea_safe", "plan_routes with safety='hard' (hs-wind-only: Hs <= 6 m, wind)",
+                 setup=f"{here}:setup_medsea", kwargs={"safety": True}, run=f"{here}:run_medsea", empty_cache=SAFE_KERNELS),
+            Side("core_time", "core: time-dependent Dijkstra over the mesh to Port Said", setup=f"{here}:setup_medsea_mesh",
+                 run=f"{here}:run_core_time", work="edges whose cost was computed", empty_cache=SAME_KERNELS),
+            Side("core_distance", "core: distance Dijkstra to the farthest reachable node", setup=f"{here}:setup_medsea_mesh",
+                 kwargs={"farthest_goal": True}, run=f"{here}:run_core_distance", work="edges whose cost was computed",
+                 empty_cache=SAME_KERNELS),
+            Side("scipy_dijkstra", "scipy.sparse.csgraph.dijkstra from the start over the same mesh's edges (CSR)",
+                 setup=f"{here}:setup_medsea_mesh", kwargs={"farthest_goal": True}, run=f"{here}:run_scipy_dijkstra", ours=False,
+                 work="edges (each undirected edge once, as our counter counts a full expansion)"),
+        ],
+        measures=[
+            Measure("medsea_plan", "MEDSEA-size route, field to both routes", "medsea_plan", "scipy_dijkstra",
+                    relation="the floor: scipy's static shortest distances over the same mesh (no weather, no time "
+                             "dependence, no path, mesh built in its setup); ours builds the mesh, puts the weather on it, "
+                             "runs both searches and smooths",
+                    targets=[Target("warm < 2 s", "warm.wall_s", "<", 2.0, "s", "issue 5")]),
+            Measure("medsea_safe", "MEDSEA-size route, safe mode", "medsea_safe", "medsea_plan",
+                    relation="the same plan without safety: the ratio is what safe mode costs"),
+            Measure("core", "core throughput, time-dependent Dijkstra (MEDSEA mesh)", "core_time", "scipy_dijkstra",
+                    relation="scipy solves the static problem (the engine's floor); ours computes a time-dependent cost per edge",
+                    targets=[Target(">= 30 M edges/s (computed)", "warm.throughput", ">=", 30e6, "edges/s", "issue 5")]),
+            Measure("static", "static shortest paths (MEDSEA mesh)", "core_distance", "scipy_dijkstra",
+                    relation="same task: single-source distances over the same edges (ours stops at the farthest node)"),
+        ])
+    g_safe = Group(
+        "r6_safe", "R6 safe mode (container feeder, default operator profile + IMO rules)", needs=r6,
+        sides=[
+            Side("r6_safe", "NetCDF to all six routes, safety='hard'", setup=f"{here}:setup_r6_feeder",
+                 kwargs={"safety": True}, run=f"{here}:run_r6_feeder"),
+            Side("r6_plain", "NetCDF to the four plain routes, same vessel", setup=f"{here}:setup_r6_feeder",
+                 kwargs={"safety": False}, run=f"{here}:run_r6_feeder", empty_cache=SAME_KERNELS),
+        ],
+        measures=[Measure("r6_safe", "R6 safe mode, NetCDF to all routes", "r6_safe", "r6_plain",
+                          relation="the same case without safety: the ratio is what safe mode costs",
+                          targets=[Target("warm < 0.5 s", "warm.wall_s", "<", 0.5, "s", "README (safe mode)")])])
+    notes = ["SIMROUTE's figures are external (ANCHORS.md): measured by a coordinator on these machines, not in this run; "
+             "compared cold with cold only.",
+             "Throughput counts edges whose cost was computed (routing._kernels.astar's counter): edges to settled nodes "
+             "are scanned and skipped, and not counted."]
+    return [g_r6, g_ref, g_med, g_safe], notes
 
 
 if __name__ == "__main__":
-    main()
+    script_main("bench/routing.py", build)

@@ -1,0 +1,78 @@
+"""``python -m bench [--quick] [--only NAME,...] [--wait-quiet S]``: every benchmark, one result file.
+
+Runs each ``bench/<name>.py``'s groups in turn (:func:`bench._harness.run_groups`), writes
+``bench/results.json`` (``--quick``: ``bench/results-quick.json``, for development: fewer runs and
+smaller inputs, the README untouched) and regenerates the README's benchmark table and
+``docs/benchmarks.md`` from it. ``--only`` re-runs some scripts and merges their sections into the
+existing file (each section keeps its own time and load). ``--wait-quiet S`` first waits up to S
+seconds for the 1-minute load average to drop below 1 (the machine is shared); the load is
+recorded either way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import time
+
+from bench import _harness, _report
+
+
+def _wait_quiet(limit_s: float, threshold: float = 1.0) -> str:
+    t0 = time.monotonic()
+    while os.getloadavg()[0] >= threshold and time.monotonic() - t0 < limit_s:
+        time.sleep(15)
+    waited = time.monotonic() - t0
+    return f"waited {waited:.0f} s for a 1-minute load average below {threshold:g}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="development mode (fewer runs, smaller inputs; separate file)")
+    ap.add_argument("--only", default="", help="comma-separated scripts to run, e.g. routing,lanes")
+    ap.add_argument("--wait-quiet", type=float, default=0.0, metavar="S", help="wait up to S s for load < 1 first")
+    args = ap.parse_args(argv)
+    names = [n for n in args.only.split(",") if n] or list(_report.SCRIPT_ORDER)
+    unknown = [n for n in names if n not in _report.SCRIPT_ORDER]
+    if unknown:
+        ap.error(f"unknown benchmark(s) {', '.join(unknown)}; choose from {', '.join(_report.SCRIPT_ORDER)}")
+    cfg = _harness.Config.make(args.quick)
+    waited = _wait_quiet(args.wait_quiet) if args.wait_quiet > 0 else ""
+    path = _report.RESULTS_QUICK if args.quick else _report.RESULTS
+    partial = bool(args.only)
+    results = _report.load_results(path) if (partial and path.exists()) else _report.new_results("quick" if args.quick else "full")
+    load0 = os.getloadavg()
+    t0 = time.perf_counter()
+    for name in names:
+        mod = importlib.import_module(f"bench.{name}")
+        groups, notes = mod.build(cfg)
+        section = _harness.run_groups(cfg, f"bench/{name}.py", groups, notes)
+        if partial:
+            section["run_alone_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+            results.setdefault("sections_run_alone", [])
+            if name not in results["sections_run_alone"]:
+                results["sections_run_alone"].append(name)
+        results["benchmarks"][name] = section
+        _report.write_results(results, path)  # after each script: a crash later keeps what was measured
+    load1 = os.getloadavg()
+    if not partial:
+        results["elapsed_s"] = round(time.perf_counter() - t0, 1)
+        results["load_1min"] = {"before": round(load0[0], 2), "after": round(load1[0], 2)}
+        note = (f"1-minute load average {load0[0]:.2f} before the run and {load1[0]:.2f} after it "
+                f"({os.cpu_count()} cores; the benchmark's own processes count in it)")
+        if load0[0] >= 1.0:
+            note += "; the machine was not quiet when the run started (other work was running): wall times are inflated"
+        if waited:
+            note += f"; {waited}"
+        results["load_note"] = note
+    _report.write_results(results, path)
+    if not args.quick:
+        _report.regenerate(results)
+    print(f"wrote {path.relative_to(_report.ROOT)}" + ("" if args.quick else ", README.md's table and docs/benchmarks.md")
+          + (f" in {results.get('elapsed_s', 0):.0f} s" if not partial else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,353 @@
+"""The result file (``bench/results.json``) and what is generated from it.
+
+* :func:`render_table` — the README's benchmark table (between ``README_BEGIN`` and
+  ``README_END``); never typed by hand: ``make bench`` rewrites it, and
+  ``tests/test_bench_results.py`` checks that the README holds exactly what this function makes
+  from the committed result file.
+* :func:`render_page` — ``docs/benchmarks.md``, every side and measure with its ranges.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "bench" / "results.json"
+RESULTS_QUICK = ROOT / "bench" / "results-quick.json"
+README = ROOT / "README.md"
+PAGE = ROOT / "docs" / "benchmarks.md"
+README_BEGIN = "<!-- bench-table:begin -->"
+README_END = "<!-- bench-table:end -->"
+SCRIPT_ORDER = ("ingest", "ingest_dask", "lanes", "weather", "routing", "evaluate", "report", "nightly")
+
+
+# --------------------------------------------------------------------------- the file
+
+
+def machine() -> dict:
+    """What the figures were measured on."""
+    cpu = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem_gb = None
+    try:
+        mem_gb = round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 1e9, 1)
+    except (ValueError, OSError):
+        pass
+    versions = {}
+    for mod in ("numpy", "numba", "duckdb", "scipy", "sklearn", "xarray", "pyais", "prefect", "distributed"):
+        try:
+            from importlib.metadata import version
+
+            versions[mod] = version({"sklearn": "scikit-learn"}.get(mod, mod))
+        except Exception:  # noqa: BLE001 - a missing package is just not listed
+            pass
+    return {"cpus": os.cpu_count(), "cpu_model": cpu, "memory_gb": mem_gb, "python": platform.python_version(),
+            "platform": platform.platform(), "versions": versions}
+
+
+def git_state() -> dict:
+    def git(*args):
+        try:
+            return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, timeout=20).stdout.strip()
+        except (OSError, subprocess.SubprocessError):
+            return ""
+
+    return {"commit": git("rev-parse", "HEAD"), "dirty_files": len([x for x in git("status", "--porcelain").splitlines()
+                                                                      if not x.endswith(("results.json", "README.md", "benchmarks.md"))])}
+
+
+def load_results(path: Path = RESULTS) -> dict:
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def write_results(results: dict, path: Path = RESULTS) -> None:
+    path.write_text(json.dumps(results, indent=1, sort_keys=False) + "\n", encoding="utf-8")
+
+
+def new_results(mode: str) -> dict:
+    return {"schema": 1, "mode": mode, "generated_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "git": git_state(), "machine": machine(), "benchmarks": {}}
+
+
+def merge_section(section: dict, quick: bool = False) -> None:
+    """Put one script's section (run on its own) into the result file and regenerate the pages."""
+    path = RESULTS_QUICK if quick else RESULTS
+    results = load_results(path) if path.exists() else new_results("quick" if quick else "full")
+    name = Path(section["script"]).stem
+    section["run_alone_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    results["benchmarks"][name] = section
+    results.setdefault("sections_run_alone", [])
+    if name not in results["sections_run_alone"]:
+        results["sections_run_alone"].append(name)
+    write_results(results, path)
+    if not quick:
+        regenerate(results)
+
+
+def regenerate(results: dict) -> None:
+    """Rewrite the README's table and ``docs/benchmarks.md`` from ``results``."""
+    update_readme(render_table(results))
+    PAGE.parent.mkdir(parents=True, exist_ok=True)
+    PAGE.write_text(render_page(results), encoding="utf-8")
+
+
+def update_readme(table: str, path: Path = README) -> None:
+    text = path.read_text(encoding="utf-8")
+    if README_BEGIN not in text or README_END not in text:
+        raise SystemExit(f"{path}: the markers {README_BEGIN} / {README_END} are missing")
+    head, rest = text.split(README_BEGIN, 1)
+    _, tail = rest.split(README_END, 1)
+    path.write_text(head + README_BEGIN + "\n" + table + README_END + tail, encoding="utf-8")
+
+
+def readme_block(path: Path = README) -> str:
+    """What the README holds between the markers (the generated table)."""
+    text = path.read_text(encoding="utf-8")
+    return text.split(README_BEGIN, 1)[1].split(README_END, 1)[0][1:]
+
+
+# --------------------------------------------------------------------------- formatting
+
+
+def fmt_s(x) -> str:
+    if x is None:
+        return "–"
+    if x < 1.0:
+        return f"{x * 1000:.3g} ms"
+    return f"{x:.3g} s"
+
+
+def fmt_rate(x, unit: str) -> str:
+    if x is None:
+        return "–"
+    for scale, prefix in ((1e9, "G"), (1e6, "M"), (1e3, "k")):
+        if x >= scale:
+            return f"{x / scale:.3g} {prefix} {unit}/s"
+    return f"{x:.3g} {unit}/s"
+
+
+def _st(side: dict, phase: str, q: str = "wall_s"):
+    ph = side.get(phase) or {}
+    return ph.get(q) if isinstance(ph, dict) else None
+
+
+def fig(side: dict | None, phase: str, with_range: bool = False) -> str:
+    """``median`` (and ``[min-max]``) wall seconds of a phase, or why there is none."""
+    if side is None:
+        return "–"
+    ph = side.get(phase) or {}
+    if "na" in ph:
+        return "n/a"
+    st = _st(side, phase)
+    if not st:
+        return "failed" if side.get("failures") else "–"
+    text = fmt_s(st["median"])
+    if with_range:
+        text += f" [{fmt_s(st['min'])}–{fmt_s(st['max'])}]"
+    return text
+
+
+def _ratio(m: dict, phase: str) -> str:
+    sp = (m.get("speedup") or {}).get(phase)
+    return f"{sp['median']:.3g}×" if sp else "–"
+
+
+def _mem(side: dict | None) -> str:
+    st = _st(side, "cold", "peak_mb") if side else None
+    return f"{st['median']:.0f}" if st else "–"
+
+
+def _targets(m: dict) -> str:
+    out = []
+    for t in m["targets"]:
+        state = {True: "met", False: "**not met**", None: "not measured"}[t["met"]]
+        out.append(f"{t['name']}: {state}")
+    return "; ".join(out) or "–"
+
+
+def _unit(side: dict) -> str:
+    work = side.get("work_counts") or ""
+    return work.split(" ", 1)[0] if work else ""
+
+
+def _ours_cell(side: dict, phase: str) -> str:
+    text = fig(side, phase)
+    tp = _st(side, phase, "throughput")
+    if tp:
+        text += f" ({fmt_rate(tp['median'], _unit(side))})"
+    return text
+
+
+def _load(group: dict) -> str:
+    ld = group.get("load_1min") or {}
+    return f"{ld.get('before', '–')}→{ld.get('after', '–')}"
+
+
+def _rows(results: dict):
+    """(script, group, measure) for every measure, in the scripts' order."""
+    names = [n for n in SCRIPT_ORDER if n in results["benchmarks"]]
+    names += [n for n in results["benchmarks"] if n not in names]
+    for name in names:
+        for g in results["benchmarks"][name]["groups"]:
+            for m in g.get("measures", []):
+                yield name, g, m
+
+
+def render_table(results: dict) -> str:
+    """The README's table: one row per headline measure, medians, baseline beside ours."""
+    mach = results["machine"]
+    lines = [
+        f"Generated by `make bench` from `bench/results.json` ({results['mode']} run, {results['generated_utc']}, "
+        f"commit {results['git']['commit'][:10] or '?'}; {mach['cpus']} cores, {mach['cpu_model'] or 'unknown CPU'}). "
+        "Medians of at least 5 runs; **cold** = first run in a fresh process (numba cache warm), **warm** = a later run "
+        "in the same process; every baseline ran in the same session, interleaved with ours; ratio = baseline time / ours, "
+        "cold against cold and warm against warm. Ranges, CPU seconds, the empty-cache cold runs and every other figure: "
+        "[docs/benchmarks.md](docs/benchmarks.md).",
+        "",
+    ]
+    if results.get("load_note"):
+        lines += [f"Load: {results['load_note']}", ""]
+    lines += ["| bench | measure | ours cold | ours warm | baseline (same run) | baseline cold | baseline warm | "
+              "ratio cold | ratio warm | peak MB ours / base | load (1 min) | targets |",
+              "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | --- | --- |"]
+    for name, g, m in _rows(results):
+        if not m.get("headline", True):
+            continue
+        sides = g["sides"]
+        o = sides[m["ours"]]
+        b = sides.get(m.get("baseline") or "")
+        if b is not None:
+            base_label, bcold, bwarm = m["baseline_label"], _ours_cell(b, "cold"), _ours_cell(b, "warm")
+            rc, rw = _ratio(m, "cold"), _ratio(m, "warm")
+        else:
+            e = m.get("external") or {}
+            base_label = f"external: {e.get('label', '?')} ({e.get('date', '?')})"
+            bcold = fmt_s(e.get("cold_s")) if e.get("cold_s") else "–"
+            bwarm = "never compared"
+            rc = f"{e['speedup_cold']:.3g}× vs external" if e.get("speedup_cold") else "–"
+            rw = "–"
+        mem = f"{_mem(o)} / {_mem(b) if b else (str(m.get('external', {}).get('peak_mb', '–')) + ' ext.')}"
+        lines.append(f"| {name} | {m['title']} | {_ours_cell(o, 'cold')} | {_ours_cell(o, 'warm')} | {base_label} | {bcold} | "
+                     f"{bwarm} | {rc} | {rw} | {mem} | {_load(g)} | {_targets(m)} |")
+    skipped = [(name, g) for name in results["benchmarks"] for g in results["benchmarks"][name]["groups"] if g.get("skipped")]
+    if skipped:
+        lines.append("")
+        lines += [f"Skipped: {name} / {g['title']}: {g['skipped']}" for name, g in skipped]
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------- the page
+
+
+def _stat_cell(st: dict | None, kind: str = "s", unit: str = "") -> str:
+    if not st:
+        return "–"
+    f = (lambda x: fmt_s(x)) if kind == "s" else (lambda x: f"{x:.0f}") if kind == "mb" else (lambda x: fmt_rate(x, unit))
+    return f"{f(st['median'])} [{f(st['min'])}–{f(st['max'])}]"
+
+
+def _side_rows(key: str, s: dict) -> list[str]:
+    rows = []
+    for phase, name in (("cold", "cold, cache warm"), ("cold_empty_cache", "cold, cache empty"), ("warm", "warm")):
+        ph = s.get(phase) or {}
+        if "na" in ph:
+            rows.append(f"| {key} | {name} | n/a: {ph['na']} | | | | | |")
+            continue
+        if not ph:
+            rows.append(f"| {key} | {name} | – | | | | | |")
+            continue
+        rows.append(f"| {key} | {name} (n={ph['wall_s']['n']}) | {_stat_cell(ph['wall_s'])} | {_stat_cell(ph.get('cpu_s'))} | "
+                    f"{_stat_cell(ph.get('process_wall_s'))} | {_stat_cell(ph.get('peak_mb'), 'mb')} | "
+                    f"{_stat_cell(ph.get('throughput'), 'rate', _unit(s))} | "
+                    f"{_loadrange(ph)} |")
+    return rows
+
+
+def _loadrange(ph: dict) -> str:
+    a, b = ph.get("load_1min_before"), ph.get("load_1min_after")
+    if not a or not b:
+        return "–"
+    return f"{min(a['min'], b['min']):.2f}–{max(a['max'], b['max']):.2f}"
+
+
+def _pairs(sp: dict | None) -> str:
+    if not sp:
+        return "–"
+    vals = ", ".join(f"{v:.3g}" for v in sp["values"] if v is not None)
+    return f"{sp['median']:.3g}× [{sp['min']:.3g}–{sp['max']:.3g}] (pairs {vals})"
+
+
+def render_page(results: dict) -> str:
+    """``docs/benchmarks.md``: every figure of the result file, generated."""
+    from bench import _harness
+
+    mach = results["machine"]
+    out = ["# Benchmarks", "", "<!-- generated by `make bench` (bench/_report.py) from bench/results.json: do not edit -->", "",
+           f"{results['mode']} run of {results['generated_utc']}, commit `{results['git']['commit'] or '?'}`; "
+           f"{mach['cpus']} cores ({mach['cpu_model'] or '?'}), {mach.get('memory_gb')} GB, Python {mach['python']}; "
+           f"versions {', '.join(f'{k} {v}' for k, v in mach.get('versions', {}).items())}.", ""]
+    if results.get("elapsed_s"):
+        out += [f"The whole `make bench` took {results['elapsed_s']:.0f} s."]
+    if results.get("load_note"):
+        out += ["", f"**Load.** {results['load_note']}"]
+    if results.get("sections_run_alone"):
+        out += ["", f"Sections re-run on their own after the full run: {', '.join(results['sections_run_alone'])} "
+                    "(each section has its own time and load)."]
+    out += ["", "## How to read this page", "", *(_harness.__doc__ or "").strip().splitlines()[2:], ""]
+    for name in [n for n in SCRIPT_ORDER if n in results["benchmarks"]] + [n for n in results["benchmarks"] if n not in SCRIPT_ORDER]:
+        sec = results["benchmarks"][name]
+        out += [f"## `{sec['script']}`", ""]
+        out += [f"- {n}" for n in sec.get("notes", [])]
+        if sec.get("notes"):
+            out.append("")
+        for g in sec["groups"]:
+            out += [f"### {g['title']}", ""]
+            if g.get("skipped"):
+                out += [f"Skipped: {g['skipped']}", ""]
+                continue
+            out += [f"Started {g['started_utc']}, {g['elapsed_s']:.0f} s, {g['runs']} interleaved rounds; load (1 min) "
+                    f"{_load(g)} before → after." + (f" Inputs: {json.dumps(g['prepare']['info'])}." if g.get("prepare") else ""), ""]
+            out += ["| side | phase | wall s median [range] | CPU s | process wall s | peak RSS MB | throughput | load |",
+                    "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+            for key, s in g["sides"].items():
+                out += _side_rows(key, s)
+            out.append("")
+            for key, s in g["sides"].items():
+                line = f"- `{key}`: {s['label']}" + (f" — `{s['argv']}`" if s.get("argv") else "")
+                if s.get("work_counts"):
+                    line += f"; throughput counts {s['work_counts']}"
+                if s.get("info"):
+                    line += f"; result {json.dumps(s['info'], default=str)}"
+                if s.get("failures"):
+                    line += f"; **failures**: {' / '.join(s['failures'])}"
+                out.append(line)
+            out.append("")
+            for m in g.get("measures", []):
+                out += [f"**{m['title']}** — ours `{m['ours']}`"
+                        + (f" against `{m['baseline']}` ({m['relation']})" if m.get("baseline") else "")]
+                if m.get("speedup"):
+                    out += [f"- baseline ÷ ours, cold: {_pairs(m['speedup'].get('cold'))}; warm: {_pairs(m['speedup'].get('warm'))}"]
+                if m.get("external"):
+                    e = m["external"]
+                    out += [f"- external (not measured in this run): {e.get('label')} — {e.get('cold_s')} s cold, "
+                            f"{e.get('peak_mb', '–')} MB peak; {e.get('date')}, {e.get('machine')}, {e.get('method')}"
+                            + (f"; parts {json.dumps(e['parts'])}" if e.get("parts") else "")
+                            + (f"; ratio cold/cold {e['speedup_cold']:.3g}×" if e.get("speedup_cold") else "")]
+                for t in m["targets"]:
+                    state = {True: "met", False: "**not met**", None: "not measured"}[t["met"]]
+                    meas = "–" if t["measured"] is None else f"{t['measured']:.4g}"
+                    out += [f"- target ({t['source']}): {t['name']} — `{t['metric']}` {t['op']} {t['value']:g} {t['unit']}: "
+                            f"measured {meas}: {state}"]
+                out.append("")
+    return "\n".join(out).rstrip() + "\n"
