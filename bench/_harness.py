@@ -6,10 +6,12 @@ Vocabulary (the same in the result file, ``bench/results.json``, and in ``docs/b
   ``setup(**kwargs)``, both executed in a fresh child process (:mod:`bench._child`), or a command
   line (``argv``) whose whole process is the run (as a user runs ``stormlane ...``).
 * **cold** = the first run in a fresh process (for a command line: the whole process, from
-  spawn to exit). Measured with numba's compile cache *warm* (filled beforehand by the same
-  code) and, separately, *empty* (``NUMBA_CACHE_DIR`` pointing at a new empty folder: the
-  kernels compile in the run, as on a fresh install). Sides whose code compiles no cached numba
-  kernel say so (the empty folder stays empty) and are not repeated empty.
+  spawn to exit). Measured with numba's compile cache *empty* (``NUMBA_CACHE_DIR`` pointing at
+  a new empty folder: the kernels compile in the run, as on a fresh install) and, separately,
+  *warm* (a cache of this session filled by the first empty-cache run of each side, so no
+  figure depends on an earlier run or on ``make test``). Sides whose code compiles no cached
+  numba kernel say so (the empty folder stays empty); sides whose kernels another side compiles
+  name it and are not repeated empty (the budget of ``make bench`` is 30 minutes).
 * **warm** = a later run in the same process (imports done, kernels loaded, caches filled).
 * Every side is measured ``runs`` times (default 5): median and range (min, max) of wall
   seconds, CPU seconds (all threads of the process: ``time.process_time``), peak resident set
@@ -65,8 +67,20 @@ class Config:
     cache_dir: Path = field(default_factory=lambda: Path(os.environ.get(
         "STORMLANE_BENCH_CACHE", Path(tempfile.gettempdir()) / "stormlane-bench-cache")))
     timeout_s: float = 900.0
-    empty_budget_s: float = 40.0  # empty-cache runs of one side stop once they took this long (n recorded)
+    empty_budget_s: float = 25.0  # empty-cache runs of one side stop once they took this long (n recorded)
     verbose: bool = True
+
+    @property
+    def warm_cache(self) -> Path:
+        """numba's cache for the cache-warm runs of every side: the kernels compiled by the
+        empty-cache runs of this session (merged), plus whatever a side compiles on first use.
+        Emptied when the session starts, so no figure depends on an earlier run or ``make test``."""
+        path = Path(self.cache_dir) / "numba-warm-cache"
+        if not getattr(self, "_warm_ready", False):
+            shutil.rmtree(path, ignore_errors=True)
+            path.mkdir(parents=True, exist_ok=True)
+            self._warm_ready = True
+        return path
 
     @classmethod
     def make(cls, quick: bool = False) -> Config:
@@ -148,6 +162,8 @@ def _spawn(argv: list[str], env: dict, timeout_s: float, stdout_path: Path, stde
     """Run ``argv`` in a fresh process (its own session); wall from spawn to exit, rusage from wait4."""
     full_env = dict(os.environ)
     full_env.update({k: str(v) for k, v in env.items()})
+    # this checkout's packages first, also for the console script (whose sys.path[0] is its bin/)
+    full_env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])
     with open(stdout_path, "wb") as out, open(stderr_path, "wb") as err:
         load_before = os.getloadavg()[0]
         t0 = time.perf_counter()
@@ -225,10 +241,9 @@ def _log(cfg: Config, text: str) -> None:
         print(text, flush=True)
 
 
-def _empty_cache_runs(cfg: Config, tmp: Path, side: Side, n: int, rec: dict) -> Path | None:
-    """``n`` cold runs, each with a new empty numba cache folder; returns the first (filled) folder
-    for the cache-warm runs, or None when the side compiled nothing into it."""
-    warm_cache = None
+def _empty_cache_runs(cfg: Config, tmp: Path, side: Side, n: int, rec: dict) -> None:
+    """``n`` cold runs, each with a new empty numba cache folder; the first run's compiled kernels
+    are merged into the run's shared warm cache (:attr:`Config.warm_cache`)."""
     spent = 0.0
     for r in range(n):
         if r and spent > cfg.empty_budget_s:
@@ -250,11 +265,9 @@ def _empty_cache_runs(cfg: Config, tmp: Path, side: Side, n: int, rec: dict) -> 
         spent += proc["process_wall_s"]
         rec["cold_empty_cache"].append(proc)
         _log(cfg, f"    {side.key}: cold, empty compile cache: {proc['runs'][0]['wall_s']:.2f} s")
-        if warm_cache is None:
-            warm_cache = cache
-        else:
-            shutil.rmtree(cache, ignore_errors=True)
-    return warm_cache
+        if r == 0:
+            shutil.copytree(cache, cfg.warm_cache, dirs_exist_ok=True)
+        shutil.rmtree(cache, ignore_errors=True)
 
 
 def _warm_argv(cfg: Config, tmp: Path, side: Side, env: dict, n: int, rec: dict) -> None:
@@ -299,9 +312,9 @@ def run_group(cfg: Config, group: Group) -> dict:
             if empty_runs == 0:
                 recs[side.key]["empty_cache_na"] = "not measured in this mode"
                 continue
-            cache = _empty_cache_runs(cfg, tmp, side, empty_runs, recs[side.key])
-            if cache is not None:
-                env[side.key]["NUMBA_CACHE_DIR"] = cache
+            _empty_cache_runs(cfg, tmp, side, empty_runs, recs[side.key])
+        for side in group.sides:
+            env[side.key]["NUMBA_CACHE_DIR"] = cfg.warm_cache
         for r in range(runs):
             for side in group.sides:
                 warm = side.argv is None

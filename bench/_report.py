@@ -304,7 +304,11 @@ def render_page(results: dict) -> str:
     if results.get("sections_run_alone"):
         out += ["", f"Sections re-run on their own after the full run: {', '.join(results['sections_run_alone'])} "
                     "(each section has its own time and load)."]
-    out += ["", "## How to read this page", "", *(_harness.__doc__ or "").strip().splitlines()[2:], ""]
+    doc = (_harness.__doc__ or "").split("Run a script's groups")[0].strip().splitlines()[2:]
+    out += ["", "## How to read this page", "", *doc, "",
+            "*Process wall s* is the whole child process (interpreter start, setup and every run in it); for a "
+            "command line it is the cold figure itself. Peak RSS is the fresh process's peak up to the end of its "
+            "first run (setup included) in megabytes (10^6 bytes).", ""]
     for name in [n for n in SCRIPT_ORDER if n in results["benchmarks"]] + [n for n in results["benchmarks"] if n not in SCRIPT_ORDER]:
         sec = results["benchmarks"][name]
         out += [f"## `{sec['script']}`", ""]

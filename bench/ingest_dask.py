@@ -27,7 +27,7 @@ from pathlib import Path
 
 from bench._harness import Group, Measure, Side, script_main
 
-FILES, ROWS = 4, 250_000
+FILES, ROWS = 2, 250_000
 NA_EMPTY = "not repeated here: the ingest's kernels compile in bench/ingest.py's empty-cache runs"
 
 

@@ -109,12 +109,14 @@ def build(cfg):
         "night", "the demo's full night (every lane x 16 departures, report with 10 detailed cases)",
         prepare=f"{here}:prepare", prepare_kwargs={"cache": cache, "run_dir": run_dir},
         sides=[Side("night_sequential", "`stormlane nightly` (sequential task runner) in a fresh process",
-                    setup=f"{here}:setup", kwargs={"argv": seq}, run=f"{here}:run_night", work="lane-departures checked"),
+                    setup=f"{here}:setup", kwargs={"argv": seq}, run=f"{here}:run_night", work="lane-departures checked",
+                    empty_cache="not measured: the night's kernels (routing, safety, evaluation) compile in the "
+                                "empty-cache runs of bench/routing.py and bench/evaluate.py; one empty-cache night costs "
+                                "1.5-3 min (budget of `make bench`: 30 min)"),
                Side("night_dask", "`stormlane nightly --task-runner dask` (starts its own 2-worker LocalCluster) in a "
                     "fresh process", setup=f"{here}:setup", kwargs={"argv": dsk}, run=f"{here}:run_night",
                     work="lane-departures checked", warm_per_process=0,
-                    empty_cache="not repeated: the same kernels compile in night_sequential's empty-cache run "
-                                "(the workers inherit NUMBA_CACHE_DIR)",
+                    empty_cache="not measured: as for night_sequential (the workers inherit NUMBA_CACHE_DIR)",
                     warm_na="not measured: each `--task-runner dask` night starts its own cluster again, and a second "
                             "night costs as much as the first (budget of `make bench`: 30 min)"),
                Side("cluster_start", "start and stop a 2-worker distributed.LocalCluster (the Dask runner's start-up)",
