@@ -180,26 +180,40 @@ def evaluate_target(t, measure: dict, sides: dict, ours_key: str) -> dict:
             "source": t.source, "measured": value, "met": met, **({"value_from": t.value_from} if t.value_from else {})}
 
 
+def describe(side: dict, phase: str) -> str:
+    """``median s [min-max], CPU median s, peak MB, load a-b`` of one phase of a side, or why none."""
+    ph = side.get(phase) or {}
+    if "na" in ph:
+        return "n/a (" + ph["na"].split(":")[0] + ")"
+    st = ph.get("wall_s")
+    if not st:
+        return "failed" if side.get("failures") else "-"
+    text = f"{st['median']:.3g} s [{st['min']:.3g}-{st['max']:.3g}], CPU {ph['cpu_s']['median']:.3g} s"
+    if ph.get("peak_mb"):
+        text += f", peak {ph['peak_mb']['median']:.0f} MB"
+    lb, la = ph.get("load_1min_before"), ph.get("load_1min_after")
+    if lb and la:
+        text += f", load {min(lb['min'], la['min']):.2f}-{max(lb['max'], la['max']):.2f}"
+    return text
+
+
 def one_line(m: dict, sides: dict) -> str:
-    """A printable summary of a measure (for the console)."""
+    """A printable summary of a measure (for the console): both sides, cold and warm, ratios, targets."""
     o = sides[m["ours"]]
-
-    def fig(side, phase):
-        ph = side.get(phase) or {}
-        st = ph.get("wall_s") if isinstance(ph, dict) else None
-        if not st:
-            return "n/a"
-        return f"{st['median']:.3g} s [{st['min']:.3g}-{st['max']:.3g}]"
-
-    text = f"{m['title']}: ours cold {fig(o, 'cold')}, warm {fig(o, 'warm')}"
+    lines = [f"{m['title']}", f"  ours ({m['ours']}): cold {describe(o, 'cold')}; warm {describe(o, 'warm')}; "
+             f"cold with an empty compile cache {describe(o, 'cold_empty_cache')}"]
     if m.get("baseline"):
         b = sides[m["baseline"]]
         sp = m.get("speedup") or {}
-        spd = ", ".join(f"{ph} x{sp[ph]['median']:.3g}" for ph in ("cold", "warm") if sp.get(ph))
-        text += f"; baseline cold {fig(b, 'cold')}, warm {fig(b, 'warm')} ({spd or 'no ratio'})"
+        spd = ", ".join(f"{ph} {sp[ph]['median']:.3g}x [{sp[ph]['min']:.3g}-{sp[ph]['max']:.3g}]"
+                        for ph in ("cold", "warm") if sp.get(ph))
+        lines.append(f"  baseline ({m['baseline']}): cold {describe(b, 'cold')}; warm {describe(b, 'warm')}")
+        lines.append(f"  baseline time / ours, per interleaved pair: {spd or 'no like-for-like pair'}")
     if m.get("external"):
         e = m["external"]
-        text += f"; external {e.get('label')} {e.get('cold_s')} s cold ({e.get('date')})"
+        lines.append(f"  external, not measured in this run: {e.get('label')} {e.get('cold_s')} s cold ({e.get('date')}, "
+                     f"{e.get('method')}): {e.get('speedup_cold', '-')}x our cold median")
     for t in m["targets"]:
-        text += f"; target {t['name']}: {'met' if t['met'] else ('not met' if t['met'] is False else 'not measured')}"
-    return text
+        state = {True: "met", False: "NOT MET", None: "not measured"}[t["met"]]
+        lines.append(f"  target ({t['source']}) {t['name']}: {state} (measured {t['measured']})")
+    return "\n     ".join(lines)

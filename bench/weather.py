@@ -29,7 +29,7 @@ if __name__ == "__main__":  # run as a file: `import weather` must find the pack
 import tempfile
 from pathlib import Path
 
-from bench._harness import Group, Measure, Side, Target, script_main
+from bench._harness import Group, Measure, Side, Target, script_main, source_stamp
 
 N_LANES, N_POINTS, N_DEPARTURES = 50, 30, 48
 FIRST_DEPARTURE = "2025-01-12T00:00Z"
@@ -132,7 +132,7 @@ def run_xarray(st: dict) -> dict:
 
 def build(cfg):
     here = "bench.weather"
-    folder = str(Path(cfg.cache_dir) / "weather-demo-month")
+    folder = str(Path(cfg.cache_dir) / f"weather-demo-month-{source_stamp('weather')}")
     g = Group(
         "join", f"{N_LANES} lanes x {N_DEPARTURES} departures x {N_POINTS} centroids (72 000 points), demo month",
         prepare=f"{here}:prepare", prepare_kwargs={"folder": folder},
