@@ -1,8 +1,9 @@
-"""``python -m bench [--quick] [--only NAME,...] [--wait-quiet S]``: every benchmark, one result file.
+"""``python -m bench [--quick | --smoke] [--only NAME,...] [--wait-quiet S]``: every benchmark, one result file.
 
 Runs each ``bench/<name>.py``'s groups in turn (:func:`bench._harness.run_groups`), writes
 ``bench/results.json`` (``--quick``: ``bench/results-quick.json``, for development: fewer runs and
-smaller inputs, the README untouched) and regenerates the README's benchmark table and
+smaller inputs, the README untouched; ``--smoke``: every side once, to check that every script
+runs) and regenerates the README's benchmark table and
 ``docs/benchmarks.md`` from it. ``--only`` re-runs some scripts and merges their sections into the
 existing file (each section keeps its own time and load). ``--wait-quiet S`` first waits up to S
 seconds for the 1-minute load average to drop below 1 (the machine is shared); the load is
@@ -27,9 +28,23 @@ def _wait_quiet(limit_s: float, threshold: float = 1.0) -> str:
     return f"waited {waited:.0f} s for a 1-minute load average below {threshold:g}"
 
 
+def _load_range(results: dict) -> tuple[float, float]:
+    """Lowest and highest 1-minute load average recorded before or after any run."""
+    values = []
+    for sec in results["benchmarks"].values():
+        for g in sec["groups"]:
+            for side in (g.get("sides") or {}).values():
+                for phase in ("cold", "warm", "cold_empty_cache"):
+                    ph = side.get(phase) or {}
+                    for key in ("load_1min_before", "load_1min_after"):
+                        values += [v for v in ((ph.get(key) or {}).get("values") or []) if v is not None]
+    return (min(values), max(values)) if values else (float("nan"), float("nan"))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="development mode (fewer runs, smaller inputs; separate file)")
+    ap.add_argument("--smoke", action="store_true", help="every side once (quick inputs) to check that every script runs")
     ap.add_argument("--only", default="", help="comma-separated scripts to run, e.g. routing,lanes")
     ap.add_argument("--wait-quiet", type=float, default=0.0, metavar="S", help="wait up to S s for load < 1 first")
     args = ap.parse_args(argv)
@@ -37,7 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     unknown = [n for n in names if n not in _report.SCRIPT_ORDER]
     if unknown:
         ap.error(f"unknown benchmark(s) {', '.join(unknown)}; choose from {', '.join(_report.SCRIPT_ORDER)}")
-    cfg = _harness.Config.make(args.quick)
+    args.quick = args.quick or args.smoke
+    cfg = _harness.Config.make(args.quick, smoke=args.smoke)
     waited = _wait_quiet(args.wait_quiet) if args.wait_quiet > 0 else ""
     path = _report.RESULTS_QUICK if args.quick else _report.RESULTS
     partial = bool(args.only)
@@ -59,10 +75,12 @@ def main(argv: list[str] | None = None) -> int:
     if not partial:
         results["elapsed_s"] = round(time.perf_counter() - t0, 1)
         results["load_1min"] = {"before": round(load0[0], 2), "after": round(load1[0], 2)}
-        note = (f"1-minute load average {load0[0]:.2f} before the run and {load1[0]:.2f} after it "
-                f"({os.cpu_count()} cores; the benchmark's own processes count in it)")
-        if load0[0] >= 1.0:
-            note += "; the machine was not quiet when the run started (other work was running): wall times are inflated"
+        lo, hi = _load_range(results)
+        note = (f"1-minute load average {load0[0]:.2f} before the run, {load1[0]:.2f} after it, {lo:.2f}-{hi:.2f} "
+                f"around the runs ({os.cpu_count()} cores; the benchmark's own process counts about 1 in it)")
+        if hi >= 2.0:
+            note += ("; the machine was NOT quiet during this run (other work was running on its 2 cores): wall times "
+                     "are inflated, compare the CPU seconds and the ratios of the interleaved pairs")
         if waited:
             note += f"; {waited}"
         results["load_note"] = note

@@ -83,7 +83,9 @@ class Config:
         return path
 
     @classmethod
-    def make(cls, quick: bool = False) -> Config:
+    def make(cls, quick: bool = False, smoke: bool = False) -> Config:
+        if smoke:  # every side once, to check that every script runs (no figure worth keeping)
+            return cls(runs=1, empty_runs=0, quick=True)
         return cls(runs=2, empty_runs=1, quick=True) if quick else cls()
 
 
