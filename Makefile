@@ -1,7 +1,8 @@
 # The two commands: `make demo` runs the main job, `make test` runs the tests.
 # Each creates .venv and installs the project into it when needed.
+# PYTHON: any CPython 3.11-3.13 (`make test PYTHON=python3.13 VENV=.venv313` keeps one venv per interpreter).
 PYTHON ?= python3
-VENV := .venv
+VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 WORKDIR ?= demo
@@ -10,6 +11,14 @@ export PREFECT_SERVER_ANALYTICS_ENABLED := false
 export DO_NOT_TRACK := 1
 
 .PHONY: demo test venv lint bench clean
+
+# A PYTHON given on the command line must be the interpreter of an existing VENV.
+ifeq ($(origin PYTHON),command line)
+VENV_MISMATCH := $(shell test -x $(PY) && test "$$($(PY) -c 'import sys; print(sys.version_info[:2])')" != "$$($(PYTHON) -c 'import sys; print(sys.version_info[:2])')" && echo yes)
+ifeq ($(VENV_MISMATCH),yes)
+$(error $(VENV) was made with another Python than $(PYTHON): pass e.g. VENV=.venv313 for one venv per interpreter, or remove $(VENV))
+endif
+endif
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
