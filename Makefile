@@ -29,7 +29,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/stormlane demo --workdir $(WORKDIR)
+	$(VENV)/bin/stormlane demo --out $(WORKDIR)
 	@echo "the stormlane command: $(VENV)/bin/stormlane (or run '. $(VENV)/bin/activate' to put it on PATH)"
 
 # The browser test needs headless Chromium: install Debian's package when it is missing

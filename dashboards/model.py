@@ -610,4 +610,10 @@ def report_from_json(text: str):
         raise ReportError(f"report model is not valid JSON ({err})") from None
     if not isinstance(data, dict) or data.get("__class__") not in ("NightlyReport", "VoyageAudit"):
         raise ReportError("report model JSON must hold a NightlyReport or a VoyageAudit")
-    return _decode(data)
+    try:
+        return _decode(data)
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as err:
+        # a field missing, renamed or of the wrong type (an edited or truncated file, another
+        # version's model): one line saying so, not a traceback
+        what = f"missing field {err}" if isinstance(err, KeyError) else f"{type(err).__name__}: {err}"
+        raise ReportError(f"report model JSON is malformed ({' '.join(str(what).split())[:300]})") from None

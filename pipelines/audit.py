@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from pipelines.runners import retry_transient
+from pipelines.vessels import vessel_for_ship
 from thresholds.errors import StormlaneError
 
 log = logging.getLogger(__name__)
@@ -72,25 +73,6 @@ def _option_utc(t, option: str) -> pd.Timestamp:
     if ts is None:
         raise AuditError(f"{option} {t!r} is not an ISO 8601 time")
     return ts
-
-
-def default_vessel_profile(static: dict) -> str:
-    """Vessel profile for an AIS ship when none is given: by AIS ship type and length.
-
-    Cargo (70-79): ``container-feeder`` under 200 m, else ``container-large``; passenger
-    (60-69): ``ro-pax``; tanker (80-89): ``tanker-aframax``; anything else ``container-feeder``
-    (the seed paper's Lpp < 200 m container limits, the strictest published ones).
-    """
-    kind = static.get("ship_type")
-    length = static.get("length_m")
-    kind = int(kind) if kind is not None and np.isfinite(kind) else None
-    if kind is not None and 60 <= kind <= 69:
-        return "ro-pax"
-    if kind is not None and 80 <= kind <= 89:
-        return "tanker-aframax"
-    if length is not None and np.isfinite(length) and float(length) >= 200.0:
-        return "container-large"
-    return "container-feeder"
 
 
 def _lane_for_voyage(ws, voyage: dict | None) -> tuple[str | None, pd.DataFrame | None]:
@@ -181,7 +163,7 @@ def load_audit_inputs(db, *, voyage_id: str | None = None, mmsi: int | None = No
             ds, meta = read_local(files)
         else:
             ds, meta = weather_from_workspace(ws, start_utc, end_utc)
-    profile_name = vessel or default_vessel_profile(static)
+    profile_name = vessel or vessel_for_ship(static)
     limits = load_operator_profile(profile)
     return AuditInputs(
         positions=positions, mmsi=int(mmsi), start_utc=start_utc, end_utc=end_utc, weather_ds=ds, weather_meta=meta,

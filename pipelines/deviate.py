@@ -15,10 +15,10 @@ import pandas as pd
 from pipelines.audit import AuditError, lane_land_check, weather_from_workspace
 from pipelines.times import utc_or_none
 from thresholds.errors import StormlaneError
+from pipelines.vessels import DEFAULT_VESSEL, workspace_lane_profiles
 
 #: Vessel profile of a deviation when none is given: the seed paper studies container ships
 #: under 200 m (Lpp < 200 m limits).
-DEFAULT_VESSEL = "container-feeder"
 
 
 class DeviationInputError(StormlaneError):
@@ -150,6 +150,8 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     with open_workspace(db) as ws:
         lanes = read_lanes(ws)
         lane = read_lane_centroids(ws, str(lane_id))
+        if vessel is None and not lane.empty:  # the lane's own ships (pipelines.vessels)
+            vessel = workspace_lane_profiles(ws).get(str(lane_id), DEFAULT_VESSEL)
         if lane.empty:
             known = ", ".join(lanes["lane_id"].astype(str).head(8))
             raise DeviationInputError(f"no lane {lane_id!r} in {db} ({len(lanes)} lanes{': ' + known if known else ''})")

@@ -347,6 +347,48 @@ def _with_committed(err: Exception, per_file: list) -> Exception:
     return err
 
 
+#: Why a whole file was quarantined, for the reason codes that say something about the file
+#: rather than about single rows (docs/ingest.md lists every code).
+_FILE_LEVEL_WHY = {
+    "bad_time": "{n} of its {read} {unit} have no time{hint}",
+    "bad_sentence": "{n} of its {read} lines are not AIS sentences (!AIVDM/!AIVDO){hint}",
+    "bad_line": "{n} of its {read} lines do not have the header's number of fields{hint}",
+}
+_NMEA_TIME_HINT = (": NMEA needs a tag block with a c: time (\\c:1736899200*hh\\!AIVDM,...) or $PGHP lines; "
+                   "a plain receiver log without either cannot be placed in time")
+
+
+def nothing_loaded_reason(counts: dict) -> str | None:
+    """Why a file loaded no position at all, in one line; None when it loaded some, was loaded
+    before, or held no AIS record (that is the caller's ``ignored`` count).
+
+    The reason is the code that took most of its rows, said for the file (no times in an NMEA
+    file, no AIS sentence in a file forced to be NMEA, ...), then the other codes with counts.
+    """
+    read, loaded = int(counts.get("read", 0)), int(counts.get("loaded", 0))
+    if loaded or counts.get("already_loaded"):
+        return None
+    if read == 0:
+        ignored = int(counts.get("ignored", 0))
+        return f"it holds no AIS record ({ignored:,} line(s) without one)" if ignored else "it holds no AIS record"
+    reasons = {k: int(v) for k, v in (counts.get("reasons") or {}).items() if v}
+    if int(counts.get("duplicates", 0)) == read:
+        return f"all {read:,} rows are already in the workspace (duplicates)"
+    code, n = max(reasons.items(), key=lambda kv: (kv[1], kv[0])) if reasons else ("", 0)
+    nmea = counts.get("format") == "nmea"
+    template = _FILE_LEVEL_WHY.get(code)
+    if template:
+        hint = _NMEA_TIME_HINT if (code == "bad_time" and nmea) else (
+            f" (is it really {counts.get('format')}?)" if code in ("bad_sentence", "bad_line") else "")
+        head = template.format(n=f"{n:,}", read=f"{read:,}", unit="messages" if nmea else "rows", hint=hint)
+    else:
+        from lanes.clean import REASONS
+
+        head = f"all {read:,} rows were quarantined, most as {code} ({REASONS.get(code, code)}: {n:,})"
+    rest = [f"{k} {v:,}" for k, v in sorted(reasons.items(), key=lambda kv: (-kv[1], kv[0])) if k != code]
+    return head + (f"; also {', '.join(rest)}" if rest else "")
+
+
 def total_bytes(paths: Iterable) -> int:
     """Bytes of all files :func:`ingest_paths` would read (for a progress bar)."""
     return sum(p.stat().st_size for p in expand_paths(paths))

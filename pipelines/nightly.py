@@ -4,7 +4,7 @@ What an operations team runs every night, unattended (issue 7):
 
 1. **Inputs** (:func:`load_paths`, I/O): the workspace's lanes and their centroid sequences, the
    port names, and a vessel profile per lane (from the AIS ship types of the voyages that formed
-   the lane, :func:`pipelines.audit.default_vessel_profile`, or ``--vessel``); or planned voyages
+   the lane, :func:`pipelines.vessels.vessel_for_ship`, or ``--vessel``); or planned voyages
    from a CSV (:func:`read_planned_voyages`).
 2. **Weather** (:func:`read_weather_source`, I/O; :func:`fetch_weather`, network, retried): local
    CMEMS/ERA5/GRIB files (:func:`weather.io.read_local`), the real download clients when
@@ -63,6 +63,7 @@ from pydantic import BaseModel, Field, field_validator
 from pipelines.runners import make_task_runner  # noqa: F401 (moved there, shared with the lanes flow)
 from pipelines.runners import retry_transient as _retry_transient
 from pipelines.storage import DEFAULT_DB
+from pipelines.vessels import DEFAULT_VESSEL, lane_vessel_profiles  # noqa: F401 (the one default-vessel rule)
 from thresholds.errors import StormlaneError
 
 log = logging.getLogger(__name__)
@@ -70,9 +71,6 @@ log = logging.getLogger(__name__)
 #: Default forecast window and departure spacing: the next 48 h every 3 h (16 departures).
 DEFAULT_WINDOW_H = 48.0
 DEFAULT_STEP_H = 3.0
-#: Vessel profile of a lane whose voyages carry no AIS ship type (the seed paper's Lpp < 200 m
-#: container limits are the strictest published ones).
-DEFAULT_VESSEL = "container-feeder"
 #: The weather is cut to the lanes' box widened by this much, or by 20 % of the widest lane's
 #: span when that is more (the A* mesh's default box is the great circle's plus max(1 deg, 15 %)).
 WEATHER_PAD_DEG = 3.0
@@ -362,35 +360,6 @@ class NightPath:
         v = np.where(np.isfinite(v) & (v > 0), v, np.nan)
         fallback = np.nanmedian(v) if np.isfinite(v).any() else 10.0
         return float(np.sum(d / np.where(np.isfinite(v), v, fallback)))
-
-
-def lane_vessel_profiles(lanes: pd.DataFrame, lane_voyages: pd.DataFrame, voyages: pd.DataFrame,
-                         vessels: pd.DataFrame) -> dict[str, str]:
-    """A vessel profile per lane: the most common profile of the ships that sailed it.
-
-    Each ship's profile comes from its AIS ship type and length
-    (:func:`pipelines.audit.default_vessel_profile`); a lane is weighted by voyages, ties go to the
-    alphabetically first profile; lanes without AIS statics get :data:`DEFAULT_VESSEL`.
-    """
-    from pipelines.audit import default_vessel_profile
-
-    out = {str(lid): DEFAULT_VESSEL for lid in lanes["lane_id"]}
-    if lane_voyages.empty or voyages.empty or vessels.empty:
-        return out
-    static = {int(r["mmsi"]): {k: (None if pd.isna(v) else v) for k, v in r.items()} for r in vessels.to_dict("records")}
-    mmsi_of = dict(zip(voyages["voyage_id"].astype(str), voyages["mmsi"]))
-    counts: dict[str, dict[str, int]] = {}
-    for lid, vid in zip(lane_voyages["lane_id"].astype(str), lane_voyages["voyage_id"].astype(str)):
-        mmsi = mmsi_of.get(vid)
-        if mmsi is None or pd.isna(mmsi) or int(mmsi) not in static:
-            continue
-        prof = default_vessel_profile(static[int(mmsi)])
-        counts.setdefault(lid, {}).setdefault(prof, 0)
-        counts[lid][prof] += 1
-    for lid, c in counts.items():
-        if lid in out:
-            out[lid] = sorted(c.items(), key=lambda kv: (-kv[1], kv[0]))[0][0]
-    return out
 
 
 def _port_label(ports: pd.DataFrame, port_id) -> str:

@@ -55,7 +55,7 @@ def test_report_cli_unwritable_out_is_one_line(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
     line = _cli_error(capsys, ["report", "--model", str(model), "--out", str(blocker / "r.html")])
-    assert str(blocker / "r.html") in line and "cannot write" in line
+    assert line == f"error: --out {blocker / 'r.html'}: {blocker} exists and is not a folder"
 
 
 # --- stormlane weather join / exceedance -----------------------------------------------------------
@@ -65,13 +65,13 @@ def test_report_cli_unwritable_out_is_one_line(tmp_path, capsys):
     ("extra", "expect"),
     [
         (["--depart", "garbage"], "--depart 'garbage' is not an ISO 8601 time"),
-        (["--depart", "2025-01-14T00:00Z", "--every", "0", "--count", "3"], "--every 0: hours between departures must be > 0"),
-        (["--depart", "2025-01-14T00:00Z", "--every", "-3", "--count", "2"], "--every -3"),
-        (["--depart", "2025-01-14T00:00Z", "--every", "3", "--count", "0"], "--count 0: need at least one departure"),
+        (["--depart", "2025-01-14T00:00Z", "--step-h", "0", "--count", "3"], "--step-h 0: hours between departures must be > 0"),
+        (["--depart", "2025-01-14T00:00Z", "--step-h", "-3", "--count", "2"], "--step-h -3"),
+        (["--depart", "2025-01-14T00:00Z", "--step-h", "3", "--count", "0"], "--count 0: need at least one departure"),
     ],
 )
 def test_weather_join_bad_departures(tmp_path, capsys, extra, expect):
-    db = tmp_path / "ws.duckdb"
+    db = _empty_workspace(tmp_path)
     line = _cli_error(capsys, ["weather", "join", "--db", str(db), *extra])
     assert expect in line
 
@@ -88,7 +88,7 @@ def test_weather_join_bad_departures(tmp_path, capsys, extra, expect):
 def test_weather_join_points_csv_names_line_and_field(tmp_path, capsys, body, expect):
     pts = tmp_path / "points.csv"
     pts.write_text("path_id,seq,lat_deg,lon_deg,speed_kn\n" + body)
-    line = _cli_error(capsys, ["weather", "join", "--db", str(tmp_path / "ws.duckdb"), "--depart", "2025-01-14T00:00Z",
+    line = _cli_error(capsys, ["weather", "join", "--db", str(_empty_workspace(tmp_path)), "--depart", "2025-01-14T00:00Z",
                                "--points", str(pts)])
     assert line == f"error: {pts}: {expect}"
 
@@ -131,8 +131,8 @@ def test_scenario_negative_seed_and_file_as_out(tmp_path, capsys):
     blocker.write_text("x")
     line = _cli_error(capsys, ["scenario", "--out", str(blocker), "--days", "1"])
     assert line == f"error: --out {blocker}: exists and is not a folder"
-    line = _cli_error(capsys, ["demo", "--workdir", str(blocker), "--days", "1"])
-    assert line == f"error: --workdir {blocker}: exists and is not a folder"
+    line = _cli_error(capsys, ["demo", "--out", str(blocker), "--days", "1"])
+    assert line == f"error: --out {blocker}: exists and is not a folder"
 
 
 # --- stormlane nightly --voyages CSV ---------------------------------------------------------------
@@ -342,7 +342,7 @@ def test_db_in_a_folder_that_cannot_exist_is_one_line(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
     line = _cli_error(capsys, ["workspace", "--db", str(blocker / "ws.duckdb"), "--json"])
-    assert line == f"error: workspace {blocker / 'ws.duckdb'}: cannot create its folder (File exists: {blocker})"
+    assert line == f"error: workspace {blocker / 'ws.duckdb'}: {blocker} exists and is not a folder"
 
 
 def test_os_errors_on_user_paths_are_one_line(tmp_path, capsys, monkeypatch):
@@ -354,8 +354,7 @@ def test_os_errors_on_user_paths_are_one_line(tmp_path, capsys, monkeypatch):
     from dashboards.model import report_to_json
 
     def fake_screenshot(report_path, png_path, **kw):  # the real one opens Chromium first
-        Path(png_path).parent.mkdir(parents=True, exist_ok=True)
-        return Path(png_path)
+        raise FileExistsError(17, "File exists", str(blocker))  # as a folder under a file gives
 
     monkeypatch.setattr(dashboards.browser, "screenshot", fake_screenshot)
     model = tmp_path / "m.json"
@@ -363,5 +362,5 @@ def test_os_errors_on_user_paths_are_one_line(tmp_path, capsys, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_text("x")
     line = _cli_error(capsys, ["report", "--model", str(model), "--out", str(tmp_path / "r.html"),
-                               "--screenshot", str(blocker / "shot.png")])
+                               "--screenshot", str(tmp_path / "shot.png")])
     assert line == f"error: {blocker}: File exists"

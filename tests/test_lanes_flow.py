@@ -112,13 +112,16 @@ def test_cli_errors_are_one_line_exit_2(tmp_path, cli):
     res = cli("lanes", "--db", str(tmp_path / "none.duckdb"), "--json")
     assert res.returncode == 2
     assert res.stderr.strip().startswith("error: workspace") and len(res.stderr.strip().splitlines()) == 1
-    res = cli("lanes", "--db", str(tmp_path / "none.duckdb"), "--eps-course-deg", "200")
+    assert "none.duckdb does not exist" in res.stderr and not (tmp_path / "none.duckdb").exists()  # never created
+    db = tmp_path / "empty.duckdb"
+    assert cli("workspace", "--db", str(db)).returncode == 0
+    res = cli("lanes", "--db", str(db), "--eps-course-deg", "200")
     assert res.returncode == 2 and "eps_course_deg" in res.stderr
-    res = cli("lanes", "--db", str(tmp_path / "none.duckdb"), "--merge-voyage-share", "1.5")
+    res = cli("lanes", "--db", str(db), "--merge-voyage-share", "1.5")
     assert res.returncode == 2 and "merge_voyage_share" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     bad = tmp_path / "ports.csv"
     bad.write_text("locode,name\nXX,Y\n")
-    res = cli("lanes", "--db", str(tmp_path / "none.duckdb"), "--ports", str(bad))
+    res = cli("lanes", "--db", str(db), "--ports", str(bad))
     assert res.returncode == 2 and "missing column" in res.stderr
 
 

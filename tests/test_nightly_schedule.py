@@ -70,6 +70,9 @@ def test_schedule_serves_the_nightly_deployment_with_its_cron(tmp_path):
     try:
         _wait_for(lambda: httpx.get(f"{url}/health", timeout=2).status_code == 200, 120, "prefect server", [server])
         db = tmp_path / "ws.duckdb"
+        from pipelines.storage import open_workspace
+
+        open_workspace(db).close()  # schedule reads a workspace, never creates one
         served = subprocess.Popen(
             [str(BIN / "stormlane"), "schedule", "--cron", "0 2 * * *", "--timezone", "Europe/Paris", "--db", str(db),
              "--out", str(tmp_path / "nights")],

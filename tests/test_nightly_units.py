@@ -73,7 +73,7 @@ def test_planned_voyages_csv_errors_name_file_line_and_field(tmp_path):
 
 
 def test_vessel_profile_of_a_lane_is_its_most_common_ship_profile():
-    from pipelines.nightly import DEFAULT_VESSEL, lane_vessel_profiles
+    from pipelines.vessels import DEFAULT_VESSEL, lane_vessel_profiles
 
     lanes = pd.DataFrame({"lane_id": ["a", "b", "c"]})
     lv = pd.DataFrame({"lane_id": ["a", "a", "a", "b"], "voyage_id": ["1", "2", "3", "4"]})

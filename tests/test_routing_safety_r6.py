@@ -74,7 +74,7 @@ def test_r6_safety_through_the_cli(gloria, capsys, caplog):
         main([
             "route", "--from", "39.225,2.900", "--to", "41.500,2.775", "--depart", "2020-01-20T09:00Z", "--weather", *files,
             "--vessel", "container-feeder", "--mesh-nmi", "1.5", "--bbox", "2.0,38.95,5.1,41.65", "--safety", "hard",
-            "--operator", "default", "--json",
+            "--profile", "default", "--json",
         ])  # fmt: skip
     except SystemExit as exc:
         assert exc.code in (0, None)

@@ -60,7 +60,7 @@ def test_load_join_and_exceedance(demo_weather_dir, tmp_path, capsys):
     csv = tmp_path / "pts.csv"
     pts.to_csv(csv, index=False)
     joined = tmp_path / "joined.csv"
-    code, out, _ = run_cli(capsys, "weather", "join", "--points", str(csv), "--depart", "2025-01-31T06:00Z", "--every", "6",
+    code, out, _ = run_cli(capsys, "weather", "join", "--points", str(csv), "--depart", "2025-01-31T06:00Z", "--step-h", "6",
                            "--count", "4", "--db", str(db), "--out", str(joined), "--json")
     assert code == 0
     summary = json.loads(out)

@@ -1,4 +1,10 @@
-"""Options and output helpers shared by the CLI commands."""
+"""Options and output helpers shared by the CLI commands (the conventions of docs/cli.md).
+
+One definition per concept: the workspace (``--db``), weather inputs (``--weather``), the vessel
+(``--vessel``), the operator limits (``--profile``), the speed-loss model (``--speed-loss``),
+output files and folders, ``--json``. Only typer is imported here, so that ``stormlane --help``
+stays fast.
+"""
 
 from __future__ import annotations
 
@@ -10,10 +16,105 @@ from pathlib import Path
 
 import typer
 
-from pipelines.storage import DEFAULT_DB
+from thresholds.errors import StormlaneError
 
-DbOption = typer.Option(Path(DEFAULT_DB), "--db", help="DuckDB workspace file.", show_default=True)
-JsonOption = typer.Option(False, "--json", help="Print one JSON object instead of a table.")
+#: The workspace used when --db is not given (same as ``pipelines.storage.DEFAULT_DB``).
+DEFAULT_DB = "stormlane.duckdb"
+#: Speed-loss models (same as ``routing.speed_loss.MODELS``; checked by the convention test).
+SPEED_LOSS_MODELS = ("bowditch", "aertssen", "khokhlov", "none")
+
+
+class PathOptionError(StormlaneError):
+    """A path given on the command line cannot be used (one ``error:`` line, exit 2)."""
+
+
+def _parent_ok(path: Path, what: str) -> None:
+    parent = Path(path).expanduser().parent
+    if parent.exists() and not parent.is_dir():
+        raise PathOptionError(f"{what}: {parent} exists and is not a folder")
+    if not parent.exists():
+        raise PathOptionError(f"{what}: folder {parent} does not exist")
+
+
+def check_output_file(value: Path | None, option: str = "--out") -> Path | None:
+    """An output file goes into an existing folder (never created behind the user's back)."""
+    if value is not None:
+        _parent_ok(value, f"{option} {value}")
+        if Path(value).is_dir():
+            raise PathOptionError(f"{option} {value}: is a folder; give a file name")
+    return value
+
+
+def check_output_dir(value: Path | None, option: str = "--out") -> Path | None:
+    """An output folder is created, but the folder it goes into must exist."""
+    if value is not None:
+        if Path(value).exists() and not Path(value).is_dir():
+            raise PathOptionError(f"{option} {value}: exists and is not a folder")
+        _parent_ok(value, f"{option} {value}")
+    return value
+
+
+def _db_new_ok(value: Path) -> Path:
+    """A workspace is created when missing, in a folder that exists."""
+    _parent_ok(value, f"workspace {value}")
+    return value
+
+
+def _db_existing(value: Path) -> Path:
+    """A command that reads a workspace never creates one."""
+    if not Path(value).exists():
+        _parent_ok(value, f"workspace {value}")
+        raise PathOptionError(f"workspace {value} does not exist; create it with `stormlane ingest-ais PATH... --db {value}`")
+    return value
+
+
+#: ``--db`` of a command that writes into the workspace (created when missing, in an existing folder).
+DbOption = typer.Option(Path(DEFAULT_DB), "--db", metavar="FILE", callback=_db_new_ok, show_default=True,
+                        help="DuckDB workspace file; created when missing (its folder must exist).")
+#: ``--db`` of a command that reads the workspace (it must exist).
+DbReadOption = typer.Option(Path(DEFAULT_DB), "--db", metavar="FILE", callback=_db_existing, show_default=True,
+                            help="DuckDB workspace file (must exist: `stormlane ingest-ais` creates it).")
+JsonOption = typer.Option(False, "--json", help="Print one JSON object on stdout instead of a table.")
+
+
+def weather_option(without: str) -> typer.models.OptionInfo:
+    """``--weather FILE|DIR...``: files or folders, several after one flag or the flag repeated."""
+    return typer.Option(
+        None, "--weather", metavar="FILE|DIR",
+        help="Weather files or folders (CMEMS/ERA5 NetCDF, GFS GRIB, zarr); several after one --weather, or "
+             f"--weather repeated. Without it: {without}.")
+
+
+def vessel_option(without: str) -> typer.models.OptionInfo:
+    """``--vessel NAME|FILE`` with the command's part of the one default-vessel rule."""
+    return typer.Option(None, "--vessel", metavar="NAME|FILE",
+                        help=f"Vessel profile: a name in data/vessels or a TOML file. Default: {without}.")
+
+
+#: The default vessel where no AIS says which ship it is (``pipelines.vessels.DEFAULT_VESSEL``).
+VESSEL_WITHOUT_AIS = "container-feeder (no AIS ship to take it from)"
+VESSEL_FROM_AIS = "from the AIS ship type and length of the ship(s) that sailed it, else container-feeder"
+
+ProfileOption = typer.Option(
+    None, "--profile", metavar="NAME|FILE",
+    help="Operator-limits profile: a name in data/operator_limits.toml or a TOML file (default: that file's default).")
+SpeedLossOption = typer.Option("bowditch", "--speed-loss", metavar="|".join(SPEED_LOSS_MODELS),
+                               help="Speed-loss model in waves.", show_default=True)
+TaskRunnerOption = typer.Option(
+    "sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]", show_default=True,
+    help="Where the parallel part runs: in this process, on a local Dask cluster, or on the Dask scheduler at ADDRESS.")
+
+
+def check_choice(value: str, choices, option: str) -> str:
+    """One line naming the option when ``value`` is not one of ``choices``."""
+    if value not in choices:
+        raise typer.BadParameter(f"{value!r} is not one of {', '.join(choices)}", param_hint=option)
+    return value
+
+
+def paths_text(paths) -> list[str]:
+    """Paths given to a multi-valued option, as text (empty when the option was not given)."""
+    return [str(p) for p in paths or []]
 
 
 def _clean(obj):
@@ -37,6 +138,16 @@ def _clean(obj):
 def emit_json(obj) -> None:
     """Print exactly one JSON object on stdout."""
     typer.echo(json.dumps(_clean(obj), sort_keys=False))
+
+
+def note(text: str) -> None:
+    """One ``note:`` line on stderr (something the user should know; not an error)."""
+    typer.echo(f"note: {text}", err=True)
+
+
+def warning(text: str) -> None:
+    """One ``warning:`` line on stderr (the command did its work, but part of it gave nothing)."""
+    typer.echo(f"warning: {text}", err=True)
 
 
 def interactive() -> bool:

@@ -7,7 +7,8 @@ from typing import List, Optional
 
 import typer
 
-from pipelines.commands._common import DbOption, JsonOption, emit_json
+from pipelines.commands._common import (DbReadOption, JsonOption, ProfileOption, SpeedLossOption, check_choice, check_output_file,
+                                        emit_json, paths_text, vessel_option, weather_option)
 
 
 def _fmt(x, digits=2):
@@ -22,20 +23,17 @@ def _fmt(x, digits=2):
 def register(app: typer.Typer) -> None:
     @app.command("audit")
     def audit(
-        voyage: Optional[str] = typer.Option(None, "--voyage", help="Voyage id in the workspace (see `stormlane lanes`)."),
-        mmsi: Optional[int] = typer.Option(None, "--mmsi", help="Ship's MMSI (with --start and --end instead of --voyage)."),
-        start: Optional[str] = typer.Option(None, "--start", help="Start of the sailed period, ISO 8601 (UTC if no offset)."),
-        end: Optional[str] = typer.Option(None, "--end", help="End of the sailed period, ISO 8601."),
-        db: Path = DbOption,
-        weather: Optional[List[Path]] = typer.Option(
-            None, "--weather", help="Hindcast weather files (CMEMS/ERA5 NetCDF, GRIB); default the workspace's weather tables."
-        ),
-        vessel: Optional[str] = typer.Option(
-            None, "--vessel", help="Vessel profile name or TOML file; default chosen from the AIS ship type and length."
-        ),
-        profile: Optional[str] = typer.Option(None, "--profile", help="Operator-limits profile name or TOML file (default: the file's default)."),
-        speed_loss: str = typer.Option("bowditch", "--speed-loss", help="Speed-loss model for the alternatives and the fuel: bowditch, aertssen, khokhlov, none."),
-        report: Optional[Path] = typer.Option(None, "--report", help="Also write the self-contained HTML audit report here."),
+        voyage: Optional[str] = typer.Option(None, "--voyage", metavar="ID", help="Voyage id in the workspace (table voyages, written by `stormlane lanes`)."),
+        mmsi: Optional[int] = typer.Option(None, "--mmsi", metavar="MMSI", help="Ship's MMSI (with --start and --end instead of --voyage)."),
+        start: Optional[str] = typer.Option(None, "--start", metavar="ISO", help="Start of the sailed period, ISO 8601 (UTC if no offset)."),
+        end: Optional[str] = typer.Option(None, "--end", metavar="ISO", help="End of the sailed period, ISO 8601."),
+        db: Path = DbReadOption,
+        weather: Optional[List[Path]] = weather_option("the weather loaded in the workspace (`stormlane weather load`)"),
+        vessel: Optional[str] = vessel_option("from the ship's AIS ship type and length"),
+        profile: Optional[str] = ProfileOption,
+        speed_loss: str = SpeedLossOption,
+        report: Optional[Path] = typer.Option(None, "--report", metavar="FILE.html", callback=lambda v: check_output_file(v, "--report"),
+                                              help="Also write the self-contained HTML audit report to this file."),
         json_out: bool = JsonOption,
     ) -> None:
         """Evaluate a sailed voyage in the hindcast weather and compare it with the time-optimal and
@@ -46,6 +44,12 @@ def register(app: typer.Typer) -> None:
         events) and the findings; with --json one object with a key per route. An --mmsi window
         is audited under way (a stationary start or end is trimmed); a window holding two or more
         of the ship's voyages is refused: audit them one --voyage at a time.
+
+        Example (a ship through a storm, between two times):
+
+        \b
+          stormlane audit --mmsi 225991460 --start 2025-01-14T21:30Z --end 2025-01-15T06:30Z \\
+            --db work/stormlane.duckdb --report audit.html
         """
         from pipelines.audit import run_audit
         from thresholds.errors import StormlaneError
@@ -56,9 +60,8 @@ def register(app: typer.Typer) -> None:
             raise StormlaneError("give either --voyage or --mmsi/--start/--end, not both")
         from routing.speed_loss import MODELS
 
-        if speed_loss not in MODELS:
-            raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}", param_hint="--speed-loss")
-        summary = run_audit(db, voyage_id=voyage, mmsi=mmsi, start=start, end=end, weather=[str(p) for p in weather or []],
+        check_choice(speed_loss, MODELS, "--speed-loss")
+        summary = run_audit(db, voyage_id=voyage, mmsi=mmsi, start=start, end=end, weather=paths_text(weather),
                             vessel=vessel, profile=profile, report=report, speed_loss_model=speed_loss)
         if json_out:
             emit_json(summary)

@@ -7,27 +7,33 @@ from typing import List, Optional
 
 import typer
 
-from pipelines.commands._common import DbOption, JsonOption, emit_json
+from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, emit_json, paths_text,
+                                        vessel_option, weather_option)
 
 
 def register(app: typer.Typer) -> None:
     @app.command("deviate")
     def deviate(
-        lane: str = typer.Option(..., "--lane", help="Lane id in the workspace (see `stormlane lanes`)."),
-        depart: str = typer.Option(..., "--depart", help="Departure time, ISO 8601 (UTC if no offset)."),
-        db: Path = DbOption,
-        weather: Optional[List[Path]] = typer.Option(None, "--weather", help="Weather files; default the workspace's weather tables."),
-        vessel: Optional[str] = typer.Option(None, "--vessel", help="Vessel profile name or TOML file (default container-feeder)."),
-        profile: Optional[str] = typer.Option(None, "--profile", help="Operator-limits profile name or TOML file."),
+        lane: str = typer.Option(..., "--lane", metavar="ID", help="Lane id in the workspace (see `stormlane lanes`)."),
+        depart: str = typer.Option(..., "--depart", metavar="ISO", help="Departure time, ISO 8601 (UTC if no offset)."),
+        db: Path = DbReadOption,
+        weather: Optional[List[Path]] = weather_option("the weather loaded in the workspace (`stormlane weather load`)"),
+        vessel: Optional[str] = vessel_option(VESSEL_FROM_AIS),
+        profile: Optional[str] = ProfileOption,
         json_out: bool = JsonOption,
     ) -> None:
         """Walk the lane's centroids from the departure and move every adverse one to the nearest
         cell that passes the vessel's thresholds (R-tree, <= 10 candidates, within 3 h of sailing),
         keeping legs at sea and recomputing ETAs; prints what moved and the comparison with the lane.
+
+        Example:
+
+        \b
+          stormlane deviate --lane 1-2-1 --depart 2025-01-15T00:00Z --db work/stormlane.duckdb
         """
         from pipelines.deviate import deviate_in_workspace
 
-        out = deviate_in_workspace(db, lane, depart, weather=[str(p) for p in weather or []], vessel=vessel, profile=profile)
+        out = deviate_in_workspace(db, lane, depart, weather=paths_text(weather), vessel=vessel, profile=profile)
         if json_out:
             emit_json(out)
             return

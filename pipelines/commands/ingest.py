@@ -7,30 +7,31 @@ from typing import List, Optional
 
 import typer
 
-from pipelines.commands._common import DbOption, JsonOption, emit_json, interactive, progress
+from pipelines.commands._common import DbOption, JsonOption, check_output_dir, emit_json, interactive, progress, warning
 
 
 def register(app: typer.Typer) -> None:
     @app.command("ingest-ais")
     def ingest_ais(
         # Text, not Path: typer would turn an empty argument into "." (the whole working folder).
-        paths: List[str] = typer.Argument(..., help="AIS files, or directories (every AIS file inside, recursively)."),
+        paths: List[str] = typer.Argument(..., metavar="PATH...", help="AIS files, or folders (every AIS file inside, recursively)."),
         db: Path = DbOption,
         fmt: Optional[str] = typer.Option(
-            None, "--format", help="Force the format instead of detecting it: dma, noaa, nmea or parquet."
+            None, "--format", metavar="dma|noaa|nmea|parquet", help="Force the format instead of detecting it from the content."
         ),
         max_speed_kn: float = typer.Option(
-            60.0, "--max-speed-kn", min=1.0,
+            60.0, "--max-speed-kn", min=1.0, metavar="KN", show_default=True,
             help="Quarantine fixes whose implied speed from/to their neighbours exceeds this. [kn]",
         ),
         task_runner: str = typer.Option(
-            "sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]",
+            "sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]", show_default=True,
             help="Where the files are staged: in this process, or partitioned by file on a local Dask cluster or "
                  "an existing Dask scheduler (this process still commits them one by one, in order).",
         ),
         spool: Optional[Path] = typer.Option(
-            None, "--spool", help="Folder for the staged files of a Dask run (default: a temporary folder next to "
-                                  "the workspace; with a remote scheduler, a folder the workers see at the same path).",
+            None, "--spool", metavar="DIR", callback=lambda v: check_output_dir(v, "--spool"),
+            help="Folder for the staged files of a Dask run (default: a temporary folder next to "
+                 "the workspace; with a remote scheduler, a folder the workers see at the same path).",
         ),
         json_out: bool = JsonOption,
     ) -> None:
@@ -41,9 +42,15 @@ def register(app: typer.Typer) -> None:
         duplicates.
         With --task-runner dask[:ADDRESS] the files are staged in parallel on Dask workers and
         committed by this process in the same order: the workspace ends the same as sequentially.
+        A file whose rows were all quarantined gets one warning line saying why.
+
+        Example:
+
+        \b
+          stormlane ingest-ais ais/ more/aisdk-2025-01-14.csv.gz --db work/stormlane.duckdb
         """
         from lanes.io.files import FORMATS
-        from pipelines.ingest import ingest_paths, total_bytes
+        from pipelines.ingest import ingest_paths, nothing_loaded_reason, total_bytes
         from pipelines.runners import parse_task_runner
         from thresholds.errors import StormlaneError
 
@@ -58,6 +65,10 @@ def register(app: typer.Typer) -> None:
         else:
             summary = _run_partitioned(paths, db, fmt, max_speed_kn, task_runner, spool, show)
         per_file = summary.pop("per_file")
+        for f in per_file:  # an input that loads nothing says why, in one line (also with --json)
+            why = nothing_loaded_reason(f)
+            if why:
+                warning(f"{f['path']}: nothing loaded: {why}")
         if json_out:
             emit_json(summary)
             return
@@ -94,7 +105,6 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
     check_inputs(found, fmt)  # bad paths, formats and headers fail here, before the cluster starts
     files = [str(p) for p in found]
     db = Path(db)
-    db.parent.mkdir(parents=True, exist_ok=True)
     own = spool is None
     spool_dir = Path(tempfile.mkdtemp(prefix=".stormlane-spool-", dir=db.parent)) if own else Path(spool)
     spool_dir.mkdir(parents=True, exist_ok=True)

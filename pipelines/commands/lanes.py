@@ -6,27 +6,31 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import DbOption, JsonOption, emit_json
+from pipelines.commands._common import DbReadOption, JsonOption, check_output_file, emit_json
 
 
 def register(app: typer.Typer) -> None:
     @app.command("lanes")
     def lanes_command(
-        db: Path = DbOption,
+        db: Path = DbReadOption,
         json_out: bool = JsonOption,
-        geojson: Path = typer.Option(None, "--geojson", help="Also write ports, lanes and centroids as GeoJSON to FILE."),
-        ports_csv: list[Path] = typer.Option(None, "--ports", help="Port list CSV, repeatable (default: data/ports.csv and data/ports_terminals.csv)."),
-        step_s: float = typer.Option(300.0, "--step-s", help="Resampling time step (s)."),
-        eps_nmi: float = typer.Option(2.0, "--eps-nmi", help="Lane DBSCAN spatial eps (nmi)."),
-        eps_speed_kn: float = typer.Option(3.0, "--eps-speed-kn", help="Lane DBSCAN speed eps (kn)."),
-        eps_course_deg: float = typer.Option(20.0, "--eps-course-deg", help="Lane DBSCAN course eps (deg)."),
-        min_density: float = typer.Option(3.0, "--min-density", help="Lane DBSCAN core density: voyages passing within eps."),
-        min_voyages: int = typer.Option(3, "--min-voyages", help="Fewest voyages in a lane."),
-        port_eps_nmi: float = typer.Option(0.135, "--port-eps-nmi", help="Stop DBSCAN eps for ports (nmi)."),
-        merge_voyage_share: float = typer.Option(0.8, "--merge-voyage-share",
+        geojson: Path = typer.Option(None, "--geojson", metavar="FILE", callback=lambda v: check_output_file(v, "--geojson"),
+                                     help="Also write ports, lanes and centroids as GeoJSON to FILE."),
+        ports_csv: list[Path] = typer.Option(None, "--ports", metavar="CSV",
+                                             help="Port list CSV; several after one --ports, or --ports repeated (default: "
+                                                  "data/ports.csv and data/ports_terminals.csv)."),
+        step_s: float = typer.Option(300.0, "--step-s", metavar="S", show_default=True, help="Resampling time step (s)."),
+        eps_nmi: float = typer.Option(2.0, "--eps-nmi", metavar="NMI", show_default=True, help="Lane DBSCAN spatial eps (nmi)."),
+        eps_speed_kn: float = typer.Option(3.0, "--eps-speed-kn", metavar="KN", show_default=True, help="Lane DBSCAN speed eps (kn)."),
+        eps_course_deg: float = typer.Option(20.0, "--eps-course-deg", metavar="DEG", show_default=True, help="Lane DBSCAN course eps (deg)."),
+        min_density: float = typer.Option(3.0, "--min-density", metavar="N", show_default=True,
+                                          help="Lane DBSCAN core density: voyages passing within eps."),
+        min_voyages: int = typer.Option(3, "--min-voyages", metavar="N", show_default=True, help="Fewest voyages in a lane."),
+        port_eps_nmi: float = typer.Option(0.135, "--port-eps-nmi", metavar="NMI", show_default=True, help="Stop DBSCAN eps for ports (nmi)."),
+        merge_voyage_share: float = typer.Option(0.8, "--merge-voyage-share", metavar="FRAC", show_default=True,
                                                  help="Within a port pair, a cluster sharing this share of its voyages with a larger one "
                                                       "(its harbour approach, the leg after a sharp turn) is part of that lane; 0 keeps every cluster a lane."),
-        task_runner: str = typer.Option("sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]",
+        task_runner: str = typer.Option("sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]", show_default=True,
                                         help="Where the per origin-destination lane extraction runs: in this process (no Prefect), "
                                              "or through the Prefect lanes flow on a local Dask cluster or an existing Dask scheduler."),
     ) -> None:
@@ -42,6 +46,11 @@ def register(app: typer.Typer) -> None:
         origin-destination pair on a local Dask cluster (one single-threaded worker process per
         core) or on the scheduler at ADDRESS (e.g. dask:tcp://10.0.0.5:8786); the tables are
         identical to the sequential run's. The spec is checked before anything starts.
+
+        Example:
+
+        \b
+          stormlane lanes --db work/stormlane.duckdb --geojson work/lanes.geojson
         """
         from pydantic import ValidationError
 

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import DbOption, JsonOption, emit_json, progress
+from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption, TaskRunnerOption,
+                                        check_output_dir, emit_json, paths_text, progress, vessel_option, weather_option)
 
 #: Deployment name used by `stormlane schedule` (the flow is ``nightly-reroute``).
 DEPLOYMENT_NAME = "nightly"
@@ -32,38 +33,62 @@ def _prefect_console_verbose() -> bool:
     return isinstance(level, int) and level < logging.WARNING
 
 
+# The options of one night, shared by `nightly` and `schedule` (one definition, one help text).
+WeatherNight = weather_option("downloaded with --fetch (or when download credentials are configured), else the weather "
+                              "loaded in the workspace")
+FetchOption = typer.Option(False, "--fetch", help="Download the night's weather with copernicusmarine + cdsapi (needs their credentials; cached).")
+WindowOption = typer.Option(48.0, "--window-h", min=0.1, metavar="H", show_default=True, help="Departure window length in hours.")
+StepOption = typer.Option(3.0, "--step-h", min=0.1, metavar="H", show_default=True, help="Hours between departures.")
+VoyagesOption = typer.Option(None, "--voyages", metavar="CSV",
+                             help="Planned voyages (vessel, origin, destination, depart_utc) instead of every lane x window.")
+LaneOption = typer.Option(None, "--lane", metavar="ID", help="Only these lanes; several after one --lane, or --lane repeated.")
+SafetyOption = typer.Option("hard", "--safety", metavar="hard|soft|none", show_default=True,
+                            help="Also route a safe time-optimal A* under the vessel's limits (hard: never through an unsafe cell, "
+                                 "soft if none; none: skip it).")
+MaxDetailOption = typer.Option(10, "--max-detail", min=0, metavar="N", show_default=True,
+                               help="Adverse lane-departures drawn with a map and plots in the report.")
+NoReportOption = typer.Option(False, "--no-report", help="Store the results only (no HTML report or exports).")
+
+
 def register(app: typer.Typer) -> None:
     @app.command("nightly")
     def nightly(
-        db: Path = DbOption,
-        out: Path = typer.Option(None, "--out", metavar="DIR", help="Folder for report.html, report.json and exports/ (default nightly/<now>)."),
-        weather: list[Path] = typer.Option(None, "--weather", metavar="FILE|DIR", help="Local weather files or folders (CMEMS/ERA5 NetCDF, GRIB); repeatable."),
-        fetch: bool = typer.Option(False, "--fetch", help="Download the night's weather with copernicusmarine + cdsapi (needs their credentials; cached)."),
+        db: Path = DbReadOption,
+        out: Path = typer.Option(None, "--out", metavar="DIR", callback=lambda v: check_output_dir(v, "--out"),
+                                 help="Folder for report.html, report.json and exports/ (default nightly/<now>)."),
+        weather: list[Path] = WeatherNight,
+        fetch: bool = FetchOption,
         now: str = typer.Option(None, "--now", metavar="ISO", help="Forecast reference time (default: the current hour, UTC); departures start here."),
-        window_h: float = typer.Option(48.0, "--window-h", min=0.1, help="Departure window length in hours."),
-        step_h: float = typer.Option(3.0, "--step-h", min=0.1, help="Hours between departures."),
-        voyages: Path = typer.Option(None, "--voyages", metavar="CSV", help="Planned voyages (vessel, origin, destination, depart_utc) instead of every lane x window."),
-        lane: list[str] = typer.Option(None, "--lane", metavar="ID", help="Only these lanes (repeatable)."),
-        vessel: str = typer.Option(None, "--vessel", metavar="NAME|FILE", help="One vessel profile for every lane (default: by the AIS ship types of each lane)."),
-        profile: str = typer.Option(None, "--profile", metavar="NAME|FILE", help="Operator limits profile (default: the file's default)."),
-        speed_loss: str = typer.Option("bowditch", "--speed-loss", metavar="bowditch|aertssen|khokhlov|none", help="Speed-loss model."),
-        safety: str = typer.Option("hard", "--safety", metavar="hard|soft|none", help="Also route a safe time-optimal A* under the vessel's limits (hard: never through an unsafe cell, soft if none; none: skip it)."),
-        max_detail: int = typer.Option(10, "--max-detail", min=0, help="Adverse lane-departures drawn with a map and plots in the report."),
-        no_report: bool = typer.Option(False, "--no-report", help="Store the results only (no HTML report or exports)."),
-        task_runner: str = typer.Option("sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]", help="Where the per-lane work runs: in this process, on a local Dask cluster, or on an existing Dask scheduler."),
+        window_h: float = WindowOption,
+        step_h: float = StepOption,
+        voyages: Path = VoyagesOption,
+        lane: list[str] = LaneOption,
+        vessel: str = vessel_option(VESSEL_FROM_AIS),
+        profile: str = ProfileOption,
+        speed_loss: str = SpeedLossOption,
+        safety: str = SafetyOption,
+        max_detail: int = MaxDetailOption,
+        no_report: bool = NoReportOption,
+        task_runner: str = TaskRunnerOption,
         json_out: bool = JsonOption,
     ) -> None:
         """Run one nightly reroute now: screen every lane x departure of the forecast window against the vessel's limits, reroute the adverse ones (cargo-safe deviation and time-optimal A*), evaluate, rank, store under a run id and write the report.
 
         Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes), report, timings_s and the top-ranked lane-departures.
-        """  # noqa: E501 (typer keeps line breaks in --help)
+
+        Example (the next 24 h of departures from a given time, with local forecast files):
+
+        \b
+          stormlane nightly --db work/stormlane.duckdb --weather forecast/ --now 2025-01-15T00:00Z \\
+            --window-h 24 --out work/nightly
+        """  # noqa: E501
         _quiet_prefect(console_info=False)
         from pipelines.nightly import (NightlyParams, flow_with_runner, make_task_runner, preflight, reroute_progress,
                                        user_errors_one_line)
 
         source = "fetch" if fetch else ("files" if weather else "auto")
         params = NightlyParams.checked(
-            db=str(db), out=str(out) if out else None, weather=[str(w) for w in weather or []], weather_source=source, now=now,
+            db=str(db), out=str(out) if out else None, weather=paths_text(weather), weather_source=source, now=now,
             window_h=window_h, step_h=step_h, voyages=str(voyages) if voyages else None, lanes=list(lane or []) or None,
             vessel=vessel, profile=profile, speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report,
         )
@@ -92,22 +117,34 @@ def register(app: typer.Typer) -> None:
 
     @app.command("schedule")
     def schedule(
-        cron: str = typer.Option("0 2 * * *", "--cron", help="Cron expression of the nightly run."),
-        timezone: str = typer.Option("UTC", "--timezone", help="IANA time zone of the cron expression."),
-        name: str = typer.Option(DEPLOYMENT_NAME, "--name", help="Deployment name (the flow is nightly-reroute)."),
-        db: Path = DbOption,
-        out: Path = typer.Option(None, "--out", metavar="DIR", help="Report folder root; each night writes <DIR>/<now> (default nightly/<now>)."),
-        weather: list[Path] = typer.Option(None, "--weather", metavar="FILE|DIR", help="Local weather files or folders read by every run (default: fetch with credentials, else the workspace grid)."),
-        window_h: float = typer.Option(48.0, "--window-h", min=0.1),
-        step_h: float = typer.Option(3.0, "--step-h", min=0.1),
-        vessel: str = typer.Option(None, "--vessel", metavar="NAME|FILE"),
-        profile: str = typer.Option(None, "--profile", metavar="NAME|FILE"),
-        safety: str = typer.Option("hard", "--safety", metavar="hard|soft|none"),
-        max_detail: int = typer.Option(10, "--max-detail", min=0),
+        cron: str = typer.Option("0 2 * * *", "--cron", metavar="CRON", show_default=True, help="Cron expression of the nightly run (minute hour day month weekday)."),
+        timezone: str = typer.Option("UTC", "--timezone", metavar="TZ", show_default=True, help="IANA time zone of the cron expression (e.g. Europe/Madrid)."),
+        name: str = typer.Option(DEPLOYMENT_NAME, "--name", metavar="NAME", show_default=True, help="Deployment name (the flow is nightly-reroute)."),
+        db: Path = DbReadOption,
+        out: Path = typer.Option(None, "--out", metavar="DIR", callback=lambda v: check_output_dir(v, "--out"),
+                                 help="Report folder root; each night writes <DIR>/<now> (default nightly/<now>)."),
+        weather: list[Path] = WeatherNight,
+        fetch: bool = FetchOption,
+        window_h: float = WindowOption,
+        step_h: float = StepOption,
+        voyages: Path = VoyagesOption,
+        lane: list[str] = LaneOption,
+        vessel: str = vessel_option(VESSEL_FROM_AIS),
+        profile: str = ProfileOption,
+        speed_loss: str = SpeedLossOption,
+        safety: str = SafetyOption,
+        max_detail: int = MaxDetailOption,
+        no_report: bool = NoReportOption,
     ) -> None:
         """Serve the nightly reroute as a Prefect deployment on a cron schedule (runs until stopped).
 
-        It registers the deployment 'nightly-reroute/<name>' with the Prefect API in PREFECT_API_URL (start one with `prefect server start`) and runs each scheduled night in a subprocess; the forecast time of a run is its scheduled time. Stop it with Ctrl-C or SIGTERM. docs/nightly.md shows how to run it under systemd.
+        It registers the deployment 'nightly-reroute/<name>' with the Prefect API in PREFECT_API_URL (start one with `prefect server start`) and runs each scheduled night in a subprocess, with the options of `stormlane nightly`; the forecast time of a run is its scheduled time. Stop it with Ctrl-C or SIGTERM. docs/nightly.md shows how to run it under systemd.
+
+        Example (every night at 02:00 UTC):
+
+        \b
+          stormlane schedule --cron "0 2 * * *" --timezone UTC --db /srv/stormlane/ws.duckdb \\
+            --out /srv/stormlane/nightly --weather /srv/stormlane/forecast
         """  # noqa: E501
         _quiet_prefect()
         from prefect.schedules import Cron
@@ -118,17 +155,17 @@ def register(app: typer.Typer) -> None:
             sched = Cron(cron, timezone=timezone)
         except Exception as err:  # noqa: BLE001 - prefect validates cron and time zone
             raise typer.BadParameter(str(err), param_hint="--cron/--timezone") from None
-        if safety not in ("hard", "soft", "none"):
-            raise typer.BadParameter(f"{safety!r} is not one of hard, soft, none", param_hint="--safety")
-        params = {"db": str(db.resolve()), "window_h": window_h, "step_h": step_h, "max_detail": max_detail, "safety": safety}
-        if out is not None:
-            params["out_root"] = str(out.resolve())
-        if weather:
-            params["weather"] = [str(Path(w).resolve()) for w in weather]
-        if vessel:
-            params["vessel"] = vessel
-        if profile:
-            params["profile"] = profile
+        from pipelines.nightly import NightlyParams
+
+        # the same checks as `stormlane nightly`, before anything is registered; paths made
+        # absolute, since each night runs in a subprocess
+        checked = NightlyParams.checked(
+            db=str(db.resolve()), out_root=str(out.resolve()) if out else None, weather=[str(Path(w).resolve()) for w in weather or []],
+            weather_source="fetch" if fetch else ("files" if weather else "auto"), window_h=window_h, step_h=step_h,
+            voyages=str(voyages.resolve()) if voyages else None, lanes=list(lane or []) or None, vessel=vessel, profile=profile,
+            speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report,
+        )
+        params = checked.model_dump(exclude={"now", "out", "cache_dir"}, exclude_none=True)
         from prefect.deployments.runner import EntrypointType
 
         _flow().serve(name=name, schedules=[sched], parameters=params, entrypoint_type=EntrypointType.MODULE_PATH,

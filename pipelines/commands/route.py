@@ -6,8 +6,8 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import JsonOption, emit_json
-from pipelines.times import utc_or_none
+from pipelines.commands._common import (VESSEL_WITHOUT_AIS, JsonOption, ProfileOption, SpeedLossOption, check_output_file, emit_json,
+                                        note, vessel_option, weather_option)
 
 ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
 SAFE_ROUTE_NAMES = ("safe_optimal", "safe_optimal_smoothed")
@@ -37,41 +37,48 @@ def register(app: typer.Typer) -> None:
     def route(
         from_: str = typer.Option(..., "--from", metavar="LAT,LON", help="Start position, decimal degrees."),
         to: str = typer.Option(..., "--to", metavar="LAT,LON", help="Goal position, decimal degrees."),
-        depart: str = typer.Option(..., "--depart", metavar="ISO8601", help="Departure time (UTC if no offset is given)."),
-        weather: list[Path] = typer.Option(
-            None, "--weather", metavar="FILE...", help="Weather files or folders (CMEMS/ERA5 NetCDF, GRIB); without them the sea is calm."
-        ),
-        more_weather: list[Path] = typer.Argument(None, metavar="FILE", help="More weather files after --weather FILE."),
-        vessel: str = typer.Option("simroute-r6", "--vessel", metavar="NAME|FILE", help="Vessel profile name (data/vessels) or TOML file."),
-        speed_kn: float = typer.Option(None, "--speed-kn", min=0.1, help="Calm-water speed in knots; default the vessel's service speed."),
-        speed_loss: str = typer.Option("bowditch", "--speed-loss", metavar="bowditch|aertssen|khokhlov|none", help="Speed-loss model in waves."),
-        mesh_nmi: float = typer.Option(None, "--mesh-nmi", min=0.01, help="Mesh step in nmi, taken as X/60 deg on both axes (SIMROUTE's convention)."),
-        mesh_deg: float = typer.Option(None, "--mesh-deg", min=0.0001, help="Mesh step in degrees on both axes."),
+        depart: str = typer.Option(..., "--depart", metavar="ISO", help="Departure time, ISO 8601 (UTC if no offset is given)."),
+        weather: list[Path] = weather_option("the sea is calm"),
+        vessel: str = vessel_option(VESSEL_WITHOUT_AIS),
+        speed_kn: float = typer.Option(None, "--speed-kn", min=0.1, metavar="KN", help="Calm-water speed in knots; default the vessel's service speed."),
+        speed_loss: str = SpeedLossOption,
+        mesh_nmi: float = typer.Option(None, "--mesh-nmi", min=0.01, metavar="NMI", help="Mesh step in nmi, taken as X/60 deg on both axes (SIMROUTE's convention)."),
+        mesh_deg: float = typer.Option(None, "--mesh-deg", min=0.0001, metavar="DEG", help="Mesh step in degrees on both axes."),
         bbox: str = typer.Option(None, "--bbox", metavar="LONMIN,LATMIN,LONMAX,LATMAX", help="Mesh extent; default the great circle's box plus a margin."),
-        edges: int = typer.Option(48, "--edges", metavar="8|16|24|48", help="Edges per node."),
+        edges: int = typer.Option(48, "--edges", metavar="8|16|24|48", help="Edges per node.", show_default=True),
         ignore_land: bool = typer.Option(False, "--ignore-land", help="Route on an all-sea sphere (accuracy tests)."),
-        snap_nmi: float = typer.Option(10.0, "--snap-nmi", min=0.0, help="How far (nmi) a start or goal on land may move to the nearest sea node."),
+        snap_nmi: float = typer.Option(10.0, "--snap-nmi", min=0.0, metavar="NMI", show_default=True, help="How far (nmi) a start or goal on land may move to the nearest sea node."),
         safety: str = typer.Option(
-            "none", "--safety", metavar="none|soft|hard",
+            "none", "--safety", metavar="hard|soft|none", show_default=True,
             help="Also route under the vessel's limits (operator profile + IMO MSC.1/Circ.1228): hard forbids cells over the limits "
                  "(falling back to soft, said in the output, when no route keeps within them), soft charges --safety-penalty per hour over them.",
         ),
-        operator: str = typer.Option(None, "--operator", "--profile", metavar="PROFILE|FILE", help="Operator-limits profile (data/operator_limits.toml) or TOML file; default the file's default profile."),
+        profile: str = ProfileOption,
+        operator: str = typer.Option(None, "--operator", hidden=True, help="Deprecated name of --profile."),
         safety_penalty: float = typer.Option(
-            10.0, "--safety-penalty", min=0.0, metavar="H", help="Soft safety: extra hours of cost per hour sailed over the limits."
+            10.0, "--safety-penalty", min=0.0, metavar="H", show_default=True, help="Soft safety: extra hours of cost per hour sailed over the limits."
         ),
         json_out: bool = JsonOption,
-        out: Path = typer.Option(None, "--out", metavar="FILE.geojson|gpx|rtz", help="Also write the four routes to this file."),
+        out: Path = typer.Option(None, "--out", metavar="FILE.geojson|gpx|rtz", callback=lambda v: check_output_file(v, "--out"),
+                                 help="Also write the routes to this file (the format from the suffix)."),
     ) -> None:
         """Compute the time-optimal route (raw grid and smoothed) and the minimum-distance route.
 
         The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time); a route that arrives after the last weather time (whose last field is then held) also has weather_held_after_h; "notes" lists what the table prints as note: lines (empty when there is nothing to say).
 
         With --safety soft|hard two more routes respect the vessel's limits (safe_optimal, safe_optimal_smoothed), every route reports hours_over_limits (operator + IMO rules at its own ETAs), hours_by_rule and unsafe_cell_h, and a "safety" object says which mode ran (hard falls back to soft when no route keeps within the limits).
-        """  # noqa: E501 (typer keeps line breaks in --help)
+
+        Example (Palma to Barcelona in Storm Gloria, SIMROUTE's R6 case):
+
+        \b
+          stormlane route --from 39.225,2.900 --to 41.500,2.775 --depart 2020-01-20T09:00Z \\
+            --weather Waves_MEDSEA_20200120.nc Waves_MEDSEA_20200121.nc --vessel simroute-r6 --out r6.gpx
+        """  # noqa: E501
         import logging
 
         from pipelines.config import load_vessel
+        from pipelines.times import utc_or_none
+        from pipelines.vessels import DEFAULT_VESSEL
         from routing.astar import ShipModel
         from routing.planner import RouteRequest, plan_routes
         from routing.speed_loss import MODELS
@@ -84,13 +91,12 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}", param_hint="--speed-loss")
         if safety not in SAFETY_MODES:
             raise typer.BadParameter(f"{safety!r} is not one of {', '.join(SAFETY_MODES)}", param_hint="--safety")
-        if operator is not None and safety == "none":
-            raise typer.BadParameter("--operator applies with --safety soft|hard", param_hint="--operator")
+        if operator is not None:
+            note("--operator is deprecated: use --profile")
+            profile = profile or operator
+        if profile is not None and safety == "none":
+            raise typer.BadParameter("--profile applies with --safety soft|hard", param_hint="--profile")
         files = list(weather or [])
-        if more_weather:
-            if not files:
-                raise typer.BadParameter(f"unexpected argument(s) {', '.join(map(str, more_weather))}", param_hint="FILE")
-            files += list(more_weather)
         start = _latlon(from_, "--from")
         goal = _latlon(to, "--to")
         box = _floats(bbox, 4, "LONMIN,LATMIN,LONMAX,LATMAX", "--bbox") if bbox else None
@@ -99,13 +105,13 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"{depart!r} is not an ISO 8601 time", param_hint="--depart")
 
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-        ship_vessel = load_vessel(vessel)
+        ship_vessel = load_vessel(vessel or DEFAULT_VESSEL)
         ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn)
         limits = None
         if safety != "none":
             from pipelines.config import load_operator_profile
 
-            limits = load_operator_profile(operator)
+            limits = load_operator_profile(profile)
         field = None
         if files:
             from pipelines.routing_weather import load_weather

@@ -6,23 +6,29 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import JsonOption, emit_json
+from pipelines.commands._common import JsonOption, check_output_dir, emit_json
 
 
 def register(app: typer.Typer) -> None:
     @app.command("scenario")
     def scenario(
-        out: Path = typer.Option(..., "--out", help="Folder to write DIR/ais/, DIR/scenario.json (and the writers' files) into."),
-        seed: int = typer.Option(0, "--seed", help="Random seed: the same seed writes byte-identical files."),
-        start: str = typer.Option("2025-01-01T00:00Z", "--start", help="Start of the AIS period (ISO 8601, UTC)."),
-        days: float = typer.Option(30.0, "--days", min=0.01, help="Length of the AIS period in days."),
+        out: Path = typer.Option(..., "--out", metavar="DIR", callback=lambda v: check_output_dir(v, "--out"),
+                                 help="Folder to write DIR/ais/, DIR/weather/ and DIR/scenario.json into (created; its folder must exist)."),
+        seed: int = typer.Option(0, "--seed", metavar="N", show_default=True, help="Random seed: the same seed writes byte-identical files."),
+        start: str = typer.Option("2025-01-01T00:00Z", "--start", metavar="ISO", show_default=True, help="Start of the AIS period (ISO 8601, UTC)."),
+        days: float = typer.Option(30.0, "--days", min=0.01, metavar="N", show_default=True, help="Length of the AIS period in days."),
         gzip: bool = typer.Option(False, "--gzip", help="Write .csv.gz / .nmea.gz instead of plain text."),
         json_out: bool = JsonOption,
     ) -> None:
         """Generate the deterministic Western Mediterranean demo scenario.
 
         About 20 ships (ro-pax, container, tanker) sail liner services between Barcelona, Palma, Valencia, Marseille, Genova, Tunis, Alger and Cagliari on hand-built sea routes. Their AIS is written as DMA CSV and NMEA (one file per UTC day) with noise, gaps and a share of dirty rows; DIR/scenario.json records everything that was generated.
-        """  # noqa: E501 (typer keeps line breaks in --help)
+
+        Example (three days around the demo's first storm):
+
+        \b
+          stormlane scenario --out mydata --start 2025-01-13T00:00Z --days 3
+        """  # noqa: E501
         from pipelines.scenario import build_scenario, summary_lines
 
         truth = build_scenario(out, seed=seed, start=start, days=days, gzip=gzip)

@@ -15,10 +15,17 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import DbOption, JsonOption, emit_json, progress
+from pipelines.commands._common import (VESSEL_WITHOUT_AIS, DbOption, DbReadOption, JsonOption, ProfileOption, check_choice,
+                                        check_output_file, emit_json, progress, vessel_option)
+
+#: Products `weather fetch` downloads.
+PRODUCTS = ("cmems-wave", "cmems-wave-med", "cmems-current", "cmems-current-daily", "era5-wind")
 
 weather_app = typer.Typer(help="Weather: fetch (CMEMS/ERA5), inspect, load into the workspace, join with paths.",
-                          no_args_is_help=True)
+                          no_args_is_help=True, rich_markup_mode=None)
+
+#: Weather files or folders given as the command's arguments.
+PathsArgument = typer.Argument(..., metavar="FILE|DIR...", help="Weather files or folders (CMEMS/ERA5 NetCDF, GFS GRIB, zarr).")
 
 
 def _bbox(text: str) -> tuple[float, float, float, float]:
@@ -40,24 +47,32 @@ def _summary(meta: dict) -> dict:
 
 @weather_app.command("fetch")
 def fetch(
-    product: str = typer.Option("cmems-wave", "--product",
-                                help="cmems-wave, cmems-wave-med, cmems-current, cmems-current-daily or era5-wind."),
-    bbox: str = typer.Option(..., "--bbox", help="LON_MIN,LAT_MIN,LON_MAX,LAT_MAX in degrees."),
-    start: str = typer.Option(..., "--start", help="Start time, ISO 8601 (UTC if no offset)."),
-    end: str = typer.Option(..., "--end", help="End time, ISO 8601 (UTC if no offset)."),
-    dataset_id: str = typer.Option(None, "--dataset-id", help="Override the CMEMS dataset id."),
-    cache: Path = typer.Option(None, "--cache", help="Download cache folder (default $STORMLANE_CACHE or ~/.cache/stormlane/weather)."),
-    load: bool = typer.Option(False, "--load", help="Also load the downloaded files into the workspace."),
+    product: str = typer.Option("cmems-wave", "--product", metavar="cmems-wave|cmems-wave-med|cmems-current|cmems-current-daily|era5-wind",
+                                show_default=True, help="The product to download."),
+    bbox: str = typer.Option(..., "--bbox", metavar="LONMIN,LATMIN,LONMAX,LATMAX", help="Area in degrees."),
+    start: str = typer.Option(..., "--start", metavar="ISO", help="Start time, ISO 8601 (UTC if no offset)."),
+    end: str = typer.Option(..., "--end", metavar="ISO", help="End time, ISO 8601 (UTC if no offset)."),
+    dataset_id: str = typer.Option(None, "--dataset-id", metavar="ID", help="Override the CMEMS dataset id."),
+    cache: Path = typer.Option(None, "--cache", metavar="DIR", help="Download cache folder (default $STORMLANE_CACHE or ~/.cache/stormlane/weather)."),
+    load: bool = typer.Option(False, "--load", help="Also load the downloaded files into the workspace (--db)."),
     db: Path = DbOption,
     json_out: bool = JsonOption,
 ) -> None:
     """Download a weather subset with the official client (copernicusmarine or cdsapi), cached.
 
     Credentials come from the clients' own configuration (`copernicusmarine login`, ~/.cdsapirc).
+
+    Example:
+
+    \b
+      stormlane weather fetch --product cmems-wave --bbox -1.5,35.5,11.5,45 --start 2025-01-13 --end 2025-01-18 \\
+        --load --db work/stormlane.duckdb
     """
     from pipelines.times import utc_or_none
     from weather.errors import WeatherError
     from weather.io.cache import DownloadCache
+
+    check_choice(product, PRODUCTS, "--product")
 
     for option, text in (("--start", start), ("--end", end)):
         if utc_or_none(text) is None:
@@ -88,10 +103,16 @@ def fetch(
 
 @weather_app.command("info")
 def info(
-    paths: list[Path] = typer.Argument(..., help="Weather files or folders (CMEMS/ERA5 NetCDF, GRIB, zarr)."),
+    paths: list[Path] = PathsArgument,
     json_out: bool = JsonOption,
 ) -> None:
-    """Read local weather files, merge them onto one grid and describe the result (nothing stored)."""
+    """Read local weather files, merge them onto one grid and describe the result (nothing stored).
+
+    Example:
+
+    \b
+      stormlane weather info mydata/weather
+    """
     from weather.io import read_local
 
     _, meta = read_local(paths)
@@ -125,12 +146,18 @@ def _load(paths, db: Path, name: str | None) -> dict:
 
 @weather_app.command("load")
 def load(
-    paths: list[Path] = typer.Argument(..., help="Weather files or folders (CMEMS/ERA5 NetCDF, GRIB, zarr)."),
+    paths: list[Path] = PathsArgument,
     db: Path = DbOption,
-    name: str = typer.Option(None, "--name", help="Grid name in the workspace (default: the product label); replaces a grid of that name."),
+    name: str = typer.Option(None, "--name", metavar="NAME", help="Grid name in the workspace (default: the product label); replaces a grid of that name."),
     json_out: bool = JsonOption,
 ) -> None:
-    """Read weather files, merge them onto one grid and store it in the workspace (tables weather_grids, weather_cells)."""
+    """Read weather files, merge them onto one grid and store it in the workspace (tables weather_grids, weather_cells).
+
+    Example:
+
+    \b
+      stormlane weather load mydata/weather --db work/stormlane.duckdb
+    """
     grid = _load(paths, db, name)
     if json_out:
         emit_json(grid)
@@ -155,9 +182,9 @@ def _departures(depart: list[str], every_h: float | None, count: int):
         times.append(t)
     if every_h is not None:
         if len(times) != 1:
-            raise WeatherError("--every needs exactly one --depart (the first departure)")
+            raise WeatherError("--step-h needs exactly one --depart (the first departure)")
         if not every_h > 0:
-            raise WeatherError(f"--every {every_h:g}: hours between departures must be > 0")
+            raise WeatherError(f"--step-h {every_h:g}: hours between departures must be > 0")
         if count < 1:
             raise WeatherError(f"--count {count}: need at least one departure")
         times = list(pd.date_range(times[0], periods=count, freq=pd.Timedelta(hours=every_h)))
@@ -198,17 +225,24 @@ def _read_points(path: Path):
 
 @weather_app.command("join")
 def join(
-    points: Path = typer.Option(None, "--points", help="CSV with path_id,seq,lat_deg,lon_deg,speed_kn (default: the workspace's lane centroids)."),
-    depart: list[str] = typer.Option([], "--depart", help="Departure time (repeatable), ISO 8601."),
-    every_h: float = typer.Option(None, "--every", help="Hours between departures, starting at the single --depart."),
-    count: int = typer.Option(1, "--count", help="Number of departures with --every."),
-    grid: str = typer.Option(None, "--grid", help="Grid id or name (default: the latest loaded)."),
-    out: Path = typer.Option(None, "--out", help="Write every joined point to this CSV or Parquet file."),
+    points: Path = typer.Option(None, "--points", metavar="CSV", help="CSV with path_id,seq,lat_deg,lon_deg,speed_kn (default: the workspace's lane centroids)."),
+    depart: list[str] = typer.Option([], "--depart", metavar="ISO", help="Departure times, ISO 8601; several after one --depart, or --depart repeated."),
+    every_h: float = typer.Option(None, "--step-h", metavar="H", help="Hours between departures, starting at the single --depart (with --count)."),
+    count: int = typer.Option(1, "--count", metavar="N", show_default=True, help="Number of departures with --step-h."),
+    grid: str = typer.Option(None, "--grid", metavar="ID|NAME", help="Grid id or name (default: the latest loaded)."),
+    out: Path = typer.Option(None, "--out", metavar="FILE.csv|parquet", callback=lambda v: check_output_file(v, "--out"),
+                             help="Write every joined point to this CSV or Parquet file."),
     flag_missing: bool = typer.Option(False, "--flag-missing", help="Mark points outside the data instead of failing."),
-    db: Path = DbOption,
+    db: Path = DbReadOption,
     json_out: bool = JsonOption,
 ) -> None:
-    """Weather at every point of every path for each departure (ETA -> grid cell -> nearest time)."""
+    """Weather at every point of every path for each departure (ETA -> grid cell -> nearest time).
+
+    Example (the lanes of the workspace, 8 departures 3 h apart):
+
+    \b
+      stormlane weather join --db work/stormlane.duckdb --depart 2025-01-14T00:00Z --step-h 3 --count 8
+    """
     import pandas as pd
 
     from pipelines.storage import open_workspace
@@ -242,13 +276,19 @@ def join(
 
 @weather_app.command("exceedance")
 def exceedance(
-    paths: list[Path] = typer.Argument(..., help="Weather files or folders."),
-    vessel: str = typer.Option("container-large", "--vessel", help="Vessel profile name or TOML file."),
-    profile: str = typer.Option(None, "--profile", help="Operator profile name or TOML file (default: the file's default)."),
-    headings: int = typer.Option(0, "--headings", help="Evaluate N equally spaced headings (0 = heading-free rules only)."),
+    paths: list[Path] = PathsArgument,
+    vessel: str = vessel_option(VESSEL_WITHOUT_AIS),
+    profile: str = ProfileOption,
+    headings: int = typer.Option(0, "--headings", metavar="N", show_default=True, help="Evaluate N equally spaced headings (0 = heading-free rules only)."),
     json_out: bool = JsonOption,
 ) -> None:
-    """Per time step: share of sea cells breaking the vessel's operator limits and IMO rules."""
+    """Per time step: share of sea cells breaking the vessel's operator limits and IMO rules.
+
+    Example (Storm Gloria for a large container ship):
+
+    \b
+      stormlane weather exceedance Waves_MEDSEA_20200120.nc Waves_MEDSEA_20200121.nc --vessel container-large
+    """
     import numpy as np
 
     from pipelines.config import load_operator_profile, load_vessel
@@ -256,7 +296,9 @@ def exceedance(
     from weather.io import read_local
 
     ds, meta = read_local(paths)
-    v = load_vessel(vessel)
+    from pipelines.vessels import DEFAULT_VESSEL
+
+    v = load_vessel(vessel or DEFAULT_VESSEL)
     prof = load_operator_profile(profile)
     hdg = None if headings <= 0 else np.arange(headings) * 360.0 / headings
     table, skipped = exceedance_by_time(ds, v, prof, headings_deg=hdg)

@@ -12,7 +12,13 @@ from pipelines.commands._common import DbOption, JsonOption, emit_json
 def register(app: typer.Typer) -> None:
     @app.command("workspace")
     def workspace(db: Path = DbOption, json_out: bool = JsonOption) -> None:
-        """Create or migrate the DuckDB workspace and list its components and tables."""
+        """Create or migrate the DuckDB workspace and list its components and tables.
+
+        Example:
+
+        \b
+          stormlane workspace --db work/stormlane.duckdb
+        """
         from pipelines.storage import open_workspace
         from pipelines.storage.core import describe
 

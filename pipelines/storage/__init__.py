@@ -115,11 +115,10 @@ class Workspace:
         if read_only and not self.path.exists():
             raise FileNotFoundError(f"workspace {self.path} does not exist (run `stormlane ingest-ais` or `stormlane demo` first)")
         _check_is_duckdb(self.path)
-        if not read_only:
-            try:
-                self.path.parent.mkdir(parents=True, exist_ok=True)
-            except OSError as err:
-                raise WorkspaceError(f"workspace {self.path}: cannot create its folder ({err.strerror or err}: {err.filename})") from None
+        if not read_only and not self.path.parent.is_dir():
+            # a typo in a folder name must not silently create a new tree of folders
+            what = "is not a folder" if self.path.parent.exists() else "does not exist"
+            raise WorkspaceError(f"workspace {self.path}: folder {self.path.parent} {what}")
         self.con = duckdb.connect(str(self.path), read_only=read_only)
         self.read_only = read_only
         try:
