@@ -178,3 +178,29 @@ def progress(description: str, total: float | None = None, enabled: bool | None 
     ) as bar:
         task = bar.add_task(description, total=total)
         yield lambda n=1, total=None: bar.update(task, advance=n, total=total)
+
+
+def xarray_without_dask_arrays() -> None:
+    """Tell xarray that this process holds no dask arrays, so that it does not import dask.
+
+    With dask installed (stormlane runs Prefect tasks on Dask, never dask *arrays*), xarray
+    imports ``dask.array`` (and with it scipy.sparse and scipy.fft) at its first Variable, only
+    to check whether the data is a dask array, and ``dask.base`` at every duck-array check: about
+    0.4 s of CPU and 40 MB at the start of every command that reads weather, a fifth of a cold
+    ``stormlane route``. Every dataset stormlane builds is numpy-backed (the readers never pass
+    ``chunks``), so the CLI pre-answers both questions with "no dask". Only the CLI does this, in
+    its own process: the library and Dask workers keep xarray's normal behaviour. A no-op when
+    dask.array is already imported.
+    """
+    import sys
+
+    if "dask.array" in sys.modules:
+        return
+    from packaging.version import Version
+    from xarray.namedarray import pycompat, utils
+
+    if "dask" not in pycompat._cached_duck_array_modules:
+        none = object.__new__(pycompat.DuckArrayModule)
+        none.module, none.version, none.type, none.available = None, Version("0.0.0"), (), False
+        pycompat._cached_duck_array_modules["dask"] = none
+    utils.is_dask_collection = lambda x: False

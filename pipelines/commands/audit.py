@@ -8,7 +8,7 @@ from typing import List, Optional
 import typer
 
 from pipelines.commands._common import (DbReadOption, JsonOption, ProfileOption, SpeedLossOption, check_choice, check_output_file,
-                                        emit_json, paths_text, vessel_option, weather_option)
+                                        emit_json, paths_text, vessel_option, weather_option, xarray_without_dask_arrays)
 
 
 def _fmt(x, digits=2):
@@ -51,6 +51,7 @@ def register(app: typer.Typer) -> None:
           stormlane audit --mmsi 225991460 --start 2025-01-14T21:30Z --end 2025-01-15T06:30Z \\
             --db work/stormlane.duckdb --report audit.html
         """
+        xarray_without_dask_arrays()
         from pipelines.audit import run_audit
         from thresholds.errors import StormlaneError
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import JsonOption, check_output_dir, emit_json, note
+from pipelines.commands._common import JsonOption, check_output_dir, emit_json, note, xarray_without_dask_arrays
 
 
 def register(app: typer.Typer) -> None:
@@ -42,6 +42,7 @@ def register(app: typer.Typer) -> None:
         os.environ.setdefault("DO_NOT_TRACK", "1")
         # the steps print their own summaries; Prefect's per-task INFO lines would drown them
         os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
+        xarray_without_dask_arrays()
         from pipelines.demo import run_demo
 
         echo = (lambda line: typer.echo(line, err=True)) if json_out else typer.echo

@@ -8,7 +8,7 @@ from typing import List, Optional
 import typer
 
 from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, emit_json, paths_text,
-                                        vessel_option, weather_option)
+                                        vessel_option, weather_option, xarray_without_dask_arrays)
 
 
 def register(app: typer.Typer) -> None:
@@ -31,6 +31,7 @@ def register(app: typer.Typer) -> None:
         \b
           stormlane deviate --lane 1-2-1 --depart 2025-01-15T00:00Z --db work/stormlane.duckdb
         """
+        xarray_without_dask_arrays()
         from pipelines.deviate import deviate_in_workspace
 
         out = deviate_in_workspace(db, lane, depart, weather=paths_text(weather), vessel=vessel, profile=profile)

@@ -8,7 +8,8 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption, TaskRunnerOption,
-                                        check_output_dir, emit_json, paths_text, progress, vessel_option, weather_option)
+                                        check_output_dir, emit_json, paths_text, progress, vessel_option, weather_option,
+                                        xarray_without_dask_arrays)
 
 #: Deployment name used by `stormlane schedule` (the flow is ``nightly-reroute``).
 DEPLOYMENT_NAME = "nightly"
@@ -83,6 +84,7 @@ def register(app: typer.Typer) -> None:
             --window-h 24 --out work/nightly
         """  # noqa: E501
         _quiet_prefect(console_info=False)
+        xarray_without_dask_arrays()
         from pipelines.nightly import (NightlyParams, flow_with_runner, make_task_runner, preflight, reroute_progress,
                                        user_errors_one_line)
 

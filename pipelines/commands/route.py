@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import (VESSEL_WITHOUT_AIS, JsonOption, ProfileOption, SpeedLossOption, check_output_file, emit_json,
-                                        note, vessel_option, weather_option)
+                                        note, vessel_option, weather_option, xarray_without_dask_arrays)
 
 ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
 SAFE_ROUTE_NAMES = ("safe_optimal", "safe_optimal_smoothed")
@@ -114,6 +114,7 @@ def register(app: typer.Typer) -> None:
             limits = load_operator_profile(profile)
         field = None
         if files:
+            xarray_without_dask_arrays()
             from pipelines.routing_weather import load_weather
 
             missing = [str(f) for f in files if not Path(f).exists()]

@@ -16,7 +16,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import (VESSEL_WITHOUT_AIS, DbOption, DbReadOption, JsonOption, ProfileOption, check_choice,
-                                        check_output_file, emit_json, progress, vessel_option)
+                                        check_output_file, emit_json, progress, vessel_option, xarray_without_dask_arrays)
 
 #: Products `weather fetch` downloads.
 PRODUCTS = ("cmems-wave", "cmems-wave-med", "cmems-current", "cmems-current-daily", "era5-wind")
@@ -72,6 +72,8 @@ def fetch(
     from weather.errors import WeatherError
     from weather.io.cache import DownloadCache
 
+    xarray_without_dask_arrays()
+
     check_choice(product, PRODUCTS, "--product")
 
     for option, text in (("--start", start), ("--end", end)):
@@ -113,6 +115,7 @@ def info(
     \b
       stormlane weather info mydata/weather
     """
+    xarray_without_dask_arrays()
     from weather.io import read_local
 
     _, meta = read_local(paths)
@@ -133,6 +136,7 @@ def info(
 def _load(paths, db: Path, name: str | None) -> dict:
     from pipelines.storage import open_workspace
     from pipelines.storage.weather import get_grid, load_weather
+    xarray_without_dask_arrays()
     from weather.io import read_local
 
     with progress("reading weather", total=None) as _:
@@ -293,6 +297,7 @@ def exceedance(
 
     from pipelines.config import load_operator_profile, load_vessel
     from weather.exposure import exceedance_by_time
+    xarray_without_dask_arrays()
     from weather.io import read_local
 
     ds, meta = read_local(paths)
