@@ -141,7 +141,11 @@ def test_merge_is_independent_of_partition_completion_order():
 def test_a_bad_task_runner_spec_is_one_line_and_exit_code_2(tmp_path, capsys):
     from pipelines.cli import main
 
-    db = tmp_path / "never.duckdb"
+    from pipelines.storage import open_workspace
+
+    db = tmp_path / "empty.duckdb"  # lanes reads a workspace: it must exist
+    open_workspace(db).close()
+    before = (db.stat().st_size, db.stat().st_mtime_ns)
     for spec in ("threads", "dask:", "ray:tcp://x:1"):
         capsys.readouterr()
         with pytest.raises(SystemExit) as exc:
@@ -149,4 +153,4 @@ def test_a_bad_task_runner_spec_is_one_line_and_exit_code_2(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert exc.value.code == 2, spec
         assert "\n" not in err and "--task-runner" in err and "sequential, dask or dask:ADDRESS" in err, err
-        assert not db.exists()  # rejected before anything started
+        assert (db.stat().st_size, db.stat().st_mtime_ns) == before  # rejected before anything started
