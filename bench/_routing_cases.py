@@ -31,11 +31,11 @@ def r6_files() -> list[Path]:
 
 
 def r6_route_args() -> list[str]:
-    """``stormlane route`` arguments of R6 (SIMROUTE's ship and mesh: the defaults of the
-    ``simroute-r6`` vessel, Bowditch, 1.5 nmi, 48 edges)."""
+    """``stormlane route`` arguments of R6 (SIMROUTE's ship and mesh: the ``simroute-r6`` vessel,
+    named, since the CLI's default vessel is the container feeder; Bowditch, 1.5 nmi, 48 edges)."""
     f = [str(p) for p in r6_files()]
     return ["route", "--from", f"{R6_START[0]},{R6_START[1]}", "--to", f"{R6_GOAL[0]},{R6_GOAL[1]}", "--depart", R6_DEPART,
-            "--weather", f[0], "--weather", f[1], "--mesh-nmi", "1.5", "--bbox", ",".join(str(x) for x in R6_BBOX),
+            "--weather", f[0], "--weather", f[1], "--vessel", "simroute-r6", "--mesh-nmi", "1.5", "--bbox", ",".join(str(x) for x in R6_BBOX),
             "--edges", "48", "--json"]
 
 
