@@ -1,1 +1,1 @@
-"""AIS readers, cleaning, stop points and ports, voyage segmentation, DBSCAN traffic lanes."""
+"""Traffic lanes: stop points and ports, voyage segmentation, resampling, DBSCAN lanes."""

@@ -4,7 +4,7 @@ The work of :func:`pipelines.ingest.ingest_file` split in two so that a cluster 
 expensive half:
 
 1. :func:`stage_to_spool` (any process, e.g. a Dask worker): detect the format, hash the file,
-   run the same reader as the sequential ingest (:func:`pipelines.ingest.stage_file`) into a
+   run the same reader as the sequential ingest (:func:`pipelines.ingest_stage.stage_file`) into a
    private in-memory DuckDB and write the typed stage - every row with its line, raw text, kind
    and parse error - to ``SPOOL/blake3-<hex>.parquet`` (named by its fingerprint).
 2. :func:`commit_spooled` (the process that owns the workspace, always one writer): load that
@@ -26,21 +26,15 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from lanes.clean import DEFAULT_MAX_SPEED_KN
+from ais.clean import DEFAULT_MAX_SPEED_KN
+from pipelines.ingest_stage import _Scratch, loaded_record, skipped_counts, stage_or_gzip_error
 
 log = logging.getLogger(__name__)
 
 
-def skipped_counts(path, fmt: str, file_id: int) -> dict:
-    """Per-file counts of a file whose bytes are already loaded (nothing read, nothing added)."""
-    return {"path": str(path), "format": fmt, "read": 0, "loaded": 0, "quarantined": 0, "duplicates": 0,
-            "static": 0, "ignored": 0, "reasons": {}, "already_loaded": True, "file_id": int(file_id)}
-
-
 def plan_files(ws, files: list, fmt: str | None = None) -> tuple[list[str], dict[str, dict]]:
     """Split ``files`` into those to stage and those already loaded (their skipped counts)."""
-    from lanes.io.files import identity_suffix, inspect, quick_key
-    from pipelines.ingest import loaded_record
+    from ais.io.files import identity_suffix, inspect, quick_key
 
     todo, skipped = [], {}
     for p in files:
@@ -60,8 +54,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
     import duckdb
     import pyarrow.parquet as pq
 
-    from lanes.io.files import fingerprint, identity_suffix, inspect, quick_key
-    from pipelines.ingest import stage_or_gzip_error
+    from ais.io.files import fingerprint, identity_suffix, inspect, quick_key
     from pipelines.storage import ais as store
 
     f = inspect(path, fmt, with_fingerprint=False)
@@ -111,13 +104,6 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
              counts["read"], counts["loaded"], counts["quarantined"], counts["duplicates"])
     return {"path": staged["path"], "format": staged["format"], **counts, "already_loaded": False,
             "staging": staged["staging"], "line_mapping": staged["line_mapping"]}
-
-
-class _Scratch:
-    """A private in-memory DuckDB in the place of a workspace (the readers only use ``con``)."""
-
-    def __init__(self, con):
-        self.con = con
 
 
 def _stage_threads() -> int:

@@ -1,6 +1,6 @@
 """Write the demo scenario into a folder: ``ais/`` files, the writers' extras, ``scenario.json``.
 
-The generator itself is pure (:mod:`lanes.scenario`); this module reads its configuration
+The generator itself is pure (:mod:`scenario.generator`); this module reads its configuration
 (``data/scenario.toml`` and ``data/ports.csv``), runs it, and calls the writers in
 :data:`SCENARIO_WRITERS` in order. Each writer gets a :class:`ScenarioContext` and returns a
 dict merged into ``scenario.json`` at the top level (new keys only). **Extension hook**: another
@@ -32,7 +32,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from lanes.scenario import (
+from scenario.generator import (
     DEFAULT_DAYS,
     DEFAULT_START_UTC,
     DIRTY_KINDS,
@@ -49,7 +49,7 @@ from thresholds.geodesy import path_length_nmi
 #: The demo region (COMMON.md): lon -1.5..11.5, lat 35.5..45.0.
 DEMO_BBOX = {"lon_min_deg": -1.5, "lon_max_deg": 11.5, "lat_min_deg": 35.5, "lat_max_deg": 45.0}
 
-#: Reason code the ingest gives each injected kind (``lanes.clean`` reason codes); for
+#: Reason code the ingest gives each injected kind (``ais.clean`` reason codes); for
 #: ``duplicate_exact`` the CSV code first, NMEA second (a repeated sentence is a payload repeat).
 EXPECTED_REASON = {
     "sentinel_position": "no_position",
@@ -174,7 +174,7 @@ def describe(scenario: Scenario) -> dict:
 
 def write_ais(ctx: ScenarioContext) -> dict:
     """Scenario writer: DMA CSV and NMEA files under ``DIR/ais`` plus the dirty-row truth."""
-    from lanes.io.writers import write_dma_csv, write_nmea
+    from scenario.writers import write_dma_csv, write_nmea
 
     sc = ctx.scenario
     ais_dir = ctx.out_dir / "ais"
@@ -275,7 +275,7 @@ def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | 
     writers : list, optional
         Writers to run (default :data:`SCENARIO_WRITERS`).
     **settings
-        Further :class:`lanes.scenario.ScenarioSettings` fields.
+        Further :class:`scenario.generator.ScenarioSettings` fields.
     """
     if int(seed) < 0:
         raise ScenarioConfigError(f"--seed {seed}: the seed must be a non-negative integer")

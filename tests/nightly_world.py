@@ -23,7 +23,7 @@ def build_world(folder: Path, *, seed: int = 0, days: float = 30.0) -> dict:
     """Write ``folder/ws.duckdb`` (ports, voyages, lanes) and ``folder/weather/*.nc``; return the paths."""
     from lanes.chain import build_lanes
     from lanes.io.portlist import read_port_lists
-    from lanes.scenario import ScenarioSettings, generate_scenario
+    from scenario.generator import ScenarioSettings, generate_scenario
     from pipelines.config import data_dir
     from pipelines.lanes import LanesSettings, store_result
     from pipelines.scenario import load_scenario_spec

@@ -1,4 +1,4 @@
-"""Pure cleaning rules of lanes/clean.py: MMSI, precedence, sentinels, the speed-jump kernel."""
+"""Pure cleaning rules of ais/clean.py: MMSI, precedence, sentinels, the speed-jump kernel."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lanes import clean as C
+from ais import clean as C
 from thresholds.geodesy import haversine_nmi
 
 
@@ -171,7 +171,7 @@ def test_outlier_burst_followed_by_a_gap_is_removed(burst):
 def test_a_longer_burst_is_a_segment_judged_as_a_whole():
     # Four fixes off (more than MAX_OUTLIER_RUN) are a segment of their own, chained to the
     # fixes after the gap: the larger part wins as before, here the 100 + 4 after the gap.
-    from lanes._jumps import MAX_OUTLIER_RUN
+    from ais._jumps import MAX_OUTLIER_RUN
 
     assert MAX_OUTLIER_RUN == 3
     m, t, lat, lon = _gap_track(50, 100, outliers=(0.5,) * 4)
@@ -264,7 +264,7 @@ def test_every_reason_is_documented(code):
 def test_compiled_link_test_equals_numpy_haversine_on_both_threads():
     # 600 k pairs: the kernel cuts them into two ranges run on two threads; every pair must be
     # judged as the numpy haversine judges it (away from exact ties, a float-rounding matter).
-    from lanes._jumps import link_breaks
+    from ais._jumps import link_breaks
 
     rng = np.random.default_rng(3)
     n = 600_001

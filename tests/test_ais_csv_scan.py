@@ -8,8 +8,8 @@ import calendar
 import numpy as np
 import pytest
 
-from lanes.io.csv_formats import NAV_STATUS_WORDS
-from lanes.io.csv_scan import KIND_BLANK, KIND_ROW, KIND_SPECIAL, scan_csv
+from ais.io.csv_formats import NAV_STATUS_WORDS
+from ais.io.csv_scan import KIND_BLANK, KIND_ROW, KIND_SPECIAL, scan_csv
 
 # columns: time, mmsi, lat, status, name
 INDEX = {"time_utc": 0, "mmsi": 1, "lat_deg": 2, "nav_status": 3, "name": 4}

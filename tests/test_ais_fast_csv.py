@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 from ais_fixtures import DMA_HEADER, DMA_LINES, dma_row
-from lanes.io.lineindex import LineIndex
-from pipelines import ingest as ingest_mod
+from ais.io.lineindex import LineIndex
+from pipelines import ingest_stage as stage_mod
 from pipelines.ingest import ingest_file
 from pipelines.storage import open_workspace
 from pipelines.storage import ais as store
+from pipelines.storage.ais import stage_csv, stage_fast
 
 
 # --- the line index --------------------------------------------------------------------------
@@ -85,12 +86,12 @@ def _both_paths(tmp_path, monkeypatch, data: bytes, name: str):
     path = tmp_path / f"{name}.csv"
     path.write_bytes(data)
     # A small scanner buffer / block: even these files are read as many parallel chunks.
-    monkeypatch.setattr(store, "CSV_BUFFER_BYTES", 1 << 14)
+    monkeypatch.setattr(stage_csv, "CSV_BUFFER_BYTES", 1 << 14)
     out = {}
     runs = [(engine, 0, (engine,)) for engine in ENGINES] + [("exact", 1 << 62, ())]
     for label, min_bytes, engines in runs:
-        monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", min_bytes)
-        monkeypatch.setattr(ingest_mod, "FAST_CSV_ENGINES", engines)
+        monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", min_bytes)
+        monkeypatch.setattr(stage_mod, "FAST_CSV_ENGINES", engines)
         db = tmp_path / f"{name}-{label}.duckdb"
         with open_workspace(db) as ws:
             counts = ingest_file(ws, path, fmt="dma")
@@ -200,11 +201,11 @@ def test_second_file_against_stored_positions_equals_exact_path(tmp_path, monkey
     back = [r for r in later if ",219200006," in r]
     later = [r for r in later if ",219200006," not in r] + back[::-1]  # ship 6 written backwards
     day2 = _mix(later + overlap, DIRTY)
-    monkeypatch.setattr(store, "CSV_BUFFER_BYTES", 1 << 14)
+    monkeypatch.setattr(stage_csv, "CSV_BUFFER_BYTES", 1 << 14)
     snaps = {}
     for label, min_bytes, engines in (("scan", 0, ("scan",)), ("exact", 1 << 62, ())):
-        monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", min_bytes)
-        monkeypatch.setattr(ingest_mod, "FAST_CSV_ENGINES", engines)
+        monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", min_bytes)
+        monkeypatch.setattr(stage_mod, "FAST_CSV_ENGINES", engines)
         db = tmp_path / f"two-{label}.duckdb"
         counts = []
         for k, rows in enumerate((day1, day2)):
@@ -264,12 +265,12 @@ def test_reject_lines_are_checked_against_the_text():
             return [self._t[i - 1] for i in lines]
 
     ix = Ix()
-    assert store._verified_reject_lines([], ix).tolist() == []
+    assert stage_fast._verified_reject_lines([], ix).tolist() == []
     # DuckDB prefixes the empty lines before a row, and may report it again on the empty line.
-    assert store._verified_reject_lines([(4, "\nb,c"), (3, "b,c"), (2, "a\r")], ix).tolist() == [2, 4]
-    assert store._verified_reject_lines([(4, "b,c"), (5, "b,c")], ix).tolist() == [4]
-    assert store._verified_reject_lines([(5, "x")], ix) is None  # a wrong number: no fast path
-    assert store._verified_reject_lines([(9, "d")], ix) is None
+    assert stage_fast._verified_reject_lines([(4, "\nb,c"), (3, "b,c"), (2, "a\r")], ix).tolist() == [2, 4]
+    assert stage_fast._verified_reject_lines([(4, "b,c"), (5, "b,c")], ix).tolist() == [4]
+    assert stage_fast._verified_reject_lines([(5, "x")], ix) is None  # a wrong number: no fast path
+    assert stage_fast._verified_reject_lines([(9, "d")], ix) is None
 
 
 @pytest.mark.parametrize("case", ["stray_cr", "many_exact_lines"])
@@ -278,7 +279,7 @@ def test_fast_path_falls_back_when_the_line_invariant_fails(tmp_path, monkeypatc
     if case == "stray_cr":
         rows.insert(50, dma_row("02/01/2025 00:05:00", "219200001", "54.05", "8.0", name="A\rB"))
     else:  # over the share of lines the fast path re-types line by line
-        monkeypatch.setattr(store, "FAST_MAX_EXACT_FRAC", 0.0)
+        monkeypatch.setattr(stage_fast, "FAST_MAX_EXACT_FRAC", 0.0)
         rows = [r.replace("ALPHA", '"ALPHA"') for r in rows] * 1
         rows += [r.replace(",GPS,", ',"GPS",') for r in _rows(n_vessels=6, n_steps=200, seed=9)]
     data = ("\n".join([DMA_HEADER] + rows) + "\n").encode()
@@ -306,7 +307,7 @@ def test_scan_stage_spot_check_catches_a_wrong_value(tmp_path, monkeypatch):
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    real = store._scan_table
+    real = stage_fast._scan_table
 
     def corrupt(con, r):
         tbl, fixes = real(con, r)
@@ -314,9 +315,9 @@ def test_scan_stage_spot_check_catches_a_wrong_value(tmp_path, monkeypatch):
         bad = pc.if_else(pa.array(np.arange(len(lat)) == 0), pa.scalar(1.5), lat)
         return tbl.set_column(tbl.column_names.index("lat_deg"), "lat_deg", bad), fixes
 
-    monkeypatch.setattr(store, "_scan_table", corrupt)
-    monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", 0)
-    monkeypatch.setattr(ingest_mod, "FAST_CSV_ENGINES", ("scan", "duckdb"))
+    monkeypatch.setattr(stage_fast, "_scan_table", corrupt)
+    monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0)
+    monkeypatch.setattr(stage_mod, "FAST_CSV_ENGINES", ("scan", "duckdb"))
     path = tmp_path / "c.csv"
     path.write_bytes(("\n".join([DMA_HEADER] + _rows(n_vessels=4, n_steps=30)) + "\n").encode())
     with open_workspace(tmp_path / "c.duckdb") as ws:

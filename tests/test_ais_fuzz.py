@@ -9,10 +9,10 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from ais_fixtures import DMA_HEADER, dma_row
-from lanes.clean import clean_positions
-from lanes.io.csv_formats import read_csv_stage
-from lanes.io.nmea import parse_fast, parse_lines
-from pipelines import ingest as ingest_mod
+from ais.clean import clean_positions
+from ais.io.csv_formats import read_csv_stage
+from ais.io.nmea import parse_fast, parse_lines
+from pipelines import ingest_stage as stage_mod
 from pipelines.ingest import ingest_file
 from pipelines.storage import Workspace
 from pipelines.storage import ais as store
@@ -106,13 +106,13 @@ def test_mutated_csv_lines(tmp_path_factory, lines, crlf):
     pure = clean_positions(stage)
     # Both staging paths: the raw-lines one and the scanner-split one (forced on this small file).
     for min_bytes in (1 << 62, 0):
-        old, ingest_mod.FAST_CSV_MIN_BYTES = ingest_mod.FAST_CSV_MIN_BYTES, min_bytes
+        old, stage_mod.FAST_CSV_MIN_BYTES = stage_mod.FAST_CSV_MIN_BYTES, min_bytes
         try:
             with memory_ws() as ws:
                 counts = ingest_file(ws, path, fmt="dma")
                 sql_q = outcome_sql(ws, counts["file_id"])
         finally:
-            ingest_mod.FAST_CSV_MIN_BYTES = old
+            stage_mod.FAST_CSV_MIN_BYTES = old
         check(counts, pure)
         assert sql_q == dict(zip(pure.quarantine.line, pure.quarantine.reason))
         assert counts["ignored"] == meta["ignored"]
@@ -128,12 +128,12 @@ def test_random_bytes_after_a_valid_header(tmp_path_factory, junk):
     path.write_bytes(data)
     pure = clean_positions(read_csv_stage(path)[0])
     for min_bytes in (1 << 62, 0):  # raw-lines path, then the scanner-split one
-        old, ingest_mod.FAST_CSV_MIN_BYTES = ingest_mod.FAST_CSV_MIN_BYTES, min_bytes
+        old, stage_mod.FAST_CSV_MIN_BYTES = stage_mod.FAST_CSV_MIN_BYTES, min_bytes
         try:
             with memory_ws() as ws:
                 counts = ingest_file(ws, path, fmt="dma")
         finally:
-            ingest_mod.FAST_CSV_MIN_BYTES = old
+            stage_mod.FAST_CSV_MIN_BYTES = old
         check(counts, pure)
 
 
@@ -194,10 +194,10 @@ def test_mutated_lines_among_clean_ones_through_each_fast_stage(tmp_path_factory
     path = d / ("p" + hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:12] + ".csv")
     path.write_bytes(text.encode("utf-8", "surrogatepass"))
     pure = clean_positions(read_csv_stage(path)[0])
-    old = ingest_mod.FAST_CSV_MIN_BYTES, ingest_mod.FAST_CSV_ENGINES
+    old = stage_mod.FAST_CSV_MIN_BYTES, stage_mod.FAST_CSV_ENGINES
     try:
         for engine in ("scan", "duckdb"):
-            ingest_mod.FAST_CSV_MIN_BYTES, ingest_mod.FAST_CSV_ENGINES = 0, (engine,)
+            stage_mod.FAST_CSV_MIN_BYTES, stage_mod.FAST_CSV_ENGINES = 0, (engine,)
             with memory_ws() as ws:
                 counts = ingest_file(ws, path, fmt="dma")
                 sql_q = outcome_sql(ws, counts["file_id"])
@@ -206,7 +206,7 @@ def test_mutated_lines_among_clean_ones_through_each_fast_stage(tmp_path_factory
             if "\r" not in "".join(lines):  # a stray CR is the one thing sending these to the exact path
                 assert counts["staging"] not in ("lines", "python"), (engine, counts["staging"])
     finally:
-        ingest_mod.FAST_CSV_MIN_BYTES, ingest_mod.FAST_CSV_ENGINES = old
+        stage_mod.FAST_CSV_MIN_BYTES, stage_mod.FAST_CSV_ENGINES = old
 
 
 @pytest.mark.parametrize("junk", [b"\x01", b"x\x01", b"a,b\x01\n\x01\n", b"\x01\x01"])
@@ -218,12 +218,12 @@ def test_the_raw_line_readers_delimiter_byte_at_a_line_end(tmp_path, junk):
     path.write_bytes((DMA_HEADER + "\n").encode() + junk)
     pure = clean_positions(read_csv_stage(path)[0])
     for min_bytes in (1 << 62, 0):
-        old, ingest_mod.FAST_CSV_MIN_BYTES = ingest_mod.FAST_CSV_MIN_BYTES, min_bytes
+        old, stage_mod.FAST_CSV_MIN_BYTES = stage_mod.FAST_CSV_MIN_BYTES, min_bytes
         try:
             with memory_ws() as ws:
                 counts = ingest_file(ws, path, fmt="dma")
                 raws = sorted(r[0] for r in ws.con.execute("SELECT raw FROM ais_quarantine").fetchall())
         finally:
-            ingest_mod.FAST_CSV_MIN_BYTES = old
+            stage_mod.FAST_CSV_MIN_BYTES = old
         check(counts, pure)
         assert raws == sorted(pure.quarantine["raw"].tolist())

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from ais_fixtures import DMA_EXPECTED, DMA_LINES, DMA_LOADED_LINES, dma_row, write_dma
-from lanes.errors import AisFormatError, AisInputError
+from ais.errors import AisFormatError, AisInputError
 from pipelines.ingest import ingest_paths
 from pipelines.storage import open_workspace
 from pipelines.storage.ais import read_files, read_positions, read_quarantine, read_vessels
@@ -215,7 +215,7 @@ def read_positions_sorted_keys(db):
 
 
 def test_same_head_and_tail_but_different_middle_is_a_new_file(tmp_path, workspace_path):
-    from lanes.io.files import quick_key
+    from ais.io.files import quick_key
 
     rows = [dma_row((pd.Timestamp("2025-01-03") + pd.Timedelta(seconds=10 * i)).strftime("%d/%m/%Y %H:%M:%S"),
                     "219000077", f"{55 + i * 1e-5:.6f}", "11.000000") for i in range(16000)]
@@ -236,7 +236,7 @@ def test_file_loaded_by_an_earlier_version_is_still_recognised(tmp_path, workspa
     # same bytes must still be skipped, by the sequential and the partitioned planner alike.
     import hashlib
 
-    from lanes.io.files import fingerprint
+    from ais.io.files import fingerprint
     from pipelines.ingest_partitioned import plan_files
 
     p = write_dma(tmp_path / "old.csv", DMA_LINES)
@@ -265,8 +265,8 @@ def test_file_loaded_by_an_earlier_version_is_still_recognised(tmp_path, workspa
 
 
 def test_bom_and_repeated_header_are_not_records(tmp_path, workspace_path):
-    from lanes.clean import clean_positions
-    from lanes.io.csv_formats import read_csv_stage
+    from ais.clean import clean_positions
+    from ais.io.csv_formats import read_csv_stage
 
     extra = dma_row("01/01/2025 00:30:00", "219000008", "55.0", "11.0")
     p = tmp_path / "concat.csv"

@@ -2,10 +2,10 @@
 staging gives the same workspace as the exact raw-lines path, file after file.
 
 From the second file on, positions are stored: a scanned file's MMSIs that continue their
-stored track go through the streaming pass of ``lanes._tracks.first_load_rules`` with their
+stored track go through the streaming pass of ``ais._tracks.first_load_rules`` with their
 last stored fix as pinned context, the others (stored fixes at or after the file's first fix,
 tracks going back in time) through the SQL path (``_stored_sql_outcomes``), see
-``pipelines.storage.ais._outcomes_with_stored``. The raw-lines path takes the SQL path for every
+``pipelines.storage.ais.commit._outcomes_with_stored``. The raw-lines path takes the SQL path for every
 MMSI. Hypothesis builds small fleets split over 2-3 files in the ways that exercise both.
 """
 
@@ -18,12 +18,12 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-import lanes._tracks as tracks
+import ais._tracks as tracks
 from ais_fixtures import DMA_HEADER, dma_row
-from pipelines import ingest as ingest_mod
+from pipelines import ingest_stage as stage_mod
 from pipelines.ingest import ingest_file
 from pipelines.storage import open_workspace
-from pipelines.storage import ais as store
+from pipelines.storage.ais import stage_csv
 from test_ais_fast_csv import _snapshot
 
 T0 = datetime(2025, 3, 1)
@@ -201,8 +201,8 @@ def _attribution(db):
 
 def _ingest_all(d, label, files, monkeypatch):
     _, min_bytes, engines = next(p for p in PATHS if p[0] == label)
-    monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", min_bytes)
-    monkeypatch.setattr(ingest_mod, "FAST_CSV_ENGINES", engines)
+    monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", min_bytes)
+    monkeypatch.setattr(stage_mod, "FAST_CSV_ENGINES", engines)
     db = d / f"{label}.duckdb"
     counts = []
     for k, (limit, rows) in enumerate(files):
@@ -240,7 +240,7 @@ def _jumps_within_files(db) -> list:
 
 
 def _check_paths_agree(d, files, monkeypatch):
-    monkeypatch.setattr(store, "CSV_BUFFER_BYTES", 1 << 14)  # the raw-lines path reads several chunks
+    monkeypatch.setattr(stage_csv, "CSV_BUFFER_BYTES", 1 << 14)  # the raw-lines path reads several chunks
     out = {}
     for label, _, _ in PATHS:
         db, counts = _ingest_all(d, label, files, monkeypatch)

@@ -8,10 +8,10 @@ import pytest
 
 from ais_fixtures import DMA_LINES, dma_row, write_dma
 from conftest import shared_file
-from lanes.clean import clean_positions, conform_stage
-from lanes.io.csv_formats import DMA_SPEC, read_csv_stage, resolve_columns, split_csv_line
-from lanes.io.nmea import read_nmea
-from lanes.io.parquet import read_parquet_stage
+from ais.clean import clean_positions, conform_stage
+from ais.io.csv_formats import DMA_SPEC, read_csv_stage, resolve_columns, split_csv_line
+from ais.io.nmea import read_nmea
+from ais.io.parquet import read_parquet_stage
 from pipelines.ingest import ingest_paths
 from pipelines.storage import open_workspace
 from pipelines.storage import ais as store
@@ -89,7 +89,7 @@ def test_csv_typing_same_in_sql_and_pandas(tmp_path, staging):
             finally:
                 info["line_index"].close()
         else:  # a scanner-split stage (rows rejected for their field count typed from their text)
-            from lanes.io.lineindex import LineIndex
+            from ais.io.lineindex import LineIndex
 
             stager, label = {"fast": (store.stage_csv_fast, "typed"), "arrow": (store.stage_csv_arrow, "arrow")}[staging]
             with LineIndex(src) as ix:

@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from conftest import shared_file
-from lanes.errors import AisFormatError
-from lanes.io.nmea import POSITION_TYPES, decode_positions_168, iter_lines, parse_fast, parse_lines, read_nmea
+from ais.errors import AisFormatError
+from ais.io.nmea import POSITION_TYPES, decode_positions_168, iter_lines, parse_fast, parse_lines, read_nmea
 from pipelines.ingest import ingest_paths
 from pipelines.storage import open_workspace
 from pipelines.storage.ais import read_positions, read_quarantine, read_vessels

@@ -20,7 +20,7 @@ import pytest
 
 from ais_fixtures import DMA_HEADER, DMA_LINES, dma_row, write_dma
 from conftest import shared_file
-from pipelines import ingest as ingest_mod
+from pipelines import ingest_stage as stage_mod
 from pipelines.ingest import ingest_paths
 from pipelines.ingest_partitioned import commit_spooled, plan_files, stage_to_spool
 from pipelines.storage import open_workspace
@@ -112,7 +112,7 @@ def test_partitioned_fast_csv_staging_equals_sequential(tmp_path, monkeypatch):
             for v in range(5)]
     rows[40:40] = DMA_LINES[1:]  # dirty rows of every kind, a quoted name, a blank line
     path = write_dma(tmp_path / "big.csv", [DMA_HEADER] + rows)
-    monkeypatch.setattr(ingest_mod, "FAST_CSV_MIN_BYTES", 0)
+    monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0)
     seq = ingest_paths([path], tmp_path / "seq.duckdb")
     assert seq["per_file"][0]["staging"] not in ("lines", "python")  # the fast path really ran
     (spool := tmp_path / "spool").mkdir()
@@ -122,7 +122,7 @@ def test_partitioned_fast_csv_staging_equals_sequential(tmp_path, monkeypatch):
 
 
 def test_a_bad_file_fails_its_stage_with_a_clear_error(tmp_path):
-    from lanes.errors import AisInputError
+    from ais.errors import AisInputError
 
     with pytest.raises(AisInputError, match="missing.csv"):
         stage_to_spool(str(tmp_path / "missing.csv"), None, str(tmp_path))
@@ -183,7 +183,7 @@ def test_bytes_loaded_under_a_wrong_forced_format_can_still_be_loaded_as_detecte
 
 
 def test_empty_files_in_a_directory_are_skipped_not_fatal(tmp_path):
-    from lanes.errors import AisFormatError
+    from ais.errors import AisFormatError
 
     d = tmp_path / "in"
     d.mkdir()
@@ -200,7 +200,7 @@ def test_empty_files_in_a_directory_are_skipped_not_fatal(tmp_path):
 
 
 def test_parquet_forced_on_a_csv_file_is_a_clear_error(tmp_path):
-    from lanes.errors import AisFormatError
+    from ais.errors import AisFormatError
 
     src = write_dma(tmp_path / "day.csv")
     with pytest.raises(AisFormatError, match=r"day\.csv: not a readable Parquet file"):

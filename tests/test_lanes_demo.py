@@ -22,7 +22,7 @@ GEOD = Geod(ellps="WGS84")
 def demo():
     from lanes.chain import build_lanes
     from lanes.io.portlist import read_port_lists
-    from lanes.scenario import ScenarioSettings, generate_scenario
+    from scenario.generator import ScenarioSettings, generate_scenario
     from pipelines.config import data_dir
     from pipelines.demo import DEMO_DAYS, DEMO_SEED
     from pipelines.scenario import describe, load_scenario_spec

@@ -37,7 +37,7 @@ def _tables(db) -> dict:
 
 @pytest.fixture(scope="module")
 def demo_workspace(tmp_path_factory):
-    from lanes.scenario import ScenarioSettings, generate_scenario
+    from scenario.generator import ScenarioSettings, generate_scenario
     from pipelines.demo import DEMO_DAYS, DEMO_SEED
     from pipelines.ingest import ingest_paths
     from pipelines.scenario import load_scenario_spec

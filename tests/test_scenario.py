@@ -321,7 +321,7 @@ def test_tracks_follow_the_routes_at_sea_with_realistic_cadence(scen):
             intervals_berth += list(np.diff(g.t.to_numpy()))
             assert (g.sog[g.sog < 100] < 0.5).all()
             assert (g["text"].str.contains("Moored") | g["text"].str.contains("Under way")).all()
-    # 60 s +- 4 s under way, 180 s +- 12 s alongside (module docstring of lanes.scenario)
+    # 60 s +- 4 s under way, 180 s +- 12 s alongside (module docstring of scenario.generator)
     assert np.median(intervals_sea) == pytest.approx(60, abs=2)
     assert np.percentile(intervals_sea, 1) >= 56 - 1 and np.percentile(intervals_sea, 99) <= 64 + 1
     assert np.median(intervals_berth) == pytest.approx(180, abs=4)
@@ -371,7 +371,7 @@ def test_cli_scenario_rejects_a_bad_start(tmp_path):
 
 
 def _small_spec(anchorage_prob=0.0):
-    from lanes.scenario import parse_scenario_spec
+    from scenario.generator import parse_scenario_spec
 
     ports = pd.DataFrame({"locode": ["ESBCN", "ESPMI"], "name": ["Barcelona", "Palma de Mallorca"],
                           "lat_deg": [41.352, 39.56], "lon_deg": [2.17, 2.63],
@@ -390,7 +390,7 @@ def _small_spec(anchorage_prob=0.0):
 
 
 def test_generator_period_rates_and_anchorage_waits():
-    from lanes.scenario import DIRTY_KINDS, ScenarioConfigError, ScenarioSettings, generate_scenario
+    from scenario.generator import DIRTY_KINDS, ScenarioConfigError, ScenarioSettings, generate_scenario
 
     st = ScenarioSettings(seed=1, start_utc="2025-03-01T00:00Z", days=3,
                           dirty_rates={k: 0.0 for k in DIRTY_KINDS}, gap_prob_per_voyage=0.0,

@@ -9,7 +9,7 @@ import pytest
 
 from pipelines.scenario import build_scenario
 
-#: The ingest reason each injected kind must get, per output format (lanes.clean codes).
+#: The ingest reason each injected kind must get, per output format (ais.clean codes).
 REASON = {
     ("dma_csv", "sentinel_position"): {"no_position"},
     ("nmea", "sentinel_position"): {"no_position"},

@@ -16,7 +16,7 @@ import pytest
 from thresholds import land_raster as globe  # the package's 30" mask through its cache
 from pyproj import Geod
 
-from lanes.scenario import ScenarioConfigError, imo_check_digit_ok, mmsi_problem, parse_scenario_spec
+from scenario.generator import ScenarioConfigError, imo_check_digit_ok, mmsi_problem, parse_scenario_spec
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 GEOD = Geod(ellps="WGS84")

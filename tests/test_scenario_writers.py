@@ -6,7 +6,7 @@ import pandas as pd
 import pyais
 import pytest
 
-from lanes.io.writers import DMA_HEADER, nmea_checksum, write_dma_csv, write_nmea
+from scenario.writers import DMA_HEADER, nmea_checksum, write_dma_csv, write_nmea
 
 T0 = int(pd.Timestamp("2025-01-14T06:30:05Z").timestamp())
 ETA = int(pd.Timestamp("2025-01-14T12:00:00Z").timestamp())
@@ -112,7 +112,7 @@ def test_batch_armoring_equals_pyais_encode_dict():
     from pyais.encode import encode_dict
     from pyais.messages import MessageType1, MessageType3
 
-    from lanes.io.writers import armor_position_payloads
+    from scenario.writers import armor_position_payloads
 
     rng = np.random.default_rng(5)
     datas, payloads, channels = [], [], []

@@ -1,19 +1,19 @@
-"""The streaming rules 7-8 kernel (lanes._tracks) against a plain sort-then-scan reference."""
+"""The streaming rules 7-8 kernel (ais._tracks) against a plain sort-then-scan reference."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from lanes._tracks import first_load_rules, sorted_fixes
-from lanes.clean import SENTINEL_TOL, speed_jump_mask
+from ais._tracks import first_load_rules, sorted_fixes
+from ais.clean import SENTINEL_TOL, speed_jump_mask
 
 VMAX_KN = 60.0
 
 
 def reference(scan: dict, exact: dict, vmax_kn: float = VMAX_KN) -> dict:
     """Merge by line, sort each MMSI's fixes by (time, line) with numpy, take repeated keys
-    out and call speed_jump_mask: the rules as written in lanes.clean."""
+    out and call speed_jump_mask: the rules as written in ais.clean."""
     no_ctx = {"mmsi": np.empty(0, np.int64), "skip": np.empty(0, bool), "t_us": np.empty(0, np.int64),
               "lat": np.empty(0), "lon": np.empty(0)}
     return reference_with_context(scan, exact, no_ctx, (), vmax_kn)

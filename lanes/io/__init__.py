@@ -1,1 +1,1 @@
-"""AIS file adapters: one module per source format, each returning ``(data, metadata)``."""
+"""Adapters of the lanes chain: port lists, the Ushant trajectory set."""

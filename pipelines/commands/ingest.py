@@ -49,7 +49,7 @@ def register(app: typer.Typer) -> None:
         \b
           stormlane ingest-ais ais/ more/aisdk-2025-01-14.csv.gz --db work/stormlane.duckdb
         """
-        from lanes.io.files import FORMATS
+        from ais.io.files import FORMATS
         from pipelines.ingest import ingest_paths, nothing_loaded_reason, total_bytes
         from pipelines.runners import parse_task_runner
         from thresholds.errors import StormlaneError
@@ -98,7 +98,7 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
     import shutil
     import tempfile
 
-    from lanes.io.files import expand_paths
+    from ais.io.files import expand_paths
     from pipelines.ingest import check_inputs, commit_progress, flow_with_runner
 
     found = expand_paths(paths)

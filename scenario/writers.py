@@ -1,6 +1,6 @@
 """AIS writers: DMA-style CSV and raw NMEA 0183 (``!AIVDM`` with NMEA 4.0 tag blocks).
 
-They write what :func:`lanes.scenario.generate_scenario` produced (``records`` plus the
+They write what :func:`scenario.generator.generate_scenario` produced (``records`` plus the
 ``vessels`` table) into one file per UTC day and return, for every record, the file and the
 1-based line it went to, so the scenario's ground truth can point at each dirty row.
 

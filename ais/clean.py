@@ -5,7 +5,7 @@ Parquet row or NMEA message, with the values already typed (unparsable text beco
 ``parse_error`` code) and the raw text kept for the quarantine. :func:`classify` then gives every
 position row exactly one outcome: loaded (``reason`` is ``None``), quarantined (a reason code) or
 duplicate (a code from :data:`DUPLICATE_CODES`). The same rules run as SQL inside DuckDB for bulk
-ingest (``pipelines/storage/ais.py`` builds its SQL from the constants below); a test feeds both
+ingest (``pipelines/storage/ais/`` builds its SQL from the constants below); a test feeds both
 executions the same input and asserts identical outcomes.
 
 Rules, in order of precedence (the first that fires is the row's reason):
@@ -50,8 +50,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from lanes import _jumps
-from lanes._jumps import link_breaks, walk_sorted
+from ais import _jumps
+from ais._jumps import link_breaks, walk_sorted
 
 # ---------------------------------------------------------------------------------------------
 # Limits (ITU-R M.1371-5 Annex 2 Table 45, M.585-9 Annex 1) and the default speed-jump limit.
@@ -295,12 +295,12 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
 
     Two fixes of one MMSI are *linked* when the great-circle distance between them is at most
     ``max_speed_kn`` times the time between them. Each track is walked in time order (step 1,
-    :func:`lanes._jumps.feed`), keeping a *last kept fix*; the next fix
+    :func:`ais._jumps.feed`), keeping a *last kept fix*; the next fix
 
     * continues the segment when it is linked to the last kept fix;
     * else, when the last kept fix is new and the fix before it (in its segment) is linked to
       this one, the last kept fix was a lone outlier: it is quarantined, this one continues;
-    * else, when one of the next :data:`lanes._jumps.MAX_OUTLIER_RUN` new fixes is linked to the
+    * else, when one of the next :data:`ais._jumps.MAX_OUTLIER_RUN` new fixes is linked to the
       last kept fix, the fixes before it were an outlier burst: quarantined, and that fix
       continues the segment;
     * else the track is cut: this fix opens a new segment.
@@ -365,7 +365,7 @@ def speed_jump_mask(mmsi, t_s, lat_deg, lon_deg, max_speed_kn: float = DEFAULT_M
 
 
 def rejected_from_walk(si, sf, cuts, cutf, max_speed_kn: float) -> list[tuple]:
-    """Step 2 of :func:`speed_jump_mask` on the segments of a walk (:mod:`lanes._jumps`): the
+    """Step 2 of :func:`speed_jump_mask` on the segments of a walk (:mod:`ais._jumps`): the
     rejected segments of every track with a cut, as ``(track, first ordinal, end ordinal,
     first line, last line, first line of the next segment or -1)``; ordinals count the kept
     fixes of the track (outliers left out) from 0."""

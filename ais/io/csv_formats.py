@@ -1,7 +1,7 @@
 """DMA and NOAA MarineCadastre CSV: column specs, field typing, and the in-memory reader.
 
 Both formats are described by a :class:`CsvSpec`; the bulk ingest turns the same spec into
-DuckDB SQL (``pipelines/storage/ais.py``), and :func:`read_csv_stage` here applies it in pandas
+DuckDB SQL (``pipelines/storage/ais/stage_csv.py``), and :func:`read_csv_stage` here applies it in pandas
 (the pure path, used for small files and to test that both give the same typed stage).
 
 Typing rules shared by both executions (one row per physical line, split on ``\\n`` with a
@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from lanes.clean import (
+from ais.clean import (
     BAD_COG,
     BAD_HEADING,
     BAD_LAT,
@@ -53,8 +53,8 @@ from lanes.clean import (
     KIND_POSITION,
     conform_stage,
 )
-from lanes.errors import AisFormatError
-from lanes.io.files import normalise_header_name, read_content
+from ais.errors import AisFormatError
+from ais.io.files import normalise_header_name, read_content
 
 #: DMA navigational status texts (lower case) -> ITU-R M.1371-5 code.
 NAV_STATUS_WORDS = {
@@ -366,7 +366,7 @@ def read_csv_stage(path, spec: CsvSpec | None = None) -> tuple[pd.DataFrame, dic
     path = Path(path)
     lines = read_lines(path)
     if spec is None:
-        from lanes.io.files import detect_format
+        from ais.io.files import detect_format
 
         fmt = detect_format(path)
         if fmt not in SPECS:

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from lanes.clean import BAD_COG, BAD_HEADING, BAD_LAT, BAD_LON, BAD_NAV_STATUS, BAD_SOG, KIND_POSITION, conform_stage
-from lanes.errors import AisFormatError
-from lanes.io.csv_formats import type_static
+from ais.clean import BAD_COG, BAD_HEADING, BAD_LAT, BAD_LON, BAD_NAV_STATUS, BAD_SOG, KIND_POSITION, conform_stage
+from ais.errors import AisFormatError
+from ais.io.csv_formats import type_static
 
 #: stage field -> accepted source names, canonical first.
 ALIASES = {

@@ -4,7 +4,7 @@ The bulk CSV ingest needs, for every physical line, where it starts and ends, an
 record its typed position fields. This module does both in one compiled pass over a memory map
 (numba, no GIL: the file is cut into one range per core). It types a row only when every used
 field is written in a *canonical* form, for which the typing is provably the one of the SQL and
-pandas rules of :mod:`lanes.io.csv_formats`; every other line is reported as *special* and the
+pandas rules of :mod:`ais.io.csv_formats`; every other line is reported as *special* and the
 caller types it from its text with the exact rules. Canonical forms:
 
 * the line holds no double quote, no ``\\r`` (one trailing ``\\r`` is removed) and exactly the
@@ -18,7 +18,7 @@ caller types it from its text with the exact rules. Canonical forms:
   and ``k <= 15``: both are exact doubles and one IEEE division is correctly rounded, which is
   what DuckDB's ``CAST(x AS DOUBLE)`` and Python's ``float`` return (Clinger's fast path [1]);
 * navigational status: a number as above, or ASCII text equal, once lower-cased, to one of
-  :data:`lanes.io.csv_formats.NAV_STATUS_WORDS`.
+  :data:`ais.io.csv_formats.NAV_STATUS_WORDS`.
 
 Static fields are not typed here: a 64-bit hash of their bytes groups the rows by static tuple
 (the texts are re-split from the line when the vessels table is merged).

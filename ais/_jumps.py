@@ -1,4 +1,4 @@
-"""Compiled link test of the speed-jump rule (:func:`lanes.clean.speed_jump_mask`).
+"""Compiled link test of the speed-jump rule (:func:`ais.clean.speed_jump_mask`).
 
 Two consecutive fixes of one track are *linked* when the great-circle distance between them
 (haversine [1], the formula of :func:`thresholds.geodesy.haversine_nmi`) is at most the highest
@@ -69,10 +69,10 @@ def link_breaks(same_track, t_s, lat_deg, lon_deg, max_speed_kn: float, n_thread
 
 # ---------------------------------------------------------------------------------------------
 # Step 1 of the speed-jump rule: one walk along a track that removes outliers and cuts the rest
-# into segments (step 2, the greedy choice among segments, is lanes.clean.rejected_segments).
+# into segments (step 2, the greedy choice among segments, is ais.clean.rejected_segments).
 # One compiled state machine, fed one fix at a time, so that the sorted path
-# (lanes.clean.speed_jump_mask: one track after the other) and the streaming path
-# (lanes._tracks.first_load_rules: the tracks interleaved in file order) run the same code.
+# (ais.clean.speed_jump_mask: one track after the other) and the streaming path
+# (ais._tracks.first_load_rules: the tracks interleaved in file order) run the same code.
 # ---------------------------------------------------------------------------------------------
 #: The longest run of consecutive fixes taken as one outlier burst when the fix after it is
 #: linked to the fix before it.

@@ -2,7 +2,7 @@
 
 Formats: ``dma`` (Danish Maritime Authority CSV), ``noaa`` (NOAA MarineCadastre CSV), ``nmea``
 (raw ``!AIVDM``/``!AIVDO`` sentences with optional tag blocks and ``$PGHP`` lines) and
-``parquet`` (canonical column names, or the mapped aliases in :mod:`lanes.io.parquet`).
+``parquet`` (canonical column names, or the mapped aliases in :mod:`ais.io.parquet`).
 Gzip is recognised by its magic bytes, whatever the file is called.
 """
 
@@ -15,7 +15,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from lanes.errors import AisFormatError, AisInputError
+from ais.errors import AisFormatError, AisInputError
 
 log = logging.getLogger(__name__)
 

@@ -9,16 +9,16 @@ where they lie (the scanner's arrays) and keeps a few values per track:
 * the time of the track's last fix: a fix with the same time repeats its key (rule 7, the
   first fix of the run is the reference); an earlier one means the track went back in time:
   such a track (rare) is set aside and handled by the sorting path (:func:`sorted_fixes`, then
-  :func:`lanes.clean.speed_jump_mask`);
-* the state of step 1 of the jump rule, the walk of :mod:`lanes._jumps` (last kept fix, the
-  one before it, pending outliers): the very code :func:`lanes.clean.speed_jump_mask` runs
+  :func:`ais.clean.speed_jump_mask`);
+* the state of step 1 of the jump rule, the walk of :mod:`ais._jumps` (last kept fix, the
+  one before it, pending outliers): the very code :func:`ais.clean.speed_jump_mask` runs
   track after track, here fed with the tracks interleaved. Its outliers are quarantined at
   once; its cuts give the segments.
 
 Only the tracks with a cut go through step 2, the greedy choice among segments
-(:func:`lanes.clean.rejected_segments`), which needs each segment's length and end fixes. So
+(:func:`ais.clean.rejected_segments`), which needs each segment's length and end fixes. So
 the result is by construction that of sorting every track and calling
-:func:`lanes.clean.speed_jump_mask` (a test compares both on shuffled and jumpy tracks).
+:func:`ais.clean.speed_jump_mask` (a test compares both on shuffled and jumpy tracks).
 
 The fixes come from two sources merged by line number on the fly: the scanner's canonical rows
 (``ok`` marks those that passed rules 1-6) and the few lines typed from their text.
@@ -29,9 +29,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from lanes._jumps import (_F_A, _S_A_FIXED, _S_NPEND, _S_STARTED, FEED_ROOM, MAX_OUTLIER_RUN, _append, broken, feed,
+from ais._jumps import (_F_A, _S_A_FIXED, _S_NPEND, _S_STARTED, FEED_ROOM, MAX_OUTLIER_RUN, _append, broken, feed,
                           flush, walk_outputs, walk_state)
-from lanes.clean import SENTINEL_TOL, rejected_from_walk, speed_jump_mask
+from ais.clean import SENTINEL_TOL, rejected_from_walk, speed_jump_mask
 
 _EMPTY = np.int64(-(1 << 62))
 _KEYS = (("line", np.int64), ("mmsi", np.int64), ("t_us", np.int64), ("lat", np.float64), ("lon", np.float64))
@@ -81,7 +81,7 @@ def _seconds(t_us):
     return np.float64(t_us * 1000) / 1e9
 
 
-# Bookkeeping per track besides the walk (lanes._jumps): a fix seen?, the time of the last
+# Bookkeeping per track besides the walk (ais._jumps): a fix seen?, the time of the last
 # fix and the first line of its key (rule 7), the track went back in time, is left out, or
 # starts with a stored fix.
 _SEEN, _LAST_T, _LAST_LINE, _BACK, _SKIP, _CTX = range(6)
@@ -160,7 +160,7 @@ def _seed(keys, vals, st, si, sf, mmsi, t_us, lat, lon, skip, vmax_kn, max_run, 
 
 @numba.njit(nogil=True, cache=True)
 def _flush_all(si, st, sf, c0, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, rq_i):
-    """End of the stream: :func:`lanes._jumps.flush` on every track from ``c0``; returns the
+    """End of the stream: :func:`ais._jumps.flush` on every track from ``c0``; returns the
     track it stopped at when an output is nearly full (else the number of tracks)."""
     for c in range(c0, len(si)):
         if cnt[0] + FEED_ROOM > len(spikes) or cnt[1] + FEED_ROOM > len(cuts):
@@ -172,7 +172,7 @@ def _flush_all(si, st, sf, c0, vmax_kn, max_run, spikes, cuts, cutf, cnt, rq_f, 
 
 def _stream(*data, vmax_kn: float, context: dict | None = None):
     """One pass over the fixes (the ``ok`` rows of a and every row of b, merged by line): rule
-    7 and step 1 of the jump rule (the walk of :mod:`lanes._jumps`) per track. ``context``:
+    7 and step 1 of the jump rule (the walk of :mod:`ais._jumps`) per track. ``context``:
     :func:`first_load_rules`'s. Returns the track table, the bookkeeping and walk states, the
     repeated keys (line, first line of the key, track), the outliers (line, track), the cuts."""
     k = 0 if context is None else len(context["mmsi"])
@@ -287,7 +287,7 @@ def _pass_two(keys, vals, back, skip, kept0, spike_lines, rej_ptr, rej_lo, rej_h
 def first_load_rules(scan: dict, exact: dict, max_speed_kn: float, context: dict | None = None) -> dict:
     """Rules 7 and 8 on a file's accepted fixes: ``dup`` (lines repeating the (MMSI, time) of
     an earlier fix), ``ref`` (the first line of each one's run) and ``jump`` (lines of
-    :func:`lanes.clean.speed_jump_mask`'s quarantined fixes), all as int64 arrays.
+    :func:`ais.clean.speed_jump_mask`'s quarantined fixes), all as int64 arrays.
 
     ``scan``: ``line``, ``mmsi``, ``t_us``, ``lat``, ``lon`` and ``ok`` (passed rules 1-6) of
     the scanner's rows; ``exact``: the same keys but ``ok`` for the fixes typed from their text
@@ -297,7 +297,7 @@ def first_load_rules(scan: dict, exact: dict, max_speed_kn: float, context: dict
     ``t_us``, ``lat``, ``lon``) either ``skip`` (its fixes are left out: the caller judges
     them) or the stored fix just before the MMSI's first fix in the file, when no stored fix is
     at or after that time: it opens the track as a stored fix (never flagged), as
-    :func:`lanes.clean.speed_jump_mask` treats stored context. A track with context that goes
+    :func:`ais.clean.speed_jump_mask` treats stored context. A track with context that goes
     back in time in the file is left out too. ``fallback``: the MMSIs left out."""
     a = [np.ascontiguousarray(scan[k], dtype=dt) for k, dt in _KEYS]
     b = [np.ascontiguousarray(exact[k], dtype=dt) for k, dt in _KEYS]
@@ -476,7 +476,7 @@ def latest_by_static(mmsi, shash, t_us, line, mmsi_min: int, mmsi_max: int) -> d
     """Per (MMSI, static hash) group of rows with an MMSI in ``[mmsi_min, mmsi_max]``: the
     latest row by (time, line) (``t_us``, ``line``) and the latest time (``t_max``), as arrays
     with ``mmsi`` and ``shash``: what the vessels merge needs from a file's rows (the
-    ``GROUP BY mmsi, s_hash`` of :func:`pipelines.storage.ais._upsert_vessels`, ~5 x cheaper
+    ``GROUP BY mmsi, s_hash`` of :func:`pipelines.storage.ais.vessels._upsert_vessels`, ~5 x cheaper
     on a 5 M row scan). Every row must have a time."""
     args = [np.ascontiguousarray(x, dtype=dt) for x, dt in
             ((mmsi, np.int64), (shash, np.uint64), (t_us, np.int64), (line, np.int64))]

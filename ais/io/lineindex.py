@@ -6,7 +6,7 @@ re-typed exactly. :class:`LineIndex` provides both without a second parse: one v
 pass finds every ``\\n`` (the file is read through ``mmap``; numpy releases the GIL, so this
 runs in a thread while DuckDB parses), and the text of any line is then a slice of the map.
 
-Line rules are those of :func:`lanes.io.csv_formats.read_lines`: lines are split on ``\\n``,
+Line rules are those of :func:`ais.io.csv_formats.read_lines`: lines are split on ``\\n``,
 one trailing ``\\r`` is removed, a final newline does not add a line, text is UTF-8 with
 undecodable bytes replaced. Besides the offsets the index records what a one-record-per-line
 scanner cannot be trusted with: lines holding a double quote (typed from their text by the
@@ -56,7 +56,7 @@ class LineIndex:
     def __init__(self, path: str | Path, offsets_from=None):
         """``offsets_from`` (optional): a function of the file's bytes (uint8 array over the map)
         returning ``(starts, ends, quote_lines, stray_cr)`` found by another scan of the same
-        rules (e.g. :func:`lanes.io.csv_scan.scan_csv`), or None to let the index find them."""
+        rules (e.g. :func:`ais.io.csv_scan.scan_csv`), or None to let the index find them."""
         self.path = Path(path)
         self._fh = open(self.path, "rb")
         size = self.path.stat().st_size

@@ -1,0 +1,403 @@
+"""Rules 7-8 of :mod:`ais.clean` (duplicates, speed jumps) over the stage and the one-transaction
+commit of a file into ``ais_positions``, ``ais_quarantine``, ``vessels`` and ``ais_files``."""
+
+from __future__ import annotations
+
+import json
+import time
+from concurrent.futures import Future
+
+import numpy as np
+import pandas as pd
+
+from ais import clean as C
+from pipelines.storage.ais._sql import _NORM, _VALUES, _drop_temp, _line_index, _norm, _prepare, _stage_kind
+from pipelines.storage.ais.files import file_record
+from pipelines.storage.ais.vessels import _upsert_vessels
+from thresholds.units import EARTH_RADIUS_NMI
+
+
+# ---------------------------------------------------------------------------------------------
+# Cleaning (rules 7-8 of ais.clean as SQL + the numpy jump kernel) and the one-transaction commit
+# ---------------------------------------------------------------------------------------------
+_OK = f"kind = '{C.KIND_POSITION}' AND reason0 IS NULL"
+
+
+def _dedupe_sql(has_old: bool, stage: str = "ais_stage") -> str:
+    """Rows (line, reason) that repeat the (mmsi, time) of an earlier row of the file or of a
+    stored row: ``duplicate`` when all normalised values agree, else ``duplicate_time``."""
+    firsts = ", ".join(f"first_value({v}) OVER w AS f_{v}" for v in _VALUES)
+    if has_old:
+        same = " AND ".join(f"(CASE WHEN in_db THEN p_{v} ELSE f_{v} END) IS NOT DISTINCT FROM {v}" for v in _VALUES)
+        old = f"""old AS (
+            SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS time_utc, {", ".join(f"p.{v} AS p_{v}" for v in _VALUES)}
+            FROM ais_positions p SEMI JOIN (SELECT DISTINCT mmsi FROM {stage} WHERE {_OK}) USING (mmsi)
+            WHERE p.time_utc BETWEEN (SELECT min(time_utc) FROM {stage} WHERE {_OK})
+                                 AND (SELECT max(time_utc) FROM {stage} WHERE {_OK})
+        ),"""
+        keys_old = "UNION SELECT mmsi, time_utc FROM old"
+        join_old = "LEFT JOIN old USING (mmsi, time_utc)"
+        in_db = "old.p_lat_deg IS NOT NULL AS in_db, " + ", ".join(f"old.p_{v}" for v in _VALUES) + ","
+    else:
+        same = " AND ".join(f"f_{v} IS NOT DISTINCT FROM {v}" for v in _VALUES)
+        old = keys_old = join_old = ""
+        in_db = "false AS in_db,"
+    return f"""
+    CREATE OR REPLACE TEMP TABLE ais_dup AS
+    WITH {old}
+    keys AS (
+        SELECT mmsi, time_utc FROM {stage} WHERE {_OK} GROUP BY mmsi, time_utc HAVING count(*) > 1
+        {keys_old}
+    ),
+    cand AS (
+        SELECT s.line, s.mmsi, s.time_utc, {_norm('s')} FROM {stage} s SEMI JOIN keys USING (mmsi, time_utc)
+        WHERE s.kind = '{C.KIND_POSITION}' AND s.reason0 IS NULL
+    ),
+    ranked AS (
+        SELECT cand.*, {in_db} first_value(line) OVER w AS first_line, {firsts}
+        FROM cand {join_old}
+        WINDOW w AS (PARTITION BY mmsi, time_utc ORDER BY line)
+    )
+    SELECT line, CASE WHEN {same} THEN '{C.DUPLICATE}' ELSE '{C.DUPLICATE_TIME}' END AS reason
+    FROM ranked WHERE in_db OR line <> first_line
+    """
+
+
+def _track_sql(has_old: bool, stage: str = "ais_stage") -> str:
+    """Fixes of the tracks that may hold a speed jump, sorted (line -1 = stored context fix).
+
+    A track is fetched when any consecutive pair implies more than 0.999 x the limit: a superset
+    of what the numpy kernel flags (the margin absorbs float differences between SQL and numpy).
+    """
+    r = float(EARTH_RADIUS_NMI)
+    lon = _NORM["lon_deg"]
+    new = (f"SELECT s.line, s.mmsi, s.time_utc, s.lat_deg, {lon.replace('lon_deg', 's.lon_deg')} AS lon_deg "
+           f"FROM {stage} s ANTI JOIN ais_dup d USING (line) WHERE s.kind = '{C.KIND_POSITION}' AND s.reason0 IS NULL")
+    ctx = ""
+    if has_old:
+        ctx = f"""
+        UNION ALL SELECT -1, mmsi, time_utc, lat_deg, lon_deg FROM ex WHERE time_utc BETWEEN t0 AND t1
+        UNION ALL SELECT -1, mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc) FROM ex
+            WHERE time_utc < t0 GROUP BY mmsi
+        UNION ALL SELECT -1, mmsi, min(time_utc), arg_min(lat_deg, time_utc), arg_min(lon_deg, time_utc) FROM ex
+            WHERE time_utc > t1 GROUP BY mmsi"""
+        pre = f"""new AS ({new}),
+        span AS (SELECT mmsi, min(time_utc) AS t0, max(time_utc) AS t1 FROM new GROUP BY mmsi),
+        ex AS (SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS time_utc, p.lat_deg, p.lon_deg, s.t0, s.t1
+               FROM ais_positions p JOIN span s USING (mmsi)),
+        t AS (SELECT * FROM new {ctx}),"""
+    else:
+        pre = f"t AS ({new}),"
+    return f"""
+    WITH {pre}
+    l AS (
+        SELECT *, lag(time_utc) OVER w AS t0_, lag(lat_deg) OVER w AS lat0, lag(lon_deg) OVER w AS lon0
+        FROM t WINDOW w AS (PARTITION BY mmsi ORDER BY time_utc)
+    ),
+    b AS MATERIALIZED (
+        SELECT *, coalesce(
+            2.0 * {r} * asin(sqrt(least(1.0,
+                pow(sin(radians(lat_deg - lat0) / 2.0), 2)
+                + cos(radians(lat0)) * cos(radians(lat_deg)) * pow(sin(radians(lon_deg - lon0) / 2.0), 2))))
+            > 0.999 * $vmax * (epoch_us(time_utc) - epoch_us(t0_)) / 3.6e9, false) AS brk
+        FROM l
+    ),
+    cm AS (SELECT DISTINCT mmsi FROM b WHERE brk)
+    SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg FROM b SEMI JOIN cm USING (mmsi)
+    ORDER BY mmsi, time_utc
+    """
+
+
+def _first_load_fetch(con) -> dict:
+    """The fixes that passed rules 1-6, as numpy arrays (line, mmsi, t_us, lat, lon), by line."""
+    d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg, lon_deg "
+                    f"FROM ais_stage WHERE {_OK}").fetchnumpy()
+    out = {"line": np.asarray(d["line"], dtype=np.int64), "mmsi": np.asarray(d["mmsi"], dtype=np.int64),
+           "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat_deg"], dtype=float),
+           "lon": np.asarray(d["lon_deg"], dtype=float)}
+    line = out["line"]
+    if len(line) > 1 and not (line[1:] > line[:-1]).all():
+        order = np.argsort(line, kind="stable")
+        out = {k: v[order] for k, v in out.items()}
+    return out
+
+
+def _no_fixes() -> dict:
+    e = np.empty(0)
+    return {"line": e.astype(np.int64), "mmsi": e.astype(np.int64), "t_us": e.astype(np.int64), "lat": e, "lon": e}
+
+
+def _first_load_kernel(scan: dict, exact: dict, max_speed_kn: float) -> dict:
+    """The numpy part of :func:`_first_load_outcomes` (no database): the rows repeating the
+    (mmsi, time) key of an earlier row (``dup``, with the first row of their run ``ref``) and
+    the speed jumps among the others (``jump``), by :func:`ais._tracks.first_load_rules` over
+    ``scan``'s rows with ``ok`` and ``exact``'s rows, merged by line."""
+    from ais._tracks import first_load_rules
+
+    if "ok" not in scan:
+        scan = {**scan, "ok": np.ones(len(scan["line"]), dtype=bool)}
+    return first_load_rules(scan, exact, max_speed_kn)
+
+
+def _first_load_finish(con, k: dict) -> tuple[np.ndarray, list]:
+    """(lines, reasons) from :func:`_first_load_kernel`'s result: a repeated key is
+    ``duplicate`` when all normalised values equal those of the first row of its run (compared
+    on those few rows only), else ``duplicate_time``."""
+    out_lines, out_reasons = [], []
+    if len(k["dup"]):
+        dup, ref = k["dup"], k["ref"]
+        need = np.union1d(dup, ref)
+        con.register("ais_need_df", pd.DataFrame({"line": need}))
+        try:
+            vals = con.execute(f"SELECT line, {_norm()} FROM ais_stage SEMI JOIN ais_need_df USING (line) "
+                               f"WHERE {_OK} ORDER BY line").fetchnumpy()
+        finally:
+            con.unregister("ais_need_df")
+        at = np.searchsorted(np.asarray(vals["line"], dtype=np.int64), dup)
+        at_ref = np.searchsorted(np.asarray(vals["line"], dtype=np.int64), ref)
+        equal = np.ones(len(dup), dtype=bool)
+        for v in _VALUES:
+            col = vals[v]
+            x = np.asarray(col.filled(np.nan) if np.ma.isMaskedArray(col) else col, dtype=float)
+            a, b = x[at], x[at_ref]
+            equal &= (a == b) | (np.isnan(a) & np.isnan(b))
+        out_lines.append(dup)
+        out_reasons += [C.DUPLICATE if e else C.DUPLICATE_TIME for e in equal]
+    out_lines.append(k["jump"])
+    out_reasons += [C.SPEED_JUMP] * len(k["jump"])
+    return np.concatenate(out_lines), out_reasons
+
+
+def _first_load_outcomes(con, max_speed_kn: float, scan_fixes: dict | None = None) -> tuple[np.ndarray, list]:
+    """Rules 7-8 for a file whose (mmsi, time) keys meet no stored position: (lines, reasons)
+    of the duplicates and speed jumps among the rows that passed rules 1-6.
+
+    The accepted fixes are sorted by (track, time, line); a row with the key of the row before
+    it duplicates the first row of its run (values compared on those few rows only), and the
+    kept fixes go through :func:`ais.clean.speed_jump_mask`. ``scan_fixes``: the scanned
+    rows of a scan-staged CSV file, read in place (only the lines typed from their text, in
+    ``ais_exact``, are fetched); else every fix is fetched from the stage."""
+    if scan_fixes is not None:
+        d = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg AS lat, lon_deg AS lon "
+                        f"FROM ais_exact WHERE {_OK} ORDER BY line").fetchnumpy()
+        exact = {k: np.asarray(d[k], dtype=v.dtype) for k, v in _no_fixes().items()}
+        return _first_load_finish(con, _first_load_kernel(scan_fixes, exact, max_speed_kn))
+    return _first_load_finish(con, _first_load_kernel(_first_load_fetch(con), _no_fixes(), max_speed_kn))
+
+
+def _stored_sql_outcomes(con, max_speed_kn: float, stage: str = "ais_stage") -> np.ndarray:
+    """Rules 7-8 of the rows of ``stage`` against the stored positions, in SQL: ``ais_dup``
+    (duplicates of a stored row or an earlier row) is created; returns the speed-jump lines
+    (the jump kernel with the stored fixes as fixed context)."""
+    con.execute(_dedupe_sql(True, stage))
+    tr = con.execute(_track_sql(True, stage), {"vmax": float(max_speed_kn)}).fetchnumpy()
+    if not len(tr["line"]):
+        return np.empty(0, np.int64)
+    lines = np.asarray(tr["line"], dtype=np.int64)
+    t_s = (np.asarray(tr["t_us"], dtype=np.int64) * 1000) / 1e9
+    mask = C.speed_jump_mask(np.asarray(tr["mmsi"]), t_s, np.asarray(tr["lat_deg"], dtype=float),
+                             np.asarray(tr["lon_deg"], dtype=float), max_speed_kn, fixed=lines < 0)
+    return lines[mask]
+
+
+def _outcomes_with_stored(con, max_speed_kn: float, scan_fixes: dict) -> tuple[np.ndarray, list]:
+    """Rules 7-8 for a scanned file when positions are stored: (lines, reasons).
+
+    An MMSI with no stored fix at or after its first accepted fix in the file (a file that
+    continues the stored tracks, the daily case) goes through the streaming pass of a first
+    load, its last stored fix opening its track as fixed context
+    (:func:`ais._tracks.first_load_rules`): exactly what the SQL path gives it, since its
+    only context is that fix and no stored key can repeat one of its keys. The other MMSIs
+    (stored fixes inside or after the file's span, or the track going back in time in the
+    file) take the SQL path (:func:`_stored_sql_outcomes` on their rows only)."""
+    import pyarrow as pa
+
+    from ais._tracks import first_load_rules
+
+    d = con.execute(f"""
+        WITH span AS (SELECT mmsi, min(time_utc) AS t0 FROM ais_stage WHERE {_OK} GROUP BY mmsi),
+        p AS (SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS pt, p.lat_deg, p.lon_deg
+              FROM ais_positions p SEMI JOIN span USING (mmsi))
+        SELECT span.mmsi, bool_or(p.pt >= span.t0) AS later,
+               coalesce(epoch_us(max(p.pt) FILTER (WHERE p.pt < span.t0)), 0) AS t_us,
+               coalesce(arg_max(p.lat_deg, p.pt) FILTER (WHERE p.pt < span.t0), 0.0) AS lat,
+               coalesce(arg_max(p.lon_deg, p.pt) FILTER (WHERE p.pt < span.t0), 0.0) AS lon
+        FROM span JOIN p USING (mmsi) GROUP BY span.mmsi""").fetchnumpy()
+    context = {"mmsi": np.asarray(d["mmsi"], dtype=np.int64), "skip": np.asarray(d["later"], dtype=bool),
+               "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat"], dtype=float),
+               "lon": np.asarray(d["lon"], dtype=float)}
+    e = con.execute(f"SELECT line, mmsi, epoch_us(time_utc) AS t_us, lat_deg AS lat, lon_deg AS lon "
+                    f"FROM ais_exact WHERE {_OK} ORDER BY line").fetchnumpy()
+    exact = {k: np.asarray(e[k], dtype=v.dtype) for k, v in _no_fixes().items()}
+    k = first_load_rules(scan_fixes, exact, max_speed_kn, context)
+    jumps = np.empty(0, np.int64)
+    if len(k["fallback"]):
+        con.register("ais_fb_df", pa.table({"mmsi": k["fallback"]}))
+        try:
+            con.execute("CREATE OR REPLACE TEMP TABLE ais_fb AS SELECT mmsi FROM ais_fb_df")
+        finally:
+            con.unregister("ais_fb_df")
+        con.execute("CREATE OR REPLACE TEMP VIEW ais_stage_fb AS SELECT * FROM ais_stage SEMI JOIN ais_fb USING (mmsi)")
+        jumps = _stored_sql_outcomes(con, max_speed_kn, "ais_stage_fb")
+    else:
+        con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
+    lines, reasons = _first_load_finish(con, {"dup": k["dup"], "ref": k["ref"], "jump": np.r_[k["jump"], jumps]})
+    return lines, reasons
+
+
+def _fill_raw(con, meta: dict) -> None:
+    """Raw text for the quarantined rows staged without it (fast CSV path), from the line index."""
+    import pyarrow as pa
+
+    need = np.asarray(con.execute("SELECT line FROM ais_q WHERE raw IS NULL ORDER BY line").fetchnumpy()["line"],
+                      dtype=np.int64)
+    if len(need) == 0:
+        return
+    ix = _line_index(con, meta)
+    con.register("ais_raw_df", pa.table({"line": need, "raw": pa.array(ix.text(need), pa.string())}))
+    try:
+        con.execute("UPDATE ais_q SET raw = r.raw FROM ais_raw_df r WHERE ais_q.line = r.line")
+    finally:
+        con.unregister("ais_raw_df")
+
+
+class AlreadyLoaded(Exception):
+    """The file's fingerprint is already in ``ais_files`` (``record``): nothing is committed."""
+
+    def __init__(self, record: dict):
+        super().__init__(f"already loaded as file {record['file_id']} ({record['path']})")
+        self.record = record
+
+
+def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
+    """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
+    transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
+    ``fingerprint`` may be a future (a hash still running in a thread): it is awaited only when
+    the file's row is written, at the end of the transaction.
+
+    Returns the file's counts: ``read``, ``loaded``, ``quarantined``, ``duplicates``,
+    ``static``, ``ignored``, ``reasons``, ``file_id``. ``before_commit`` (tests only) is called
+    inside the transaction just before the commit (to kill the process there, or to look at
+    the workspace from another cursor).
+    """
+    con = ws.con
+    _prepare(con)
+    # Wall seconds of each step, for the benchmark's breakdown (``meta["timings"]``).
+    timings = meta.setdefault("timings", {})
+    clock = [time.perf_counter()]
+
+    def lap(name: str) -> None:
+        now = time.perf_counter()
+        timings[name] = now - clock[0]
+        clock[0] = now
+
+    with ws.transaction():
+        file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
+        has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
+        out_lines, out_reasons = [], []
+        scan_fixes = meta.get("scan_fixes") if _stage_kind(con)[0] == "csvfast" else None
+        if has_old and scan_fixes is not None:
+            lines, reasons = _outcomes_with_stored(con, float(max_speed_kn), scan_fixes)
+            out_lines.append(lines)
+            out_reasons += reasons
+        elif has_old:
+            jumps = _stored_sql_outcomes(con, float(max_speed_kn))
+            out_lines.append(jumps)
+            out_reasons += [C.SPEED_JUMP] * len(jumps)
+        else:
+            # First load of these positions: the accepted fixes go to numpy once, sorted by
+            # track; repeated (mmsi, time) keys and the jump kernel run there.
+            # (Overlapping the kernel with DuckDB's insert in a thread was measured slower: the
+            # Arrow-backed stage scan and the kernel's Python parts contend for the GIL, and
+            # deleting the flagged rows after the insert makes the commit far costlier.)
+            con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
+            lines, reasons = _first_load_outcomes(con, float(max_speed_kn), scan_fixes)
+            out_lines.append(lines)
+            out_reasons += reasons
+        del scan_fixes
+        all_lines = np.concatenate(out_lines) if out_lines else np.empty(0, dtype=np.int64)
+        con.register("ais_out_df", pd.DataFrame({"line": all_lines.astype(np.int64),
+                                                 "reason": pd.Series(out_reasons, dtype=object)}))
+        try:
+            con.execute(
+                """CREATE OR REPLACE TEMP TABLE ais_out AS
+                SELECT line, reason FROM ais_dup
+                UNION ALL SELECT CAST(line AS BIGINT), CAST(reason AS VARCHAR) FROM ais_out_df"""
+            )
+        finally:
+            con.unregister("ais_out_df")
+        lap("rules_7_8")
+
+        loaded = con.execute(
+            f"""INSERT INTO ais_positions
+            SELECT mmsi, make_timestamptz(epoch_us(time_utc)), {_norm()}, ?, line
+            FROM ais_stage ANTI JOIN ais_out USING (line) WHERE {_OK}""",
+            [file_id],
+        ).fetchone()[0]
+        lap("insert")
+        con.execute(
+            """CREATE OR REPLACE TEMP TABLE ais_q AS
+            SELECT s.line, coalesce(s.reason0, o.reason) AS reason, s.raw,
+                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN s.mmsi END AS mmsi,
+                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN make_timestamptz(epoch_us(s.time_utc)) END AS time_utc
+            FROM ais_stage s LEFT JOIN ais_out o USING (line)
+            WHERE s.kind = ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
+            [C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
+        )
+        _fill_raw(con, meta)
+        con.execute("INSERT INTO ais_quarantine SELECT ?, line, reason, raw, mmsi, time_utc FROM ais_q", [file_id])
+        reasons = dict(con.execute("SELECT reason, count(*) FROM ais_q GROUP BY reason ORDER BY reason").fetchall())
+        read, static = con.execute(
+            "SELECT count(*) FILTER (WHERE kind = ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
+            [C.KIND_POSITION, C.KIND_STATIC],
+        ).fetchone()
+        ignored = int(meta.get("ignored", 0))
+        if meta.get("format") in ("dma", "noaa"):
+            # lines repeating the header (files concatenated with their headers) are not data
+            # either: with the empty lines, lines = 1 + read + ignored
+            ignored += int(con.execute(
+                "SELECT count(*) FROM ais_stage WHERE kind = ? AND line > 1 AND raw IS NOT NULL AND raw <> ''",
+                [C.KIND_IGNORED]).fetchone()[0])
+        lap("quarantine")
+        _upsert_vessels(con, file_id, meta)
+        lap("vessels")
+        dups = int(sum(v for k, v in reasons.items() if k in C.DUPLICATE_CODES))
+        counts = {
+            "file_id": file_id,
+            "read": int(read),
+            "loaded": int(loaded),
+            "quarantined": int(sum(reasons.values())) - dups,
+            "duplicates": dups,
+            "static": int(static),
+            "ignored": ignored,
+            "reasons": {str(k): int(v) for k, v in reasons.items()},
+        }
+        if counts["read"] != counts["loaded"] + counts["quarantined"] + counts["duplicates"]:
+            raise AssertionError(f"{meta['path']}: counts do not add up: {counts}")
+        fingerprint = meta["fingerprint"]
+        if isinstance(fingerprint, Future):
+            fingerprint = fingerprint.result()
+        lap("fingerprint_wait")
+        rec = file_record(ws, fingerprint)
+        if rec is not None:  # the same content under another name or compression: roll back
+            raise AlreadyLoaded(rec)
+        con.execute(
+            """INSERT INTO ais_files (file_id, fingerprint, path, format, size_bytes, n_read, n_loaded, n_quarantined,
+                   n_duplicates, n_static, n_ignored, reasons, max_speed_kn)
+               VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)""",
+            [file_id, fingerprint, str(meta["path"]), meta["format"], int(meta["size_bytes"]), counts["read"],
+             counts["loaded"], counts["quarantined"], dups, counts["static"], counts["ignored"],
+             json.dumps(counts["reasons"], sort_keys=True), float(max_speed_kn)],
+        )
+        if meta.get("quick_key"):
+            con.execute("INSERT INTO ais_file_keys VALUES (?, ?)", [file_id, meta["quick_key"]])
+        if before_commit is not None:
+            before_commit()
+    lap("commit")
+    _drop_temp(con)
+    return counts
+
+
+def discard_stage(ws) -> None:
+    """Drop the temporary staging tables (after an error)."""
+    _drop_temp(ws.con)

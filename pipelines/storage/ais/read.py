@@ -1,0 +1,96 @@
+"""Readers of the AIS tables (positions, vessels, quarantine) and waiting for a writer's lock."""
+
+from __future__ import annotations
+
+import time
+
+import duckdb
+import numpy as np
+import pandas as pd
+
+from ais import clean as C
+
+
+# ---------------------------------------------------------------------------------------------
+# Readers
+# ---------------------------------------------------------------------------------------------
+def _utc(df: pd.DataFrame, cols=("time_utc",)) -> pd.DataFrame:
+    for c in cols:
+        if c in df.columns:
+            df[c] = pd.to_datetime(df[c], utc=True).astype("datetime64[ns, UTC]")
+    return df
+
+
+def read_positions(ws, mmsi=None, start=None, end=None) -> pd.DataFrame:
+    """Canonical positions sorted by ``mmsi``, ``time_utc``.
+
+    Parameters
+    ----------
+    mmsi : int or list of int, optional
+        Only these vessels.
+    start, end : datetime-like, optional
+        Only ``start <= time_utc < end`` (naive values are taken as UTC).
+    """
+    where, params = [], []
+    if mmsi is not None:
+        ids = [int(m) for m in (mmsi if np.ndim(mmsi) else [mmsi])]
+        where.append("list_contains(?, mmsi)")
+        params.append(ids)
+    for bound, op in ((start, ">="), (end, "<")):
+        if bound is not None:
+            ts = pd.Timestamp(bound)
+            ts = ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+            where.append(f"time_utc {op} ?")
+            params.append(ts.to_pydatetime())
+    sql = ("SELECT mmsi, time_utc, lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, nav_status "
+           "FROM ais_positions")
+    if where:
+        sql += " WHERE " + " AND ".join(where)
+    sql += " ORDER BY mmsi, time_utc"
+    df = ws.con.execute(sql, params).fetchdf()
+    df["mmsi"] = df["mmsi"].astype("int64")
+    for c in C.POSITION_COLUMNS[2:]:
+        df[c] = df[c].astype("float64")
+    return _utc(df)
+
+
+def read_vessels(ws) -> pd.DataFrame:
+    """Static vessel data, one row per MMSI, sorted by MMSI."""
+    df = ws.con.execute(
+        "SELECT mmsi, imo, name, callsign, ship_type, length_m, beam_m, draught_m, destination, updated_utc "
+        "FROM vessels ORDER BY mmsi"
+    ).fetchdf()
+    return _utc(df, ("updated_utc",))
+
+
+def read_quarantine(ws, file_id: int | None = None) -> pd.DataFrame:
+    """Quarantined rows with the file they came from, in file and line order."""
+    sql = ("SELECT q.file_id, f.path, q.line, q.reason, q.raw, q.mmsi, q.time_utc FROM ais_quarantine q "
+           "JOIN ais_files f USING (file_id)")
+    params = []
+    if file_id is not None:
+        sql += " WHERE q.file_id = ?"
+        params.append(int(file_id))
+    sql += " ORDER BY q.file_id, q.line"
+    return _utc(ws.con.execute(sql, params).fetchdf())
+
+
+def open_for_reading(path, wait_s: float = 60.0, poll_s: float = 0.2):
+    """Open a workspace read-only from another process, waiting while a writer holds the lock.
+
+    DuckDB allows one writing process per database file; a reader in another process cannot
+    open it until the writer closes it. Since each file is committed atomically, the reader
+    then sees the state after the writer's last committed file, never a half-loaded file.
+    """
+    from pipelines.storage import Workspace
+
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            ws = Workspace(path, read_only=True)
+            ws.con.execute("SET TimeZone = 'UTC'")
+            return ws
+        except duckdb.IOException:
+            if time.monotonic() >= deadline:
+                raise
+            time.sleep(poll_s)
