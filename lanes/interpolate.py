@@ -169,6 +169,8 @@ def resample_voyages(pts: pd.DataFrame, voyages: pd.DataFrame, params: ResampleP
         the gap-free run within the voyage) and ``along_nmi`` (distance sailed since departure
         along the resampled points, gaps bridged on the great circle).
     """
+    # Long by design: one vectorised resampling of every voyage at once (grid, great-circle
+    # interpolation, gap masks, speeds and courses) over the same flat arrays.
     params = params or ResampleParams()
     if len(voyages) == 0 or len(pts) == 0:
         return pd.DataFrame({c: pd.Series(dtype=object) for c in POINT_COLUMNS})

@@ -133,6 +133,8 @@ def segment_voyages(pts: pd.DataFrame, stops: pd.DataFrame, stop_port_id: np.nda
         unknown; ``first_row``/``last_row`` index ``pts`` (inclusive); ``dist_nmi`` is the length
         of the fixes' polyline; ``kind`` one of :data:`KINDS`.
     """
+    # Long by design: one vectorised pass over every track whose steps (calls, gaps, loops,
+    # kinds) share a dozen per-fix arrays; split, each step would take and return them all.
     params = params or VoyageParams()
     n = len(pts)
     if n == 0:

@@ -249,6 +249,8 @@ def _next_departure(t_ready: float, hours: tuple[int, ...]) -> float:
 
 def _sail_vessel(index: int, v: VesselSpec, rank: int, spec: ScenarioSpec, st: ScenarioSettings):
     """All fixes, voyages, port stays and gaps of one ship over the scenario period."""
+    # Long by design: a vessel's whole timetable (berth, harbour legs, sea passage, anchorage,
+    # gaps) in sailing order, on one random stream so that the same seed gives the same rows.
     rng = np.random.default_rng([st.seed, 1, index])
     svc = spec.services[v.service]
     rot = svc.rotation

@@ -215,6 +215,8 @@ def parse_scenario_spec(doc: Mapping, ports: pd.DataFrame, source: str = "scenar
 
     Raises :class:`ScenarioConfigError` naming the file and the offending key.
     """
+    # Long by design: one check per field of the scenario file, in the file's order, each
+    # naming the file, section and field of a bad value.
     port_map = parse_ports(ports)
     routes: dict[tuple[str, str], np.ndarray] = {}
     for key, body in dict(doc.get("routes", {})).items():

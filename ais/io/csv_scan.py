@@ -179,6 +179,8 @@ def scan(buf, pos, end, n_fields, roles, slots, layout, words, woff, wcode,
     ``vals``, ``shash``. Each row's values are written to the next free row slot while its line
     is parsed; a line found special leaves the slot to the next one. Returns (lines written,
     rows written, position reached)."""
+    # Long by design: the per-range driver of the compiled scan (ranges, threads, packing the
+    # outputs in place); its steps share the preallocated output arrays.
     cap = len(starts)
     nvals = vals.shape[0]
     prime = np.uint64(1099511628211)
@@ -343,6 +345,8 @@ def scan_csv(buf: np.ndarray, index: dict[str, int], n_fields: int, time_formats
     concatenation, and the rows picked out of every line by a gather, touched ~3 x the bytes.)
     A range with more lines than its region continues in arrays of its own, joined at the end.
     """
+    # Long by design: a numba kernel, one pass over the bytes of a range as a state machine
+    # (field, number, time states); split into functions, every byte would cross a call.
     layout = TIME_LAYOUTS.get(tuple(time_formats))
     if layout is None:
         return None

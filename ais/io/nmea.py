@@ -270,6 +270,8 @@ def parse_lines(lines, progress=None) -> tuple[pd.DataFrame, dict]:
 
 def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
     """Vectorised parser with the same result as :func:`parse_lines` (see the module docstring)."""
+    # Long by design: one column-wise pass (pyarrow kernels) over the lines whose steps share
+    # the same masks; its plain-loop twin :func:`parse_lines` is the readable reference.
     import pyarrow as pa
     import pyarrow.compute as pc
 
@@ -392,6 +394,8 @@ def _decode_items(items: _Items) -> tuple[pd.DataFrame, dict]:
 
 def _decode_columns(line, raw, perr, t, payloads, sentences, single) -> tuple[pd.DataFrame, dict]:
     """Checksums of single sentences, message types, duplicates, decoding; the typed stage."""
+    # Long by design: the typed stage built column by column from the assembled messages (each
+    # block fills one group of stage columns for the same rows).
     n = len(line)
     perr = np.asarray(perr, dtype=object) if n else np.empty(0, dtype=object)
     if single.any():

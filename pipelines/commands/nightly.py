@@ -52,6 +52,7 @@ NoReportOption = typer.Option(False, "--no-report", help="Store the results only
 
 
 def register(app: typer.Typer) -> None:
+    # Long only by declaring two commands (nightly, schedule) with their options and help.
     @app.command("nightly")
     def nightly(
         db: Path = DbReadOption,

@@ -33,6 +33,7 @@ def _latlon(text: str, option: str) -> tuple[float, float]:
 
 
 def register(app: typer.Typer) -> None:
+    # Long only by the command's signature: every option is declared there with its help text.
     @app.command("route")
     def route(
         from_: str = typer.Option(..., "--from", metavar="LAT,LON", help="Start position, decimal degrees."),
@@ -74,6 +75,7 @@ def register(app: typer.Typer) -> None:
           stormlane route --from 39.225,2.900 --to 41.500,2.775 --depart 2020-01-20T09:00Z \\
             --weather Waves_MEDSEA_20200120.nc Waves_MEDSEA_20200121.nc --vessel simroute-r6 --out r6.gpx
         """  # noqa: E501
+        # Long by its option declarations above; the work is validating them, then one plan.
         import logging
 
         from pipelines.config import load_vessel

@@ -335,6 +335,8 @@ def join_points_weather(ws, points: pd.DataFrame, departures, grid: int | str | 
         ``weather_time_utc``, the canonical variables, and ``status`` in {"ok", "land",
         "outside_grid", "outside_time"}.
     """
+    # Long by design: it builds one SQL statement (ETAs, cells, the two ASOF joins) whose parts
+    # only make sense together; the statement is the unit that is tested against xarray.
     _, CoverageError = _errors()
     if on_missing not in ("raise", "flag"):
         raise ValueError(f"on_missing must be 'raise' or 'flag', not {on_missing!r}")

@@ -269,6 +269,91 @@ class AlreadyLoaded(Exception):
         self.record = record
 
 
+def _rules_7_8(con, meta: dict, max_speed_kn: float) -> None:
+    """Rules 7-8 (repeated keys, speed jumps) of the staged rows into the temp table ``ais_out``
+    (line, reason): the streaming pass on a first load, else with the stored fixes as context."""
+    has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
+    out_lines, out_reasons = [], []
+    scan_fixes = meta.get("scan_fixes") if _stage_kind(con)[0] == "csvfast" else None
+    if has_old and scan_fixes is not None:
+        lines, reasons = _outcomes_with_stored(con, float(max_speed_kn), scan_fixes)
+        out_lines.append(lines)
+        out_reasons += reasons
+    elif has_old:
+        jumps = _stored_sql_outcomes(con, float(max_speed_kn))
+        out_lines.append(jumps)
+        out_reasons += [C.SPEED_JUMP] * len(jumps)
+    else:
+        # First load of these positions: the accepted fixes go to numpy once, sorted by
+        # track; repeated (mmsi, time) keys and the jump kernel run there.
+        # (Overlapping the kernel with DuckDB's insert in a thread was measured slower: the
+        # Arrow-backed stage scan and the kernel's Python parts contend for the GIL, and
+        # deleting the flagged rows after the insert makes the commit far costlier.)
+        con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
+        lines, reasons = _first_load_outcomes(con, float(max_speed_kn), scan_fixes)
+        out_lines.append(lines)
+        out_reasons += reasons
+    del scan_fixes
+    all_lines = np.concatenate(out_lines) if out_lines else np.empty(0, dtype=np.int64)
+    con.register("ais_out_df", pd.DataFrame({"line": all_lines.astype(np.int64),
+                                             "reason": pd.Series(out_reasons, dtype=object)}))
+    try:
+        con.execute(
+            """CREATE OR REPLACE TEMP TABLE ais_out AS
+            SELECT line, reason FROM ais_dup
+            UNION ALL SELECT CAST(line AS BIGINT), CAST(reason AS VARCHAR) FROM ais_out_df"""
+        )
+    finally:
+        con.unregister("ais_out_df")
+
+
+def _write_quarantine(con, meta: dict, file_id: int) -> tuple[dict, int, int, int]:
+    """Every staged row not loaded into ``ais_quarantine`` (with its raw text); returns the
+    reason counts and the read, static and ignored counts of the file."""
+    con.execute(
+        """CREATE OR REPLACE TEMP TABLE ais_q AS
+        SELECT s.line, coalesce(s.reason0, o.reason) AS reason, s.raw,
+               CASE WHEN s.reason0 IS DISTINCT FROM ? THEN s.mmsi END AS mmsi,
+               CASE WHEN s.reason0 IS DISTINCT FROM ? THEN make_timestamptz(epoch_us(s.time_utc)) END AS time_utc
+        FROM ais_stage s LEFT JOIN ais_out o USING (line)
+        WHERE s.kind = ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
+        [C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
+    )
+    _fill_raw(con, meta)
+    con.execute("INSERT INTO ais_quarantine SELECT ?, line, reason, raw, mmsi, time_utc FROM ais_q", [file_id])
+    reasons = dict(con.execute("SELECT reason, count(*) FROM ais_q GROUP BY reason ORDER BY reason").fetchall())
+    read, static = con.execute(
+        "SELECT count(*) FILTER (WHERE kind = ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
+        [C.KIND_POSITION, C.KIND_STATIC],
+    ).fetchone()
+    ignored = int(meta.get("ignored", 0))
+    if meta.get("format") in ("dma", "noaa"):
+        # lines repeating the header (files concatenated with their headers) are not data
+        # either: with the empty lines, lines = 1 + read + ignored
+        ignored += int(con.execute(
+            "SELECT count(*) FROM ais_stage WHERE kind = ? AND line > 1 AND raw IS NOT NULL AND raw <> ''",
+            [C.KIND_IGNORED]).fetchone()[0])
+    return reasons, int(read), int(static), ignored
+
+
+def _write_file_row(ws, meta: dict, fingerprint: str, file_id: int, counts: dict, max_speed_kn: float) -> None:
+    """The file's row in ``ais_files`` (and its quick key); a file whose content is loaded already
+    (another name or compression) rolls back as :class:`AlreadyLoaded`."""
+    rec = file_record(ws, fingerprint)
+    if rec is not None:  # the same content under another name or compression: roll back
+        raise AlreadyLoaded(rec)
+    ws.con.execute(
+        """INSERT INTO ais_files (file_id, fingerprint, path, format, size_bytes, n_read, n_loaded, n_quarantined,
+               n_duplicates, n_static, n_ignored, reasons, max_speed_kn)
+           VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)""",
+        [file_id, fingerprint, str(meta["path"]), meta["format"], int(meta["size_bytes"]), counts["read"],
+         counts["loaded"], counts["quarantined"], counts["duplicates"], counts["static"], counts["ignored"],
+         json.dumps(counts["reasons"], sort_keys=True), float(max_speed_kn)],
+    )
+    if meta.get("quick_key"):
+        ws.con.execute("INSERT INTO ais_file_keys VALUES (?, ?)", [file_id, meta["quick_key"]])
+
+
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
@@ -293,41 +378,8 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
 
     with ws.transaction():
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
-        has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
-        out_lines, out_reasons = [], []
-        scan_fixes = meta.get("scan_fixes") if _stage_kind(con)[0] == "csvfast" else None
-        if has_old and scan_fixes is not None:
-            lines, reasons = _outcomes_with_stored(con, float(max_speed_kn), scan_fixes)
-            out_lines.append(lines)
-            out_reasons += reasons
-        elif has_old:
-            jumps = _stored_sql_outcomes(con, float(max_speed_kn))
-            out_lines.append(jumps)
-            out_reasons += [C.SPEED_JUMP] * len(jumps)
-        else:
-            # First load of these positions: the accepted fixes go to numpy once, sorted by
-            # track; repeated (mmsi, time) keys and the jump kernel run there.
-            # (Overlapping the kernel with DuckDB's insert in a thread was measured slower: the
-            # Arrow-backed stage scan and the kernel's Python parts contend for the GIL, and
-            # deleting the flagged rows after the insert makes the commit far costlier.)
-            con.execute("CREATE OR REPLACE TEMP TABLE ais_dup (line BIGINT, reason VARCHAR)")
-            lines, reasons = _first_load_outcomes(con, float(max_speed_kn), scan_fixes)
-            out_lines.append(lines)
-            out_reasons += reasons
-        del scan_fixes
-        all_lines = np.concatenate(out_lines) if out_lines else np.empty(0, dtype=np.int64)
-        con.register("ais_out_df", pd.DataFrame({"line": all_lines.astype(np.int64),
-                                                 "reason": pd.Series(out_reasons, dtype=object)}))
-        try:
-            con.execute(
-                """CREATE OR REPLACE TEMP TABLE ais_out AS
-                SELECT line, reason FROM ais_dup
-                UNION ALL SELECT CAST(line AS BIGINT), CAST(reason AS VARCHAR) FROM ais_out_df"""
-            )
-        finally:
-            con.unregister("ais_out_df")
+        _rules_7_8(con, meta, max_speed_kn)
         lap("rules_7_8")
-
         loaded = con.execute(
             f"""INSERT INTO ais_positions
             SELECT mmsi, make_timestamptz(epoch_us(time_utc)), {_norm()}, ?, line
@@ -335,40 +387,18 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             [file_id],
         ).fetchone()[0]
         lap("insert")
-        con.execute(
-            """CREATE OR REPLACE TEMP TABLE ais_q AS
-            SELECT s.line, coalesce(s.reason0, o.reason) AS reason, s.raw,
-                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN s.mmsi END AS mmsi,
-                   CASE WHEN s.reason0 IS DISTINCT FROM ? THEN make_timestamptz(epoch_us(s.time_utc)) END AS time_utc
-            FROM ais_stage s LEFT JOIN ais_out o USING (line)
-            WHERE s.kind = ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
-            [C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
-        )
-        _fill_raw(con, meta)
-        con.execute("INSERT INTO ais_quarantine SELECT ?, line, reason, raw, mmsi, time_utc FROM ais_q", [file_id])
-        reasons = dict(con.execute("SELECT reason, count(*) FROM ais_q GROUP BY reason ORDER BY reason").fetchall())
-        read, static = con.execute(
-            "SELECT count(*) FILTER (WHERE kind = ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
-            [C.KIND_POSITION, C.KIND_STATIC],
-        ).fetchone()
-        ignored = int(meta.get("ignored", 0))
-        if meta.get("format") in ("dma", "noaa"):
-            # lines repeating the header (files concatenated with their headers) are not data
-            # either: with the empty lines, lines = 1 + read + ignored
-            ignored += int(con.execute(
-                "SELECT count(*) FROM ais_stage WHERE kind = ? AND line > 1 AND raw IS NOT NULL AND raw <> ''",
-                [C.KIND_IGNORED]).fetchone()[0])
+        reasons, read, static, ignored = _write_quarantine(con, meta, file_id)
         lap("quarantine")
         _upsert_vessels(con, file_id, meta)
         lap("vessels")
         dups = int(sum(v for k, v in reasons.items() if k in C.DUPLICATE_CODES))
         counts = {
             "file_id": file_id,
-            "read": int(read),
+            "read": read,
             "loaded": int(loaded),
             "quarantined": int(sum(reasons.values())) - dups,
             "duplicates": dups,
-            "static": int(static),
+            "static": static,
             "ignored": ignored,
             "reasons": {str(k): int(v) for k, v in reasons.items()},
         }
@@ -378,19 +408,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         if isinstance(fingerprint, Future):
             fingerprint = fingerprint.result()
         lap("fingerprint_wait")
-        rec = file_record(ws, fingerprint)
-        if rec is not None:  # the same content under another name or compression: roll back
-            raise AlreadyLoaded(rec)
-        con.execute(
-            """INSERT INTO ais_files (file_id, fingerprint, path, format, size_bytes, n_read, n_loaded, n_quarantined,
-                   n_duplicates, n_static, n_ignored, reasons, max_speed_kn)
-               VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)""",
-            [file_id, fingerprint, str(meta["path"]), meta["format"], int(meta["size_bytes"]), counts["read"],
-             counts["loaded"], counts["quarantined"], dups, counts["static"], counts["ignored"],
-             json.dumps(counts["reasons"], sort_keys=True), float(max_speed_kn)],
-        )
-        if meta.get("quick_key"):
-            con.execute("INSERT INTO ais_file_keys VALUES (?, ?)", [file_id, meta["quick_key"]])
+        _write_file_row(ws, meta, fingerprint, file_id, counts, max_speed_kn)
         if before_commit is not None:
             before_commit()
     lap("commit")
