@@ -12,7 +12,7 @@ from pipelines import ingest_stage as stage_mod
 from pipelines.ingest import ingest_file
 from pipelines.storage import open_workspace
 from pipelines.storage import ais as store
-from pipelines.storage.ais import stage_csv, stage_fast
+from pipelines.storage.ais import stage_fast, stage_lines
 
 
 # --- the line index --------------------------------------------------------------------------
@@ -86,7 +86,7 @@ def _both_paths(tmp_path, monkeypatch, data: bytes, name: str):
     path = tmp_path / f"{name}.csv"
     path.write_bytes(data)
     # A small scanner buffer / block: even these files are read as many parallel chunks.
-    monkeypatch.setattr(stage_csv, "CSV_BUFFER_BYTES", 1 << 14)
+    monkeypatch.setattr(stage_lines, "CSV_BUFFER_BYTES", 1 << 14)
     out = {}
     runs = [(engine, 0, (engine,)) for engine in ENGINES] + [("exact", 1 << 62, ())]
     for label, min_bytes, engines in runs:
@@ -201,7 +201,7 @@ def test_second_file_against_stored_positions_equals_exact_path(tmp_path, monkey
     back = [r for r in later if ",219200006," in r]
     later = [r for r in later if ",219200006," not in r] + back[::-1]  # ship 6 written backwards
     day2 = _mix(later + overlap, DIRTY)
-    monkeypatch.setattr(stage_csv, "CSV_BUFFER_BYTES", 1 << 14)
+    monkeypatch.setattr(stage_lines, "CSV_BUFFER_BYTES", 1 << 14)
     snaps = {}
     for label, min_bytes, engines in (("scan", 0, ("scan",)), ("exact", 1 << 62, ())):
         monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", min_bytes)

@@ -23,7 +23,7 @@ from ais_fixtures import DMA_HEADER, dma_row
 from pipelines import ingest_stage as stage_mod
 from pipelines.ingest import ingest_file
 from pipelines.storage import open_workspace
-from pipelines.storage.ais import stage_csv
+from pipelines.storage.ais import stage_lines
 from test_ais_fast_csv import _snapshot
 
 T0 = datetime(2025, 3, 1)
@@ -240,7 +240,7 @@ def _jumps_within_files(db) -> list:
 
 
 def _check_paths_agree(d, files, monkeypatch):
-    monkeypatch.setattr(stage_csv, "CSV_BUFFER_BYTES", 1 << 14)  # the raw-lines path reads several chunks
+    monkeypatch.setattr(stage_lines, "CSV_BUFFER_BYTES", 1 << 14)  # the raw-lines path reads several chunks
     out = {}
     for label, _, _ in PATHS:
         db, counts = _ingest_all(d, label, files, monkeypatch)

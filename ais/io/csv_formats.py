@@ -1,7 +1,7 @@
 """DMA and NOAA MarineCadastre CSV: column specs, field typing, and the in-memory reader.
 
 Both formats are described by a :class:`CsvSpec`; the bulk ingest turns the same spec into
-DuckDB SQL (``pipelines/storage/ais/stage_csv.py``), and :func:`read_csv_stage` here applies it in pandas
+DuckDB SQL (``pipelines/storage/ais/stage_lines.py``), and :func:`read_csv_stage` here applies it in pandas
 (the pure path, used for small files and to test that both give the same typed stage).
 
 Typing rules shared by both executions (one row per physical line, split on ``\\n`` with a

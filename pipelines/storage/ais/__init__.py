@@ -22,7 +22,7 @@ Tables (component ``ais``):
     Duplicates are kept here too, with their ``duplicate*`` code.
 
 Modules, by table family: :mod:`.schema` (the tables), :mod:`.files` (``ais_files``), the
-stages (:mod:`.stage_csv`, :mod:`.stage_fast`, :mod:`.stage_tables`, helpers in :mod:`._sql`),
+stages (:mod:`.stage_lines`, :mod:`.stage_fast`, :mod:`.stage_tables`, helpers in :mod:`._sql`),
 :mod:`.commit` (rules 7-8 and the commit), :mod:`.vessels`, :mod:`.read`.
 
 Bulk ingest, per file: the reader fills the temporary typed stage ``ais_stage`` (CSV straight
@@ -39,7 +39,7 @@ from pipelines.storage.ais.commit import AlreadyLoaded, classify_and_commit, dis
 from pipelines.storage.ais.files import file_record, fingerprint_algos, quick_key_known, read_files
 from pipelines.storage.ais.read import open_for_reading, read_positions, read_quarantine, read_vessels
 from pipelines.storage.ais.schema import COMPONENT, MIGRATIONS
-from pipelines.storage.ais.stage_csv import stage_csv
+from pipelines.storage.ais.stage_lines import stage_csv
 from pipelines.storage.ais.stage_fast import stage_csv_arrow, stage_csv_fast, stage_csv_scan
 from pipelines.storage.ais.stage_tables import (
     parquet_columns, read_stage, stage_arrow, stage_frame, stage_parquet, stage_table,

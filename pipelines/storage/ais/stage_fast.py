@@ -16,8 +16,8 @@ from pipelines.storage.ais._sql import (
     _NUM_FIELDS, _TEXT_STATIC, _create_stage, _drop_temp, _params, _prepare, _q, _reason_case,
     _set_stage_kind, _used,
 )
-from pipelines.storage.ais import stage_csv  # CSV_BUFFER_BYTES read at call time (tests set it)
-from pipelines.storage.ais.stage_csv import _buffer_option, _csv_params, _csv_split_typing, _csv_typing
+from pipelines.storage.ais import stage_lines  # CSV_BUFFER_BYTES read at call time (tests set it)
+from pipelines.storage.ais.stage_lines import _buffer_option, _csv_params, _csv_split_typing, _csv_typing
 
 
 log = logging.getLogger(__name__)
@@ -145,7 +145,7 @@ def stage_csv_arrow(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_fiel
     try:
         tbl = pcsv.read_csv(
             str(path),
-            pcsv.ReadOptions(block_size=int(stage_csv.CSV_BUFFER_BYTES or ARROW_BLOCK_BYTES), column_names=names, skip_rows=1,
+            pcsv.ReadOptions(block_size=int(stage_lines.CSV_BUFFER_BYTES or ARROW_BLOCK_BYTES), column_names=names, skip_rows=1,
                              use_threads=True),
             pcsv.ParseOptions(delimiter=",", quote_char=False, double_quote=False, escape_char=False,
                               newlines_in_values=False, ignore_empty_lines=True, invalid_row_handler=on_invalid),
