@@ -209,3 +209,19 @@ def test_cli_doc_lists_every_command():
     text = (REPO / "docs" / "cli.md").read_text(encoding="utf-8")
     for path in COMMANDS:
         assert f"`stormlane {path}" in text, f"docs/cli.md does not list `stormlane {path}`"
+
+
+#: Options naming a path the command writes (or creates): each checks its folder at parse time.
+OUTPUT_OPTIONS = {"--out", "--report", "--geojson", "--screenshot", "--spool", "--cache", "--db"}
+
+
+@pytest.mark.parametrize("path", sorted(COMMANDS))
+def test_every_output_path_checks_its_folder(path, tmp_path):
+    from pipelines.commands._common import PathOptionError
+
+    cmd = COMMANDS[path]
+    for p in _visible_options(cmd):
+        if p.opts[0] in OUTPUT_OPTIONS:
+            assert p.callback is not None, f"{path} {p.opts[0]}: no folder check"
+            with pytest.raises(PathOptionError, match="does not exist"):  # checked first, as given first
+                cmd.make_context(path, [p.opts[0], str(tmp_path / "missing" / "x")])

@@ -16,7 +16,8 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import (VESSEL_WITHOUT_AIS, DbOption, DbReadOption, JsonOption, ProfileOption, check_choice,
-                                        check_output_file, emit_json, progress, vessel_option, xarray_without_dask_arrays)
+                                        check_output_dir, check_output_file, emit_json, progress, vessel_option,
+                                        xarray_without_dask_arrays)
 
 #: Products `weather fetch` downloads.
 PRODUCTS = ("cmems-wave", "cmems-wave-med", "cmems-current", "cmems-current-daily", "era5-wind")
@@ -53,7 +54,9 @@ def fetch(
     start: str = typer.Option(..., "--start", metavar="ISO", help="Start time, ISO 8601 (UTC if no offset)."),
     end: str = typer.Option(..., "--end", metavar="ISO", help="End time, ISO 8601 (UTC if no offset)."),
     dataset_id: str = typer.Option(None, "--dataset-id", metavar="ID", help="Override the CMEMS dataset id."),
-    cache: Path = typer.Option(None, "--cache", metavar="DIR", help="Download cache folder (default $STORMLANE_CACHE or ~/.cache/stormlane/weather)."),
+    cache: Path = typer.Option(None, "--cache", metavar="DIR", callback=lambda v: check_output_dir(v, "--cache"),
+                               help="Download cache folder (default $STORMLANE_CACHE or ~/.cache/stormlane/weather; created, "
+                                    "its folder must exist)."),
     load: bool = typer.Option(False, "--load", help="Also load the downloaded files into the workspace (--db)."),
     db: Path = DbOption,
     json_out: bool = JsonOption,
