@@ -9,8 +9,10 @@ Formats
 -------
 GeoJSON (RFC 7946 [1]_)
     One ``FeatureCollection``: per route a ``LineString`` feature (``MultiLineString`` when a leg
-    crosses the antimeridian, split there as RFC 7946 section 3.1.9 asks) whose properties hold the
-    route totals (``time_h``, ``dist_nmi``, ``max_hs_m``, departure and arrival UTC, the route's
+    crosses the antimeridian, split there as RFC 7946 section 3.1.9 asks) whose points follow each
+    great-circle leg every :data:`LINE_STEP_NMI` (a GeoJSON line is straight in lon/lat, RFC 7946
+    section 3.1.1, which a great-circle leg is not), and whose properties hold the route totals,
+    ``sea_only`` (the one land check, :func:`routing.land.legs_at_sea`) (``time_h``, ``dist_nmi``, ``max_hs_m``, departure and arrival UTC, the route's
     own ``properties``), then per waypoint a ``Point`` feature with ``route``, ``seq``,
     ``eta_utc``, ``leg_speed_kn`` (speed on the leg that starts there, ``null`` at the last point)
     and the weather met (``hs_m``, ``wave_from_deg`` ..., ``null`` where not available).
@@ -50,6 +52,8 @@ import numpy as np
 import pandas as pd
 
 from dashboards.errors import ExportError
+from dashboards.plots import gc_polyline
+from routing.land import legs_at_sea
 from routing.route import Route
 
 #: GPX 1.1 namespace. [2]
@@ -63,6 +67,8 @@ RTZ_DEFAULT_VERSION = "1.1"
 
 _FORMATS = {".geojson": "geojson", ".json": "geojson", ".gpx": "gpx", ".rtz": "rtz"}
 _COORD_DECIMALS = 7
+#: Spacing of the points drawn along each great-circle leg of a GeoJSON route line. [nmi]
+LINE_STEP_NMI = 1.0
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -221,7 +227,8 @@ def routes_to_geojson(routes: list[Route]) -> dict:
         lon = [_lon(x) for x in route.lon_deg]
         lat = [float(x) for x in route.lat_deg]
         coords = [[round(a, _COORD_DECIMALS), round(b, _COORD_DECIMALS)] for a, b in zip(lon, lat)]
-        parts = _split_antimeridian(coords)
+        g_lat, g_lon = gc_polyline(route.lat_deg, route.lon_deg, LINE_STEP_NMI)  # the legs, not straight lon/lat lines
+        parts = _split_antimeridian([[round(_lon(a), _COORD_DECIMALS), round(float(b), _COORD_DECIMALS)] for a, b in zip(g_lon, g_lat)])
         geometry = {"type": "LineString", "coordinates": parts[0]} if len(parts) == 1 else {"type": "MultiLineString", "coordinates": parts}
         features.append(
             {
@@ -236,6 +243,8 @@ def routes_to_geojson(routes: list[Route]) -> dict:
                     "time_h": round(route.time_h, 6),
                     "dist_nmi": round(route.dist_nmi, 6),
                     "max_hs_m": _finite_or_none(route.max_hs_m),
+                    "line_step_nmi": LINE_STEP_NMI,
+                    "sea_only": bool(legs_at_sea(route.lat_deg, route.lon_deg).all()) if route.n_waypoints > 1 else True,
                     "properties": _json_safe(route.properties),
                 },
             }

@@ -31,9 +31,17 @@ import pandas as pd
 from dashboards.errors import ReportError
 from routing.route import Route
 
-#: Route roles in display order, with their legend labels.
-ROUTE_ROLES = ("historical", "deviation", "safe_optimal", "optimal", "min_distance")
+#: Route roles in display order, with their legend labels. ``lane`` (nightly) and
+#: ``as_sailed_modelled`` (audit) are the like-for-like references: sailed by the same vessel
+#: model as the alternatives; ``as_sailed`` is the AIS track at its AIS times (the truth);
+#: ``historical`` is the role of reports written before the like-for-like comparison.
+ROUTE_ROLES = ("as_sailed", "as_sailed_modelled", "lane", "historical", "deviation", "safe_optimal", "optimal", "min_distance")
+#: Roles a RouteSet takes as its reference when none is named, first present wins.
+REFERENCE_ROLES = ("lane", "as_sailed_modelled", "historical", "as_sailed")
 ROLE_LABELS = {
+    "as_sailed": "as sailed (AIS times)",
+    "as_sailed_modelled": "as sailed, modelled",
+    "lane": "lane as planned (modelled)",
     "historical": "historical (lane / AIS track)",
     "deviation": "cargo-safe deviation",
     "safe_optimal": "safe time-optimal A* (vessel limits)",
@@ -254,6 +262,11 @@ class RouteSet:
         per piece of leg, at most 15 min of sailing). The Hs plot draws these when given, so its
         peak is the table's "highest Hs met" even where a long leg crosses a storm between two
         waypoints; without them it draws the waypoint values.
+    reference : str, optional
+        Role every delta is measured against (the like-for-like reference); default the first of
+        :data:`REFERENCE_ROLES` present.
+    notes : dict of str -> str
+        A note per role shown under the table (e.g. why a route is not proposed).
     """
 
     routes: dict
@@ -265,8 +278,14 @@ class RouteSet:
     exports: dict = field(default_factory=dict)
     hs_limit_m: float | None = None
     profiles: dict = field(default_factory=dict)
+    reference: str | None = None
+    notes: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        if self.reference is None:
+            self.reference = next((r for r in REFERENCE_ROLES if r in self.routes), None)
+        elif self.reference not in self.routes:
+            raise ReportError(f"RouteSet.reference = {self.reference!r} is not one of the routes {sorted(self.routes)}")
         for role, route in self.routes.items():
             if not isinstance(route, Route):
                 raise ReportError(f"RouteSet.routes[{role!r}] is {type(route).__name__}, not a Route")
@@ -305,13 +324,14 @@ class RouteSet:
         plain = [c for c in cols if not str(c).startswith("d_") and c not in SEED_COLUMNS]
         return [c for c in METRIC_COLUMNS if c in plain] + [c for c in plain if c not in METRIC_COLUMNS]
 
-    def deltas(self, reference: str = "historical") -> pd.DataFrame:
-        """Each value column minus the reference row (empty when the reference is absent).
+    def deltas(self, reference: str | None = None) -> pd.DataFrame:
+        """Each value column minus the reference row (default :attr:`reference`; empty when absent).
 
         Deltas handed over in ``d_<column>`` columns (as ``routing.evaluate.comparison_table``
         gives them) are used as they are; the others are differences of the values.
         """
         table = self.metrics_table()
+        reference = self.reference if reference is None else reference
         if reference not in table.index:
             return table.iloc[0:0]
         out = {}
@@ -394,7 +414,7 @@ class LaneDeparture:
 
 
 def metric_delta(routes: RouteSet | None, column: str) -> float:
-    """Proposed minus historical for one metric (NaN when either is missing)."""
+    """Proposed minus the route set's reference for one metric (NaN when either is missing)."""
     if routes is None or routes.proposed is None:
         return float("nan")
     d = routes.deltas()
@@ -468,7 +488,8 @@ class NightlyReport:
         return [d for d in self.adverse if d.routes is not None and d.routes.proposed is not None]
 
     def totals(self) -> dict[str, float]:
-        """Sums over proposed reroutes of (proposed - historical): time, fuel, CO2, events.
+        """Sums over proposed reroutes of (proposed - reference): time, fuel, CO2, events; the
+        reference of each reroute is its route set's (the lane as planned, sailed by the same model).
 
         ``safety_events_avoided`` is the negated sum of the ``n_safety_events`` deltas. A total is
         NaN when no reroute carries that metric.
@@ -505,7 +526,9 @@ class VoyageAudit:
     vessel_profile : str
         Vessel profile used for the alternatives.
     routes : RouteSet
-        ``historical`` is the sailed AIS track; alternatives for the same departure.
+        ``as_sailed`` is the AIS track at its AIS times, ``as_sailed_modelled`` the same track
+        re-timed by the vessel model (the reference of the deltas); alternatives for the same
+        departure, sailed by the same model.
     findings : list of str
         Plain-language findings from the audit (printed as given).
     provenance : Provenance
@@ -513,6 +536,12 @@ class VoyageAudit:
     generated_utc : Timestamp
         When the audit was computed.
     title : str
+    bias : dict
+        The vessel model's bias on this voyage, modelled minus AIS: ``time_h``, ``time_pct``,
+        ``fuel_t``, ``fuel_pct``, ``co2_t``, ``co2_pct`` (empty without a modelled row).
+    calm_water : dict
+        The calm-water speed the model sailed at: ``speed_kn``, ``source`` (``ais_low_sea`` or
+        ``profile``), ``low_sea_h``, ``low_hs_m``.
     """
 
     mmsi: int
@@ -533,6 +562,8 @@ class VoyageAudit:
     speed_loss: SpeedLossCurve | None = None
     generated_utc: pd.Timestamp = field(default_factory=lambda: pd.Timestamp.now(tz="UTC"))
     title: str = "stormlane voyage audit"
+    bias: dict = field(default_factory=dict)
+    calm_water: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for name in ("depart_utc", "arrive_utc", "generated_utc"):

@@ -2,7 +2,7 @@
 
 Every function returns PNG bytes that the renderer inlines as a ``data:`` URI, so a report
 needs no file but itself and no network (no tile server, no Natural Earth download: land comes
-from the 30-arc-second mask bundled with ``global-land-mask``, sampled at the map's resolution).
+from the 30-arc-second mask bundled with ``global-land-mask``, at its own resolution).
 Only numbers and the project's own labels are drawn; AIS-supplied text never enters a figure
 (it is written, escaped, into the HTML around it).
 """
@@ -20,6 +20,9 @@ from routing.route import Route
 #: Line styles per route role (Okabe-Ito colours, readable by colour-blind readers).
 ROLE_STYLE = {
     "historical": {"color": "#000000", "linestyle": (0, (5, 3)), "linewidth": 2.0},
+    "lane": {"color": "#000000", "linestyle": (0, (5, 3)), "linewidth": 2.0},
+    "as_sailed": {"color": "#000000", "linestyle": "-", "linewidth": 1.6},
+    "as_sailed_modelled": {"color": "#E69F00", "linestyle": (0, (5, 3)), "linewidth": 2.0},
     "deviation": {"color": "#009E73", "linestyle": "-", "linewidth": 2.4},
     "optimal": {"color": "#0072B2", "linestyle": "-", "linewidth": 2.4},
     "safe_optimal": {"color": "#56B4E9", "linestyle": (0, (8, 2)), "linewidth": 2.6},
@@ -66,21 +69,57 @@ def map_extent(routes: dict, weather: WeatherSnapshot | None = None, pad_frac: f
     return lon0 - pad_lon, lon1 + pad_lon, max(lat0 - pad_lat, -89.9), min(lat1 + pad_lat, 89.9)
 
 
-def land_mask(lon0: float, lon1: float, lat0: float, lat1: float, n: int = 500):
-    """Boolean land grid over the box from ``global_land_mask`` (30" mask), ``n`` samples on the long side.
+def land_mask(lon0: float, lon1: float, lat0: float, lat1: float, max_px: int = 4000):
+    """Land over a box at the 30" mask's own resolution (global-land-mask, through the cache of
+    :mod:`thresholds.land_raster`), so a map shows exactly the land the land check sees.
 
-    The pixels are read from the memory-mapped cache of :mod:`thresholds.land_raster`.
-    Returns ``(lon_centres, lat_centres, is_land[lat, lon])``.
+    Boxes wider or taller than ``max_px`` raster pixels are drawn in blocks of k x k pixels,
+    a block being land when any of its pixels is (land is never hidden, only thickened).
+
+    Returns
+    -------
+    lon_edges, lat_edges, is_land
+        Cell edges (ascending, ``nx + 1`` and ``ny + 1``) [deg] and ``is_land[lat, lon]`` (rows
+        south to north).
     """
-    from thresholds.land_raster import is_land
+    from routing.land import land_window
 
-    span = max(lon1 - lon0, lat1 - lat0)
-    step = span / n
-    lon = np.arange(lon0 + step / 2, lon1, step)
-    lat = np.arange(lat0 + step / 2, lat1, step)
-    lon_w = (lon + 180.0) % 360.0 - 180.0
-    lat_g, lon_g = np.meshgrid(lat, lon_w, indexing="ij")
-    return lon, lat, is_land(lat_g, lon_g)
+    w = land_window(lat0, lat1, lon0, lon1)
+    land = ~w.ocean[::-1]  # rows south to north
+    ppd = w.px_per_deg
+    lat_edges = 90.0 - (w.r0 + land.shape[0] - np.arange(land.shape[0] + 1)) / ppd
+    lon_edges = -180.0 + (w.c0 + np.arange(land.shape[1] + 1)) / ppd
+    lon_edges = lon_edges + 360.0 * np.round((lon0 - lon_edges[0]) / 360.0)  # the box's own longitude frame
+    k = int(np.ceil(max(land.shape) / max_px))
+    if k > 1:
+        ny, nx = -(-land.shape[0] // k) * k, -(-land.shape[1] // k) * k
+        pad = np.zeros((ny, nx), dtype=bool)
+        pad[: land.shape[0], : land.shape[1]] = land
+        land = pad.reshape(ny // k, k, nx // k, k).any(axis=(1, 3))
+        lat_edges = lat_edges[0] + np.arange(land.shape[0] + 1) * k / ppd
+        lon_edges = lon_edges[0] + np.arange(land.shape[1] + 1) * k / ppd
+    return lon_edges, lat_edges, land
+
+
+def gc_polyline(lat_deg, lon_deg, step_nmi: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """A route's legs as drawn: points along each great circle at most ``step_nmi`` apart, the
+    longitudes made continuous, so a map shows the legs the route sails (a straight line in
+    lat/lon between two waypoints is not the leg and can miss or invent a land crossing)."""
+    from thresholds.geodesy import haversine_nmi, intermediate_point
+
+    lat = np.asarray(lat_deg, dtype=float)
+    lon = np.asarray(lon_deg, dtype=float)
+    if lat.size < 2:
+        return lat, lon
+    out_lat, out_lon = [lat[:1]], [lon[:1]]
+    for k in range(lat.size - 1):
+        n = max(1, int(np.ceil(float(haversine_nmi(lat[k], lon[k], lat[k + 1], lon[k + 1])) / step_nmi)))
+        la, lo = intermediate_point(lat[k], lon[k], lat[k + 1], lon[k + 1], np.arange(1, n + 1) / n)
+        out_lat.append(np.atleast_1d(la))
+        out_lon.append(np.atleast_1d(lo))
+    la, lo = np.concatenate(out_lat), np.concatenate(out_lon)
+    step = (np.diff(lo) + 180.0) % 360.0 - 180.0
+    return la, np.concatenate([[lon[0]], lon[0] + np.cumsum(step)])
 
 
 def route_map_png(
@@ -89,6 +128,7 @@ def route_map_png(
     *,
     hs_limit_m: float | None = None,
     worst: tuple | None = None,
+    worst_role: str = "reference",
     width_in: float = 6.2,
     dpi: int = 100,
 ) -> bytes:
@@ -105,6 +145,8 @@ def route_map_png(
         Vessel's Hs limit, drawn as a contour. [m]
     worst : (lat_deg, lon_deg), optional
         Where the worst weather is met, marked with a star.
+    worst_role : str
+        The route it is met on (the legend names it).
     """
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
@@ -154,15 +196,16 @@ def route_map_png(
                 ax.quiver(lon_g[ok], lat_g[ok], np.sin(to_rad[ok]), np.cos(to_rad[ok]), angles="uv", pivot="middle", color="#333333", scale=28, width=0.0028, headwidth=4, zorder=3)
                 handles.append(Line2D([], [], color="#333333", marker=r"$\rightarrow$", markersize=12, linestyle="none", label="mean wave direction (travelling to)"))
 
-    lon_c, lat_c, land = land_mask(lon0, lon1, lat0, lat1)
+    lon_e, lat_e, land = land_mask(lon0, lon1, lat0, lat1)
     rgba = np.zeros(land.shape + (4,))
     rgba[land] = (*LAND_RGB, 1.0)
-    ax.imshow(rgba, extent=(lon0, lon1, lat0, lat1), origin="lower", interpolation="nearest", zorder=4, aspect="auto")
+    ax.imshow(rgba, extent=(lon_e[0], lon_e[-1], lat_e[0], lat_e[-1]), origin="lower", interpolation="nearest", zorder=4, aspect="auto")
 
     halo = [withStroke(linewidth=4.5, foreground="white")]
     for role, route in routes.items():
         st = style_for(role)
-        ax.plot(route.lon_deg, route.lat_deg, zorder=6, solid_capstyle="round", path_effects=halo, label=label_for(role), **st)
+        g_lat, g_lon = gc_polyline(route.lat_deg, route.lon_deg)
+        ax.plot(g_lon, g_lat, zorder=6, solid_capstyle="round", path_effects=halo, label=label_for(role), **st)
         handles.append(Line2D([], [], label=f"{label_for(role)}: {route.dist_nmi:.0f} nmi, {route.time_h:.1f} h", **st))
     if routes:
         first = next(iter(routes.values()))
@@ -172,7 +215,7 @@ def route_map_png(
         handles.append(Line2D([], [], marker="s", color="white", markeredgecolor="black", linestyle="none", label="arrival"))
     if worst is not None and all(v is not None and np.isfinite(v) for v in worst):
         ax.plot(worst[1], worst[0], marker="*", color="white", markeredgecolor="black", markersize=17, linestyle="none", zorder=8)
-        handles.append(Line2D([], [], marker="*", color="white", markeredgecolor="black", markersize=12, linestyle="none", label="worst weather on historical"))
+        handles.append(Line2D([], [], marker="*", color="white", markeredgecolor="black", markersize=12, linestyle="none", label=f"worst weather on {label_for(worst_role)}"))
 
     ax.set_xlim(lon0, lon1)
     ax.set_ylim(lat0, lat1)

@@ -93,9 +93,11 @@ def _route_label(role: str) -> str:
 
 def metrics_section(routes: RouteSet) -> Markup:
     """Comparison table: one row per metric, one column per route; values with the delta to the
-    historical route (and the relative delta when handed over); then the seed's comparison metrics."""
+    route set's reference (and the relative delta when handed over), the reference named under
+    the table; then the seed's comparison metrics and the routes' notes."""
     metrics = routes.metrics_table()
     deltas = routes.deltas()
+    ref = routes.reference
     roles = list(metrics.index)
     head = ["metric"] + [_route_label(r) + (" \u2605 proposed" if r == routes.proposed else "") for r in roles]
     rows = []
@@ -107,20 +109,23 @@ def metrics_section(routes: RouteSet) -> Markup:
                 d = _decimals(col)
                 shown = value if not col.startswith("n_") or not math.isfinite(float(value)) else int(round(float(value)))
                 cell = Markup(escape(fmt(shown, d)))
-                if role != "historical" and role in deltas.index and col in deltas.columns:
+                if role != ref and role in deltas.index and col in deltas.columns:
                     cell = cell + _delta_span(col, float(deltas.loc[role, col]), routes.delta_pct(col, role))
                 cells.append(cell)
             else:
                 cells.append(fmt(value))
         rows.append(cells)
     parts = [table(head, rows, numeric=set(range(1, len(roles) + 1)))]
-    if "historical" in metrics.index:
-        parts.append(el("p", "In brackets: difference to the historical route (green: lower, red: higher).", class_="muted"))
+    if ref is not None and ref in metrics.index:
+        parts.append(el("p", f"In brackets: difference to the {_route_label(ref)} route, the reference of every delta "
+                        "(green: lower, red: higher).", class_="muted"))
     seed = [c for c in SEED_COLUMNS if c in metrics.columns]
-    others = [r for r in roles if r != "historical"]
-    if seed and others and "historical" in metrics.index:
+    others = [r for r in roles if r != ref]
+    if seed and others and ref in metrics.index:
         seed_rows = [[SEED_COLUMNS[c]] + [fmt(_num(metrics.loc[r, c]), 1) for r in others] for c in seed]
-        parts.append(el("details", el("summary", "Comparison metrics of the cargo-loss seed paper (each alternative against the historical route)"), table(["metric"] + [_route_label(r) for r in others], seed_rows, numeric=set(range(1, len(others) + 1)))))
+        parts.append(el("details", el("summary", f"Comparison metrics of the cargo-loss seed paper (each route against the {_route_label(ref)} route)"), table(["metric"] + [_route_label(r) for r in others], seed_rows, numeric=set(range(1, len(others) + 1)))))
+    if routes.notes:
+        parts.append(el("ul", *(el("li", f"{_route_label(r)}: {n}") for r, n in routes.notes.items()), class_="muted"))
     return join(parts)
 
 
@@ -150,14 +155,14 @@ def events_section(routes: RouteSet) -> Markup:
     return join(parts)
 
 
-def figures_section(routes: RouteSet, provenance: Provenance, worst=None) -> Markup:
+def figures_section(routes: RouteSet, provenance: Provenance, worst=None, worst_role: str = "reference") -> Markup:
     hs_limit = routes.hs_limit_m
     if hs_limit is None and provenance.limits:
         hs_limit = provenance.limits.get("hs_m")
     ordered = {role: routes.routes[role] for role in routes.ordered_roles}
     if not ordered:
         return Markup("")
-    map_png = plots.route_map_png(ordered, routes.weather, hs_limit_m=hs_limit, worst=worst)
+    map_png = plots.route_map_png(ordered, routes.weather, hs_limit_m=hs_limit, worst=worst, worst_role=worst_role)
     series = plots.series_png(ordered, hs_limit_m=hs_limit, profiles=routes.profiles)
     return el(
         "div",
@@ -318,7 +323,9 @@ def _nightly_summary(model: NightlyReport) -> Markup:
         ["weather", f"{prov.weather_source or 'unknown source'}: {', '.join(map(str, prov.weather_products)) or DASH}; {span}"],
         ["vessel / model / limits", f"{_vessels_line(model, prov)} / {prov.speed_loss_model or DASH} / {prov.thresholds_profile or DASH}"],
     ]
-    note = el("p", "Deltas are proposed minus historical, summed over the proposed reroutes; negative time, fuel and CO2 are savings.", class_="muted")
+    note = el("p", "Deltas are proposed minus the reference of each case, summed over the proposed reroutes; negative time, fuel "
+              "and CO2 are savings. The reference is the lane as planned, sailed by the same vessel model (the lane's typical "
+              "AIS speed minus the speed loss) from the same departure in the same weather as the alternatives.", class_="muted")
     return join([el("h2", "Summary"), cards, table(None, rows), note])
 
 
@@ -339,6 +346,19 @@ def route_notes(rs: RouteSet) -> list[str]:
     return notes
 
 
+def _audit_method(model: VoyageAudit) -> str:
+    """How the audit compares: the two sailed rows, the calm-water speed and the reference of the deltas."""
+    cw = model.calm_water or {}
+    if cw.get("source") == "ais_low_sea":
+        speed = (f"{fmt(cw.get('speed_kn'), 2)} kn, the voyage's calm-water speed from its AIS speeds in low sea states "
+                 f"(Hs \u2264 {fmt(cw.get('low_hs_m'), 1)} m, {fmt(cw.get('low_sea_h'), 1)} h of sailing)")
+    else:
+        speed = f"{fmt(cw.get('speed_kn'), 2)} kn, the vessel profile's (too little sailing in low sea states to estimate it from AIS)"
+    return ("Two rows for the sailed voyage: as sailed (its AIS times, the truth) and as sailed, modelled (the same track "
+            f"re-timed by the vessel model from the same departure at {speed}). Their difference is the model's bias on this "
+            "voyage. The alternatives are sailed by the same model, and every delta is against the modelled row.")
+
+
 def _case_section(k: int, dep: LaneDeparture, provenance: Provenance) -> Markup:
     rs = dep.routes
     worst = (dep.worst_lat_deg, dep.worst_lon_deg) if dep.worst_lat_deg is not None else None
@@ -349,7 +369,7 @@ def _case_section(k: int, dep: LaneDeparture, provenance: Provenance) -> Markup:
         el("h3", f"{k}. {_departure_title(dep)}", id=f"case-{k}"),
         rules,
         el("ul", *(el("li", n) for n in notes), class_="notes") if notes else "",
-        figures_section(rs, provenance, worst=worst),
+        figures_section(rs, provenance, worst=worst, worst_role=rs.reference or "lane"),
         metrics_section(rs),
         events_section(rs),
         exports_section(rs),
@@ -404,8 +424,9 @@ def audit_html(model: VoyageAudit) -> str:
     ]
     metrics = rs.metrics_table()
     cards = []
-    if "historical" in metrics.index:
-        hist = metrics.loc["historical"]
+    sailed = "as_sailed" if "as_sailed" in metrics.index else "historical"
+    if sailed in metrics.index:
+        hist = metrics.loc[sailed]
         cards.append(_card(f"{fmt(hist.get('time_h'), 2)} h", "sailed time"))
         cards.append(_card(f"{fmt(hist.get('dist_nmi'), 1)} nmi", "sailed distance"))
         cards.append(_card(f"{fmt(hist.get('max_hs_m'), 2)} m", "highest Hs met"))
@@ -420,8 +441,14 @@ def audit_html(model: VoyageAudit) -> str:
                 cards.append(_card(fmt(d["fuel_t"], 2, signed=True) + " t", f"\u0394 fuel, {_route_label(rs.proposed)}"))
             if "max_hs_m" in d:
                 cards.append(_card(fmt(d["max_hs_m"], 2, signed=True) + " m", f"\u0394 highest Hs, {_route_label(rs.proposed)}"))
+    if model.bias:
+        b = model.bias
+        cards.append(_card(f"{fmt(b.get('time_h'), 2, signed=True)} h ({fmt(b.get('time_pct'), 1, signed=True)} %)",
+                           "model bias, time (modelled \u2212 AIS)"))
+        cards.append(_card(f"{fmt(b.get('fuel_t'), 2, signed=True)} t ({fmt(b.get('fuel_pct'), 1, signed=True)} %)",
+                           "model bias, fuel (modelled \u2212 AIS)"))
     worst = None
-    hist_route = rs.routes.get("historical")
+    hist_route = rs.routes.get(sailed)
     if hist_route is not None and "hs_m" in hist_route.weather and np.isfinite(hist_route.weather["hs_m"]).any():
         i = int(np.nanargmax(hist_route.weather["hs_m"]))
         worst = (hist_route.lat_deg[i], hist_route.lon_deg[i])
@@ -430,11 +457,13 @@ def audit_html(model: VoyageAudit) -> str:
         table(None, ident),
         el("div", *cards, class_="cards"),
     ]
+    if model.bias or model.calm_water:
+        parts.append(el("p", _audit_method(model), class_="muted"))
     if model.findings:
         parts += [el("h2", "Findings"), el("ul", *(el("li", f) for f in model.findings))]
     parts += [
         el("h2", "Sailed track and alternatives"),
-        figures_section(rs, model.provenance, worst=worst),
+        figures_section(rs, model.provenance, worst=worst, worst_role=sailed),
         metrics_section(rs),
         events_section(rs),
         exports_section(rs),

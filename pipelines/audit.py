@@ -241,20 +241,27 @@ def _check_coverage(sampler, start_utc: pd.Timestamp, end_utc: pd.Timestamp, wha
 
 
 def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alternatives: bool = True, safety: str = "hard") -> dict:
-    """The audit itself (plain function): track, alternatives, evaluations, comparison.
+    """The audit itself (plain function): track, its modelled twin, alternatives, evaluations, comparison.
 
-    ``safety`` (``"hard"``, ``"soft"`` or ``"none"``) is the mode of the ``safe_optimal`` A*
-    alternative (none: no such alternative); the plain time-optimal route is kept next to it.
+    Like for like: the vessel sails at the voyage's calm-water speed (its AIS speeds in low sea
+    states, else the profile's, :func:`routing.audit.calm_water_speed`) minus the model's speed
+    loss, for the A* routes, the deviation and the sailed track re-timed (``as_sailed_modelled``);
+    the AIS track at its AIS times (``as_sailed``) is the truth, and the difference of the two is
+    the model's bias on this voyage. ``safety`` (``"hard"``, ``"soft"`` or ``"none"``) is the mode
+    of the ``safe_optimal`` A* alternative (none: no such alternative).
 
     Returns
     -------
     dict
-        ``track`` (Route), ``evaluations``, ``table``, ``proposed``, ``findings`` (see
-        :func:`routing.audit.audit_routes`), ``plan_stats`` (routing statistics), ``deviation``
-        (Route or None) and ``notes`` (what was not computed and why).
+        ``track`` (Route), ``evaluations``, ``table``, ``reference``, ``bias``, ``proposed``,
+        ``findings`` (see :func:`routing.audit.audit_routes`), ``calm_water`` (the speed and where it
+        comes from), ``plan_stats`` (routing statistics), ``deviation`` (Route or None), ``optimality``
+        (:func:`routing.compare.optimality_gaps`) and ``notes`` (what was not computed and why).
     """
+    import dataclasses
+
     from pipelines.routing_weather import field_from_dataset
-    from routing.audit import audit_routes, detour_factor, track_to_route, trim_stationary_ends
+    from routing.audit import audit_routes, calm_water_speed, detour_factor, track_to_route, trim_stationary_ends
     from routing.sampling import PointSampler
 
     track = track_to_route(inputs.positions)
@@ -270,98 +277,82 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
     field_ = field_from_dataset(inputs.weather_ds)
     sampler = PointSampler.from_field(field_)
     _check_coverage(sampler, track.time_utc[0], track.time_utc[-1], "voyage")
+    calm = calm_water_speed(track, sampler, inputs.vessel.speed_kn)
+    vessel = dataclasses.replace(inputs.vessel, speed_kn=calm["speed_kn"]) if calm["speed_kn"] > inputs.vessel.min_speed_kn else inputs.vessel
     alts: dict = {}
     plan_stats: dict = {}
-    deviation = None
+    deviation = modelled = None
+    optimality: list = []
     if alternatives:
-        from routing.astar import ShipModel
-        from routing.planner import RouteRequest, plan_routes
-
-        ship = ShipModel.from_vessel(inputs.vessel, model=speed_loss_model)
-        req = RouteRequest(
-            start=(float(track.lat_deg[0]), float(track.lon_deg[0])), goal=(float(track.lat_deg[-1]), float(track.lon_deg[-1])),
-            depart_utc=track.time_utc[0], ship=ship, vessel_name=inputs.vessel_profile,
-        )
-        try:
-            plan = plan_routes(req, field_, safety=safety, vessel=inputs.vessel, limits=inputs.limits)
-        except StormlaneError as err:
-            notes.append(f"time-optimal and minimum-distance routes not computed: {err}")
-            plan = None
-        if plan is not None:
-            plan_stats = dict(plan.stats)
-            alts["optimal"] = _renamed(plan.routes["optimal_smoothed"], "optimal")
-            if "safe_optimal_smoothed" in plan.routes:
-                alts["safe_optimal"] = _renamed(plan.routes["safe_optimal_smoothed"], "safe_optimal")
-                sf = plan.stats["safety"]
-                if sf["fallback"]:
-                    notes.append("no A* route keeps within the vessel's limits for this departure; the safe-optimal route "
-                                 f"minimises time plus {sf['penalty_per_h']:g} h per hour over them (soft limits)")
-            alts["min_distance"] = _renamed(plan.routes["min_distance"], "min_distance")
-        if inputs.lane is not None and len(inputs.lane) >= 2:
-            base, props, what = inputs.lane, {"lane_id": inputs.lane_id}, f"lane {inputs.lane_id}"
-        else:
-            from routing.audit import track_waypoints
-
-            base, props, what = track_waypoints(track), {"base": "sailed track"}, "the sailed track"
-            notes.append(("no lane for this voyage in the workspace" if inputs.voyage is not None else
-                          "an --mmsi/--start/--end window is not a lane's voyage")
-                         + ": the cargo-safe deviation walks the sailed track itself (a point every 5 nmi, at the speeds made good)")
-        deviation = _deviation(base, props, what, inputs.vessel, inputs.limits, sampler, track.time_utc[0],
-                               plan.mesh if plan is not None else None, notes)
-        if deviation is not None:
-            alts["deviation"] = deviation
+        plan, modelled, alts, optimality = _alternatives(inputs, track, vessel, field_, sampler, speed_loss_model, safety, notes)
+        plan_stats = dict(plan.stats) if plan is not None else {}
+        deviation = alts.get("deviation")
     detour = detour_factor(track)
     if detour > DETOUR_FACTOR_NOTE:
         notes.append(f"the sailed track ({track.dist_nmi:.0f} nmi) is {detour:.1f} times the distance between its ends: "
                      "port calls or a loop inside the window? The A* alternatives sail straight between the ends, so their time, "
                      "fuel and exposure are not comparable with the track's")
-    out = audit_routes(track, sampler, inputs.vessel, limits=inputs.limits, alternatives=alts, speed_loss_model=speed_loss_model)
+    out = audit_routes(track, sampler, vessel, limits=inputs.limits, alternatives=alts, modelled=modelled, speed_loss_model=speed_loss_model)
     out["findings"] = out["findings"] + notes
-    out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler})
+    out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler,
+                "calm_water": calm, "optimality": optimality})
     return out
+
+
+def _alternatives(inputs: AuditInputs, track, vessel, field_, sampler, speed_loss_model: str, safety: str, notes: list):
+    """The A* plan, the modelled track, the alternatives (all sailed by one model) and the invariant's gaps."""
+    from routing.astar import ShipModel
+    from routing.compare import lane_departure, optimality_gaps, plan_bbox, retime
+    from routing.deviate import threshold_inputs
+    from routing.planner import RouteRequest, plan_routes
+
+    ship = ShipModel.from_vessel(vessel, model=speed_loss_model)
+    start, goal = (float(track.lat_deg[0]), float(track.lon_deg[0])), (float(track.lat_deg[-1]), float(track.lon_deg[-1]))
+    if inputs.lane is not None and len(inputs.lane) >= 2:
+        base, props, what = inputs.lane.sort_values("seq"), {"lane_id": inputs.lane_id}, f"lane {inputs.lane_id}"
+    else:
+        from routing.audit import track_waypoints
+
+        base, props, what = track_waypoints(track), {"base": "sailed track"}, "the sailed track"
+        notes.append(("no lane for this voyage in the workspace" if inputs.voyage is not None else
+                      "an --mmsi/--start/--end window is not a lane's voyage")
+                     + ": the cargo-safe deviation walks the sailed track itself (a point every 5 nmi)")
+    lat_all = np.r_[track.lat_deg, base["lat_deg"].to_numpy(dtype=float)]
+    lon_all = np.r_[track.lon_deg, base["lon_deg"].to_numpy(dtype=float)]
+    req = RouteRequest(start=start, goal=goal, depart_utc=track.time_utc[0], ship=ship, vessel_name=inputs.vessel_profile,
+                       bbox=plan_bbox(start, goal, lat_all, lon_all, field_))
+    try:
+        plan = plan_routes(req, field_, safety=safety, vessel=vessel, limits=inputs.limits)
+    except StormlaneError as err:
+        notes.append(f"time-optimal and minimum-distance routes not computed, and the track not re-timed by the model: {err}; "
+                     "the alternatives' deltas are then against the AIS times and hold the model's bias")
+        return None, None, {}, []
+    alts = {"optimal": _renamed(plan.routes["optimal_smoothed"], "optimal")}
+    if "safe_optimal_smoothed" in plan.routes:
+        alts["safe_optimal"] = _renamed(plan.routes["safe_optimal_smoothed"], "safe_optimal")
+        sf = plan.stats["safety"]
+        if sf["fallback"]:
+            notes.append("no A* route keeps within the vessel's limits for this departure; the safe-optimal route "
+                         f"minimises time plus {sf['penalty_per_h']:g} h per hour over them (soft limits)")
+    alts["min_distance"] = _renamed(plan.routes["min_distance"], "min_distance")
+    modelled = retime(track.lat_deg, track.lon_deg, track.time_utc[0], plan, name="as_sailed_modelled",
+                      properties={k: v for k, v in track.properties.items() if k in ("mmsi", "n_fixes", "n_kept")})
+    weather_at, check, cells = threshold_inputs(sampler, vessel, inputs.limits)
+    try:
+        pair = lane_departure(base["lat_deg"].to_numpy(dtype=float), base["lon_deg"].to_numpy(dtype=float),
+                              base["speed_kn"].to_numpy(dtype=float), track.time_utc[0], plan, weather_at=weather_at, check=check,
+                              cells=cells, properties=props)
+        alts["deviation"] = pair["deviation"]
+    except (StormlaneError, ValueError) as err:
+        notes.append(f"deviation of {what} not computed: {err}")
+    gaps = optimality_gaps({"as_sailed_modelled": modelled, **alts}, plan)
+    return plan, modelled, alts, gaps
 
 
 def _renamed(route, name):
     from routing.route import Route
 
     return Route(name, route.lat_deg, route.lon_deg, route.time_utc, route.leg_speed_kn, dict(route.weather), dict(route.properties))
-
-
-def _deviation(lane: pd.DataFrame, properties: dict, what: str, vessel, limits, sampler, depart_utc, mesh, notes: list):
-    """Cargo-safe deviation of a point sequence (a lane's centroids, or the sailed track's points)."""
-    from routing.deviate import deviate_lane, threshold_inputs
-
-    lane = lane.sort_values("seq")
-    weather_at, check, cells = threshold_inputs(sampler, vessel, limits)
-    leg_at_sea = None
-    if mesh is not None:
-        g = mesh.grid
-        lat, lon = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy()
-        inside = (lat.min() >= g.bbox[1]) and (lat.max() <= g.bbox[3]) and (lon.min() >= g.bbox[0]) and (lon.max() <= g.bbox[2])
-        if inside:
-            leg_at_sea = mesh.leg_is_sea
-    if leg_at_sea is None:
-        leg_at_sea = lane_land_check(lane)
-    try:
-        return deviate_lane(
-            lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy(), depart_utc,
-            weather_at=weather_at, check=check, cells=cells, leg_at_sea=leg_at_sea, default_speed_kn=vessel.speed_kn,
-            properties=properties,
-        )
-    except (StormlaneError, ValueError) as err:
-        notes.append(f"deviation of {what} not computed: {err}")
-        return None
-
-
-def lane_land_check(lane: pd.DataFrame, pad_deg: float = 1.0, spacing_deg: float = 0.05):
-    """A land test for legs around a lane: :meth:`routing.mesh.Mesh.leg_is_sea` (pixel-exact
-    coastline of global-land-mask) on a mesh of the lane's bbox, padded."""
-    from routing.mesh import MeshGrid, build_mesh, global_land_mask_window
-
-    lat, lon = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy()
-    bbox = (float(lon.min()) - pad_deg, float(lat.min()) - pad_deg, float(lon.max()) + pad_deg, float(lat.max()) + pad_deg)
-    grid = MeshGrid.from_bbox(bbox, spacing_deg)
-    return build_mesh(grid, land=global_land_mask_window(grid)).leg_is_sea
 
 
 def audit_id_of(inputs: AuditInputs) -> str:
@@ -371,9 +362,32 @@ def audit_id_of(inputs: AuditInputs) -> str:
     return f"{inputs.mmsi}@{inputs.start_utc.strftime('%Y-%m-%dT%H:%MZ')}"
 
 
+#: The keys of the audit's JSON object (``stormlane audit --json``; printed by ``--help``).
+JSON_KEYS = {
+    "audit_id": "the voyage id, else <mmsi>@<start>",
+    "voyage": "voyage_id, mmsi, ship_name, start_utc, end_utc, lane_id, origin, destination",
+    "vessel_profile, operator_profile": "the vessel profile and the operator limits used",
+    "weather": "the weather files and product",
+    "calm_water_speed": "speed_kn the model sails at, source (ais_low_sea: the voyage's AIS speeds in Hs <= low_hs_m over "
+                        "low_sea_h hours; profile: the vessel profile's), low_sea_h, low_hs_m",
+    "as_sailed": "the AIS track at its AIS times (the truth): time_h, dist_nmi, max_hs_m, mean_hs_m, fuel_t, co2_t, "
+                 "exposure_h, adverse_h, n_safety_events, no_weather_h, sea_only, land_legs, land_nmi, events, waypoints ...",
+    "as_sailed_modelled": "the same track re-timed by the vessel model from the same departure (same keys)",
+    "bias": "the model's bias on this voyage, modelled minus AIS: time_h, time_pct, fuel_t, fuel_pct, co2_t, co2_pct",
+    "reference": "the role every delta is measured against (as_sailed_modelled; as_sailed when the model could not run)",
+    "optimal, safe_optimal, min_distance, deviation": "the alternatives, sailed by the same model (same keys)",
+    "proposed": "the recommended alternative or null (never one that is not sea-only or has more no_weather_h)",
+    "comparison": "per role: the values and d_<metric> deltas (route minus reference), d_<metric>_pct",
+    "optimality": "per route: gap_h (time-optimal minus it), tolerance_h (the mesh's discretisation), holds, constraint",
+    "findings": "plain-language findings, the bias against the claimed savings in words",
+}
+
+
 def audit_summary(inputs: AuditInputs, result: dict) -> dict:
-    """The CLI's JSON object: one key per route (historical, deviation, optimal, min_distance),
-    plus the voyage, the proposed alternative, the comparison table and the findings."""
+    """The CLI's JSON object (:data:`JSON_KEYS`): one key per route (``as_sailed``,
+    ``as_sailed_modelled``, ``deviation``, ``optimal``, ``safe_optimal``, ``min_distance``), the
+    model's bias, the reference of the deltas, the voyage, the proposed alternative, the comparison
+    table and the findings."""
     out = {
         "audit_id": audit_id_of(inputs),
         "voyage": {
@@ -389,11 +403,15 @@ def audit_summary(inputs: AuditInputs, result: dict) -> dict:
         "operator_profile": inputs.profile_name,
         "weather": {"files": inputs.weather_files, **{k: v for k, v in inputs.weather_meta.items() if isinstance(v, (str, int, float))}},
     }
+    out["calm_water_speed"] = result.get("calm_water")
     for role, ev in result["evaluations"].items():
         out[role] = ev.to_dict(waypoints=True)
+    out["bias"] = result.get("bias") or {}
+    out["reference"] = result.get("reference")
     out["proposed"] = result["proposed"]
     table = result["table"].replace({np.nan: None})
     out["comparison"] = {role: row for role, row in table.to_dict(orient="index").items()}
+    out["optimality"] = result.get("optimality") or []
     out["findings"] = result["findings"]
     return out
 
@@ -416,6 +434,13 @@ def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str = "bowd
             "Track: AIS fixes thinned to one per 5 min; speeds made good between kept fixes.",
             "Weather met: bilinear over sea points, linear in time, sampled every <= 15 min of sailing.",
             "Fuel and emissions: STEAM2 with the wave power increase (routing/emissions.py).",
+            "Like for like: the sailed track re-timed by the vessel model (as sailed, modelled) and every alternative are sailed "
+            "by one model from the same departure in the same weather: the voyage's calm-water speed (its AIS speeds in low "
+            "sea states, else the profile's) minus the speed loss, never below the floor. Deltas are against the modelled "
+            "track; its difference from the AIS times is the model's bias on this voyage.",
+            "Sea only: every leg of every route passes one land check (each great-circle leg against every 30\" land pixel it "
+            "touches, land tolerated within 1.5 nmi of a berth); legs over land are replaced by the shortest sea path, and a "
+            "route that cannot be repaired is not proposed.",
             "Alternatives: time-optimal (smoothed) and minimum-distance A* routes for the same departure and vessel; "
             "the time-optimal A* route under the vessel's operator and IMO limits (safe-optimal: cells over the limits "
             "forbidden, or penalised when no route avoids them); "
@@ -547,12 +572,17 @@ def demo_step(ctx) -> dict:
     ctx.echo(f"  voyage {v['voyage_id']} (MMSI {v['mmsi']}, {v.get('origin', '?')} -> {v.get('destination', '?')}) passed "
              f"{pick['dist_nmi']:.0f} nmi from storm {storms[0].get('name', '')}'s centre at its peak")
     for role, row in out["comparison"].items():
-        ctx.echo(f"  {role:<13} {row['time_h']:5.1f} h {row['dist_nmi']:6.1f} nmi  max Hs {row['max_hs_m']:4.1f} m  "
+        ctx.echo(f"  {role:<18} {row['time_h']:5.1f} h {row['dist_nmi']:6.1f} nmi  max Hs {row['max_hs_m']:4.1f} m  "
                  f"{row['exposure_h']:4.1f} h over limits  {int(row['n_safety_events'])} IMO event(s)  fuel {row['fuel_t']:6.2f} t")
-    tail = [f for f in out["findings"][3:] if f.startswith(("Proposed alternative", "No alternative", "no A* route"))]
+    b = out.get("bias") or {}
+    if b:
+        ctx.echo(f"  model bias (modelled - AIS): time {b.get('time_h', 0):+.2f} h ({b.get('time_pct') or 0:+.1f} %), "
+                 f"fuel {b.get('fuel_t', 0):+.2f} t ({b.get('fuel_pct') or 0:+.1f} %); deltas are against {out.get('reference')}")
+    tail = [f for f in out["findings"][3:] if f.startswith(("Proposed alternative", "No alternative", "no A* route"))
+            or "within the model's error" in f or "; not proposed: " in f]
     for line in out["findings"][1:3] + (tail or out["findings"][-1:]):
         ctx.echo(f"  {line}")
     ctx.echo(f"  audit report: {report}")
     return {"voyage_id": v["voyage_id"], "proposed": out["proposed"], "report": str(report),
-            "historical": {k: out["historical"][k] for k in ("max_hs_m", "exposure_h", "n_safety_events", "time_h", "fuel_t")},
-            "n_imo_events": out["historical"]["n_imo_events"]}
+            "as_sailed": {k: out["as_sailed"][k] for k in ("max_hs_m", "exposure_h", "n_safety_events", "time_h", "fuel_t")},
+            "bias": out.get("bias"), "n_imo_events": out["as_sailed"]["n_imo_events"]}

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipelines.audit import AuditError, lane_land_check, weather_from_workspace
+from pipelines.audit import AuditError, weather_from_workspace
 from pipelines.times import utc_or_none
 from thresholds.errors import StormlaneError
 from pipelines.vessels import DEFAULT_VESSEL, workspace_lane_profiles
@@ -128,17 +128,26 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     Returns
     -------
     dict
-        ``lane_id``, ``depart_utc``, ``vessel_profile``, ``lane`` and ``deviation`` (route and
-        evaluation summaries), ``steps`` (status of every waypoint), ``metrics`` (the seed
-        paper's comparison metrics, deviation against lane) and ``deviation_id``.
+        ``lane_id``, ``depart_utc``, ``vessel_profile``, ``speed_kn`` (the lane's typical AIS speed,
+        the model's calm-water speed), ``reference`` (``"lane"``), ``lane`` and ``deviation`` (route
+        and evaluation summaries: the lane as planned and the deviation, both sailed by the vessel
+        model from the departure, legs over land repaired), ``proposed`` (False when the deviation is
+        not sea-only or has more time without weather than the lane; ``notes`` says why), ``steps``
+        (status of every waypoint), ``metrics`` (the seed paper's comparison metrics, deviation
+        against lane) and ``deviation_id``.
     """
     from pipelines.config import load_operator_profile, load_vessel
     from pipelines.routing_weather import field_from_dataset
     from pipelines.storage import open_workspace
     from pipelines.storage.lanes import read_lane_centroids, read_lanes
     from pipelines.storage.results import write_deviation
-    from routing.deviate import deviate_lane, lane_route, threshold_inputs
+    from pipelines.nightly import lane_speed_vessel
+    from routing.astar import ShipModel
+    from routing.audit import not_proposable
+    from routing.compare import lane_departure, plan_bbox
+    from routing.deviate import lane_route, threshold_inputs
     from routing.evaluate import comparison_metrics, evaluate_route
+    from routing.planner import RouteRequest, plan_routes
     from routing.sampling import PointSampler
 
     db = Path(db)
@@ -185,25 +194,35 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
                 raise DeviationInputError(str(err)) from None
     check_lane_in_weather(ds, lane, str(lane_id), t0, window_end, label)
     vessel_name = vessel or DEFAULT_VESSEL
-    ves = load_vessel(vessel_name)
     limits = load_operator_profile(profile)
-    sampler = PointSampler.from_field(field_from_dataset(ds))
+    field_ = field_from_dataset(ds)
+    sampler = PointSampler.from_field(field_)
+    ves = lane_speed_vessel(load_vessel(vessel_name), lane)
     weather_at, check, cells = threshold_inputs(sampler, ves, limits)
     lat, lon, spd = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy()
-    lane_r = lane_route(lat, lon, spd, t0, default_speed_kn=ves.speed_kn, properties={"lane_id": str(lane_id)})
+    # a lane that meets no weather at all would read 0 h over the limits: refuse it first
+    check_lane_meets_weather(evaluate_route(lane_route(lat, lon, spd, t0, default_speed_kn=ves.speed_kn), sampler, ves,
+                                            limits=limits).summary, lane, str(lane_id), label)
+    start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
+    req = RouteRequest(start, goal, t0, ShipModel.from_vessel(ves), vessel_name=vessel_name, bbox=plan_bbox(start, goal, lat, lon, field_))
+    try:
+        plan = plan_routes(req, field_)
+    except StormlaneError as err:
+        raise DeviationInputError(f"lane {lane_id}: the vessel model's mesh cannot be built: {err}") from None
+    pair = lane_departure(lat, lon, spd, t0, plan, weather_at=weather_at, check=check, cells=cells, properties={"lane_id": str(lane_id)})
+    lane_r, dev = pair["lane"], pair["deviation"]
     ev_lane = evaluate_route(lane_r, sampler, ves, limits=limits)
     lane_summary = ev_lane.to_dict(waypoints=True)
-    check_lane_meets_weather(lane_summary, lane, str(lane_id), label)
-    dev = deviate_lane(lat, lon, spd, t0, weather_at=weather_at, check=check, cells=cells, leg_at_sea=lane_land_check(lane),
-                       default_speed_kn=ves.speed_kn, properties={"lane_id": str(lane_id)})
     ev_dev = evaluate_route(dev, sampler, ves, limits=limits)
     dev_summary = {**ev_dev.to_dict(waypoints=True), "n_deviated": dev.properties["n_deviated"],
-                   "n_unresolved": dev.properties["n_unresolved"], "n_legs_adverse": dev.properties["n_legs_adverse"]}
+                   "n_unresolved": dev.properties["n_unresolved"], "n_legs_adverse": dev.properties["n_legs_adverse"],
+                   "land_repairs": dev.properties.get("land_repairs", [])}
     deviation_id = f"{lane_id}@{t0.strftime('%Y-%m-%dT%H:%MZ')}"
     if store:
         with open_workspace(db) as ws:
             write_deviation(ws, deviation_id, lane_id, t0, ev_dev.route)
-    notes = [not_safer_note(lane_summary, dev_summary)]
+    why = not_proposable(dev_summary, lane_summary)
+    notes = [f"the deviation is not proposed: {why}" if why else None, not_safer_note(lane_summary, dev_summary)]
     if dev.time_utc[-1] > sampler.end_utc:
         notes.append(f"the deviation arrives {dev.time_utc[-1].isoformat()}, after the weather ends ({sampler.end_utc.isoformat()})")
     notes = [n for n in notes if n]
@@ -213,6 +232,9 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         "lane_id": str(lane_id),
         "depart_utc": t0.isoformat(),
         "vessel_profile": vessel_name,
+        "speed_kn": ves.speed_kn,
+        "reference": "lane",
+        "proposed": why is None,
         "weather": {"files": files, **{k: v for k, v in meta.items() if isinstance(v, (str, int, float))}},
         "lane": lane_summary,
         "deviation": dev_summary,

@@ -24,12 +24,14 @@ What an operations team runs every night, unattended (issue 7):
    for each adverse departure of the lane, the cargo-safe deviation
    (:func:`routing.deviate.deviate_lane`), the time-optimal and minimum-distance A* routes and
    the safe time-optimal route under the vessel's limits (:func:`routing.planner.plan_routes`
-   with ``safety="hard"``, falling back to ``soft``), and the evaluation of the lane as sailed (historical)
+   with ``safety="hard"``, falling back to ``soft``), the lane as planned (its centroid path, legs
+   over land repaired, sailed at the lane's typical AIS speed minus the speed loss: the same vessel
+   model as the A* routes, :func:`routing.compare.lane_departure`), and the evaluation of the lane
    and of the alternatives in the same weather (:func:`routing.evaluate.evaluate_route`,
    :func:`routing.audit.propose`). A failure of one lane-departure (unreachable destination, a
    lane outside the weather ...) marks it ``failed`` with the message; the rest completes.
 5. **Rank** (:func:`assemble`, pure): by risk avoided (hours over an operator limit or in an IMO
-   situation, historical minus proposed), then IMO events avoided, then cost (extra sailing
+   situation, lane as planned minus proposed), then IMO events avoided, then cost (extra sailing
    time, extra fuel).
 6. **Store** (:func:`store_night`, I/O) in the ``nightly_*`` tables keyed by run id (a rerun with
    the same inputs replaces the same rows), and **report** (:func:`write_report`, I/O): the
@@ -80,8 +82,11 @@ VOLATILE_PROPERTIES = ("search_s",)
 #: pure steps (screen, per-lane work, ranking) never retry: a deterministic error would repeat.
 IO_RETRY_DELAYS_S = (2, 5)
 FETCH_RETRY_DELAYS_S = (2, 5, 15)
-#: Route roles evaluated for an adverse lane-departure, in report order.
-ROLES = ("historical", "deviation", "safe_optimal", "optimal", "min_distance")
+#: Route roles evaluated for an adverse lane-departure, in report order; every delta is against
+#: ``lane``: the lane as planned (its centroids, legs over land repaired) sailed at the lane's
+#: typical AIS speed minus the vessel model's speed loss, exactly as the alternatives are sailed.
+ROLES = ("lane", "deviation", "safe_optimal", "optimal", "min_distance")
+REFERENCE = "lane"
 
 
 class NightlyError(StormlaneError):
@@ -933,10 +938,10 @@ def reroute_lane(job: LaneJob) -> list[dict]:
         ``error``. A departure that raises is ``failed`` with ``"<Error>: message"``; the
         others still run.
     """
-    from pipelines.audit import lane_land_check
     from routing.astar import ShipModel
     from routing.audit import propose
-    from routing.deviate import deviate_lane, lane_route, threshold_inputs
+    from routing.compare import lane_departure, optimality_gaps, plan_bbox
+    from routing.deviate import threshold_inputs
     from routing.evaluate import comparison_table, evaluate_route
     from routing.planner import RouteRequest, plan_routes
     from routing.sampling import PointSampler
@@ -948,8 +953,9 @@ def reroute_lane(job: LaneJob) -> list[dict]:
         vessel = lane_speed_vessel(job.vessel, c)
         sampler = PointSampler.from_field(job.weather)
         weather_at, check, cells = threshold_inputs(sampler, vessel, job.limits)
-        leg_at_sea = lane_land_check(c)
         ship = ShipModel.from_vessel(vessel, job.speed_loss)
+        start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
+        bbox = plan_bbox(start, goal, lat, lon, job.weather)
     except Exception as err:  # noqa: BLE001 - the whole lane fails, the night goes on
         log.warning("lane %s: setup failed: %s", job.path_id, err)
         return [{"path_id": job.path_id, "depart_utc": t, "status": "failed", "error": f"{type(err).__name__}: {err}"}
@@ -957,15 +963,12 @@ def reroute_lane(job: LaneJob) -> list[dict]:
     props = {"lane_id": job.lane_id, "path_id": job.path_id, "vessel": vessel.name}
     for t in job.departures:
         try:
-            hist = lane_route(lat, lon, spd, t, default_speed_kn=vessel.speed_kn, properties=props)
-            dev = deviate_lane(lat, lon, spd, t, weather_at=weather_at, check=check, cells=cells, leg_at_sea=leg_at_sea,
-                               default_speed_kn=vessel.speed_kn, properties=props)
-            req = RouteRequest((float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1])), t, ship, vessel_name=vessel.name)
+            req = RouteRequest(start, goal, t, ship, vessel_name=vessel.name, bbox=bbox)
             if job.safety == "none":
                 plan = plan_routes(req, job.weather)
             else:
                 plan = plan_routes(req, job.weather, safety=job.safety, vessel=vessel, limits=job.limits)
-            routes = {"historical": hist, "deviation": dev}
+            routes = lane_departure(lat, lon, spd, t, plan, weather_at=weather_at, check=check, cells=cells, properties=props)
             if "safe_optimal_smoothed" in plan.routes:
                 routes["safe_optimal"] = _clean_route(plan.routes["safe_optimal_smoothed"], "safe_optimal")
             routes["optimal"] = _clean_route(plan.routes["optimal_smoothed"], "optimal")
@@ -973,7 +976,8 @@ def reroute_lane(job: LaneJob) -> list[dict]:
             evs = {role: evaluate_route(r, sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss)
                    for role, r in routes.items()}
             out.append({"path_id": job.path_id, "depart_utc": t, "status": "adverse", "evaluations": evs,
-                        "table": comparison_table(evs, reference="historical"), "proposed": propose(evs), "error": None})
+                        "table": comparison_table(evs, reference=REFERENCE), "proposed": propose(evs, reference=REFERENCE),
+                        "optimality": optimality_gaps(routes, plan), "error": None})
         except Exception as err:  # noqa: BLE001 - one departure fails, the others run
             log.warning("lane %s departing %s failed: %s", job.path_id, t, err)
             out.append({"path_id": job.path_id, "depart_utc": t, "status": "failed", "error": f"{type(err).__name__}: {err}"})
@@ -995,9 +999,9 @@ class NightResult:
 
 
 def _risk(outcome: dict) -> dict:
-    """Risk avoided and cost of the proposed alternative against the historical lane."""
+    """Risk avoided and cost of the proposed alternative against the lane as planned (same model)."""
     evs = outcome.get("evaluations") or {}
-    hist = evs.get("historical")
+    hist = evs.get(REFERENCE)
     prop = outcome.get("proposed")
     if hist is None or prop is None:
         return {"risk_avoided_h": 0.0, "events_avoided": 0, "delta_time_h": None, "delta_fuel_t": None, "delta_co2_t": None}
@@ -1011,7 +1015,7 @@ def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightR
     """Merge the screen with the per-lane outcomes, rank, and build the rows to store (pure).
 
     Ranking: adverse lane-departures by risk avoided (hours over an operator limit or in an IMO
-    situation, historical minus proposed; 0 without a proposal), then IMO events avoided, then
+    situation, lane as planned minus proposed; 0 without a proposal), then IMO events avoided, then
     the cost (extra hours, then extra fuel), then lane and time; failed ones after them.
     """
     by_key = {(o["path_id"], pd.Timestamp(o["depart_utc"])): o for o in outcomes}
@@ -1146,7 +1150,8 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
             lane_id=row["path_id"], origin=row["origin"], destination=row["destination"], depart_utc=row["depart_utc"],
             rules=rules, evaluations=evs, table=case["outcome"]["table"], proposed=case["outcome"]["proposed"],
             weather_ds=night.weather_ds, exports=links, risk_avoided=row["risk_avoided_h"],
-            hs_limit_m=_hs_limit_m(night, row["path_id"]), vessel=_vessel_name(night, row["path_id"])))
+            hs_limit_m=_hs_limit_m(night, row["path_id"]), vessel=_vessel_name(night, row["path_id"]),
+            optimality=case["outcome"].get("optimality", ())))
     vessel = _most_common_vessel(night)
     limits = _limits_of(night, vessel)
     profiles = sorted({p.vessel_profile for p in night.paths})
@@ -1158,12 +1163,17 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
             f"Run id {night.run_id}: digest of the forecast time, departures, lanes, weather values, vessels, limits and model.",
             "Screen: lane centroids timed from the departure at their typical speeds; weather of the nearest grid cell at the "
             "nearest time (DuckDB ASOF join); operator limits and IMO MSC.1/Circ.1228 at every centroid with the course to the next.",
+            "Like for like: every route of a case is sailed by one vessel model from the same departure in the same weather: "
+            f"the lane's typical AIS speed (median of its centroids' speeds) minus the {night.params.speed_loss} speed loss, never "
+            "below the profile's floor. The reference of every delta is the lane as planned (its centroid path, sailed so).",
+            "Sea only: every leg of every route passes one land check (each great-circle leg against every 30\" land pixel it "
+            "touches, land tolerated within 1.5 nmi of a berth); legs over land are replaced by the shortest sea path.",
             "Deviation: Spyrou-Sioula et al. 2022, Alg. 1 (R-tree nearest passing cell within 3 h), legs kept at sea, ETAs recomputed.",
             f"A*: time-optimal (smoothed) and minimum-distance routes on a mesh at the weather's spacing, {night.params.speed_loss} "
             "speed loss at the lane's typical speed"
             + ("." if night.params.safety == "none" else f"; safe time-optimal route under the vessel's limits ({night.params.safety} "
                "constraints, soft when hard finds no route)."),
-            "Ranking: risk avoided (hours over a limit or in an IMO situation, historical minus proposed), then IMO events "
+            "Ranking: risk avoided (hours over a limit or in an IMO situation, lane as planned minus proposed), then IMO events "
             "avoided, then extra time and fuel.",
             f"Vessel profiles by lane (AIS ship type of the lane's voyages): {', '.join(profiles)}; the provenance lists "
             f"{vessel.name}, the most common.",
@@ -1215,7 +1225,7 @@ def store_night(db, night: Night, result: NightResult, run: dict) -> dict:
 
 
 def summary_of(night: Night, result: NightResult, report: dict | None, timings: dict, top: int = 10) -> dict:
-    """The CLI's JSON object."""
+    """The CLI's JSON object (``reference`` names what every delta is measured against)."""
     d = result.departures
     ranked = d[d["rank"].notna()].sort_values("rank").head(top)
     return {
@@ -1230,6 +1240,8 @@ def summary_of(night: Night, result: NightResult, report: dict | None, timings: 
         "exports": (report or {}).get("exports", 0),
         "out": str(night.out),
         "timings_s": timings,
+        "reference": "lane: the lane as planned, sailed by the same vessel model (the lane's typical AIS speed minus the speed "
+                     "loss) from the same departure in the same weather; every delta is proposed minus it",
         "top": [{"rank": int(r["rank"]), "lane": r["path_id"], "depart_utc": r["depart_utc"].isoformat(), "status": r["status"],
                  "rules": r["rules"], "proposed": r["proposed"], "risk_avoided_h": r["risk_avoided_h"],
                  "delta_time_h": r["delta_time_h"], "error": r["error"]} for r in ranked.to_dict("records")],

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from dashboards.model import Provenance, RouteSet, SpeedLossCurve, WeatherSnapshot, software_versions
+from dashboards.model import REFERENCE_ROLES, Provenance, RouteSet, SpeedLossCurve, WeatherSnapshot, software_versions
 
 
 def weather_snapshot(ds, time_utc, bbox=None, pad_deg: float = 1.0, product: str | None = None) -> WeatherSnapshot:
@@ -82,18 +82,58 @@ def speed_loss_curve(vessel, model: str, hs_max_m: float = 8.0, step_m: float = 
     return SpeedLossCurve(vessel=vessel.name, model=model, speed_kn=float(vessel.speed_kn), table=pd.concat(frames, ignore_index=True), min_speed_kn=getattr(vessel, "min_speed_kn", None))
 
 
-def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = None, proposed: str | None = None, weather: WeatherSnapshot | None = None, exports: dict | None = None, hs_limit_m: float | None = None) -> RouteSet:
+def reference_of(evaluations: dict) -> str | None:
+    """The like-for-like reference among the roles (``lane``, ``as_sailed_modelled``, then older names)."""
+    return next((r for r in REFERENCE_ROLES if r in evaluations), None)
+
+
+def route_notes_of(evaluations: dict, reference: str | None, optimality=()) -> dict:
+    """Per role, what the table alone does not say: why a route is not proposed (not sea-only,
+    more time without weather than the reference), legs repaired around land, and a route the
+    time-optimal one is slower than beyond the mesh's discretisation (or a safety constraint)."""
+    from routing.audit import not_proposable
+
+    notes: dict = {}
+    ref = evaluations[reference].summary if reference in evaluations else {}
+    for role, ev in evaluations.items():
+        parts = []
+        why = not_proposable(ev.summary, ref) if role != reference and ref else None
+        if why:
+            parts.append(f"not proposed: {why}")
+        fixes = ev.route.properties.get("land_repairs") or []
+        if fixes:
+            parts.append(f"{len(fixes)} leg(s) over land replaced by the shortest sea path (+{sum(f['added_nmi'] for f in fixes):.1f} nmi)")
+        if ev.summary.get("sea_only") is False and not why:
+            parts.append(f"legs {ev.summary.get('land_legs')} cross land ({ev.summary.get('land_nmi', 0):.1f} nmi)")
+        if parts:
+            notes[role] = "; ".join(parts)
+    for gap in optimality:
+        if gap["constraint"] and gap["gap_h"] < 0:
+            notes[gap["route"]] = "; ".join(filter(None, [notes.get(gap["route"]), f"slower than the time-optimal route by "
+                                                          f"{-gap['gap_h']:.2f} h: its search had a safety constraint active ({gap['constraint']})"]))
+        elif not gap["holds"]:
+            notes["optimal"] = "; ".join(filter(None, [notes.get("optimal"), f"{gap['gap_h']:.2f} h slower than the "
+                                                       f"{gap['route'].replace('_', ' ')} route, beyond the mesh's discretisation "
+                                                       f"({gap['tolerance_h']:.2f} h)"]))
+    return notes
+
+
+def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = None, proposed: str | None = None, weather: WeatherSnapshot | None = None, exports: dict | None = None, hs_limit_m: float | None = None, optimality=()) -> RouteSet:
     """A report ``RouteSet`` from ``routing.evaluate`` results keyed by role.
 
-    ``table`` is :func:`routing.evaluate.comparison_table` (computed here when absent), events
-    and exposure come from :func:`routing.evaluate.events_frame` / ``exposure_frame``; routes
-    are the evaluated ones (weather met filled in).
+    ``table`` is :func:`routing.evaluate.comparison_table` against the reference (computed here
+    when absent), events and exposure come from :func:`routing.evaluate.events_frame` /
+    ``exposure_frame``; routes are the evaluated ones (weather met filled in); the notes come
+    from :func:`route_notes_of` (``optimality``: :func:`routing.compare.optimality_gaps`).
     """
     from routing.evaluate import comparison_table, events_frame, exposure_frame
 
-    if table is None and "historical" in evaluations:
-        table = comparison_table(evaluations, reference="historical")
+    reference = reference_of(evaluations)
+    if table is None and reference is not None:
+        table = comparison_table(evaluations, reference=reference)
     return RouteSet(
+        reference=reference,
+        notes=route_notes_of(evaluations, reference, optimality),
         routes={role: ev.route for role, ev in evaluations.items()},
         metrics=table,
         events=events_frame(evaluations),
@@ -168,8 +208,11 @@ def provenance(*, weather_meta: dict | None = None, weather_ds=None, vessel=None
     )
 
 
-def _snapshot_for(evaluations: dict, weather_ds, reference: str = "historical") -> tuple[WeatherSnapshot | None, dict]:
-    """Weather slice at the time the reference route meets its highest Hs, cut to all routes."""
+def _snapshot_for(evaluations: dict, weather_ds, reference: str | None = None) -> tuple[WeatherSnapshot | None, dict]:
+    """Weather slice at the time the reference route meets its highest Hs (the AIS track in an
+    audit, the lane as planned at night), cut to all routes."""
+    if reference is None:
+        reference = "as_sailed" if "as_sailed" in evaluations else reference_of(evaluations)
     ref = evaluations.get(reference) or next(iter(evaluations.values()), None)
     if ref is None:
         return None, worst_point_empty()
@@ -221,7 +264,7 @@ def voyage_audit_model(out: dict, *, mmsi: int, static=None, voyage: dict | None
     evaluations = out["evaluations"]
     snapshot, _ = _snapshot_for(evaluations, weather_ds)
     routes = route_set_from_evaluations(evaluations, out.get("table"), out.get("proposed"), weather=snapshot, exports=exports)
-    hist = evaluations["historical"].route
+    hist = evaluations["as_sailed" if "as_sailed" in evaluations else "historical"].route
     static = dict(static) if static is not None else {}
     voyage = dict(voyage or {})
     return VoyageAudit(
@@ -234,16 +277,17 @@ def voyage_audit_model(out: dict, *, mmsi: int, static=None, voyage: dict | None
         provenance=provenance(weather_meta=weather_meta, weather_ds=weather_ds, vessel=vessel, speed_loss_model=speed_loss_model,
                               limits=limits, profile_name=profile_name, ais_sources=ais_sources, methods=methods),
         speed_loss=speed_loss_curve(vessel, speed_loss_model) if vessel is not None else None,
+        bias=dict(out.get("bias") or {}), calm_water=dict(out.get("calm_water") or {}),
     )
 
 
 def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, rules=(), evaluations: dict | None = None,
                          table: pd.DataFrame | None = None, proposed: str | None = None, weather_ds=None,
                          exports: dict | None = None, error: str | None = None, risk_avoided: float | None = None,
-                         hs_limit_m: float | None = None, vessel: str | None = None):
+                         hs_limit_m: float | None = None, vessel: str | None = None, optimality=()):
     """One nightly lane-departure for the report: adverse with its evaluated routes, or failed with ``error``.
 
-    The worst point is where the historical (lane) route meets its highest Hs; the map's weather
+    The worst point is where the lane as planned meets its highest Hs; the map's weather
     slice is taken at that time when ``weather_ds`` is given. ``hs_limit_m`` is the lane's vessel's
     Hs limit (drawn on its map and plot).
     """
@@ -255,7 +299,8 @@ def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, 
     if not evaluations:
         raise ValueError(f"lane {lane_id}: an adverse lane-departure needs its evaluated routes")
     snapshot, worst = _snapshot_for(evaluations, weather_ds)
-    routes = route_set_from_evaluations(evaluations, table, proposed, weather=snapshot, exports=exports, hs_limit_m=hs_limit_m)
+    routes = route_set_from_evaluations(evaluations, table, proposed, weather=snapshot, exports=exports, hs_limit_m=hs_limit_m,
+                                        optimality=optimality)
     return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="adverse",
                          rules=list(rules), worst_time_utc=worst["time_utc"], worst_lat_deg=worst["lat_deg"],
                          worst_lon_deg=worst["lon_deg"], worst_hs_m=worst["hs_m"], routes=routes, risk_avoided=risk_avoided,

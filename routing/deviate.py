@@ -336,6 +336,7 @@ def deviate_lane(
     check: ThresholdCheck,
     cells: SafeCellIndex,
     leg_at_sea: LegAtSea | None = None,
+    repair: Callable | None = None,
     default_speed_kn: float | None = None,
     horizon_h: float = SEARCH_HORIZON_H,
     max_candidates: int = MAX_CANDIDATES,
@@ -361,6 +362,12 @@ def deviate_lane(
         R-tree index of the weather cells passing the heading-independent limits.
     leg_at_sea : callable, optional
         Land-crossing test of a leg; ``None`` disables it (only for open-sea tests).
+    repair : callable, optional
+        ``repair(lat, lon) -> routing.seapath.RepairResult``: after the walk, every leg that still
+        crosses land (a lane leg over a cape, the leg into the arrival berth) is replaced by the
+        shortest sea path (:func:`routing.seapath.repair_route`); when one cannot be repaired the
+        route says so (``properties["sea_only"]`` False, ``"not_proposed"`` the reason) and must
+        not be proposed. ``None`` keeps the walk's legs (open-sea tests).
     default_speed_kn : float, optional
         Speed used where a centroid has none.
     horizon_h : float, default 3
@@ -516,6 +523,22 @@ def deviate_lane(
     times = pd.DatetimeIndex([s.time_utc for s in steps])
     keys = sorted(set().union(*[w.keys() for w in weathers]))
     weather = {k: np.array([float(w[k][0]) if k in w else np.nan for w in weathers]) for k in keys}
+    leg_speed = np.array([s.speed_kn for s in steps[1:]])
+    step_rows = [
+        {
+            "seq": s.seq,
+            "status": s.status,
+            "rules_fired": list(s.rules_fired),
+            "moved_nmi": round(s.moved_nmi, 4),
+            "candidates_tried": s.candidates_tried,
+            "leg_rules_fired": list(s.leg_rules_fired),
+            "centroid": [s.centroid_lat_deg, s.centroid_lon_deg],
+        }
+        for s in steps
+    ]
+    sea_props = {}
+    if repair is not None:
+        out_lat, out_lon, times, leg_speed, weather, sea_props = _repaired(repair(out_lat, out_lon), leg_speed, t0, weather, step_rows)
     props = dict(properties or {})
     props.update(
         {
@@ -525,32 +548,34 @@ def deviate_lane(
             "max_candidates": max_candidates,
             "n_deviated": sum(s.status == "deviated" for s in steps),
             "n_unresolved": sum(s.status == "unresolved" for s in steps),
-            "n_endpoint_adverse": sum(s.status == "endpoint" and bool(s.rules_fired) for s in steps),
+            "n_endpoint_adverse": sum(r["status"] == "endpoint" and bool(r["rules_fired"]) for r in step_rows),
             "n_legs_adverse": sum(bool(s.leg_rules_fired) for s in steps),
             "skipped_centroids": skipped,
-            "steps": [
-                {
-                    "seq": s.seq,
-                    "status": s.status,
-                    "rules_fired": list(s.rules_fired),
-                    "moved_nmi": round(s.moved_nmi, 4),
-                    "candidates_tried": s.candidates_tried,
-                    "leg_rules_fired": list(s.leg_rules_fired),
-                    "centroid": [s.centroid_lat_deg, s.centroid_lon_deg],
-                }
-                for s in steps
-            ],
+            "steps": step_rows,
+            **sea_props,
         }
     )
-    return Route(
-        name=name,
-        lat_deg=out_lat,
-        lon_deg=out_lon,
-        time_utc=times,
-        leg_speed_kn=np.array([s.speed_kn for s in steps[1:]]),
-        weather=weather,
-        properties=props,
-    )
+    return Route(name=name, lat_deg=out_lat, lon_deg=out_lon, time_utc=times, leg_speed_kn=leg_speed, weather=weather, properties=props)
+
+
+def _repaired(rr, leg_speed, t0, weather, step_rows):
+    """The walk's polyline after the land repair: points, ETAs (each leg at its speed, from the
+    departure), leg speeds, weather (points added by a repair have none yet: NaN) and the
+    properties saying what was repaired or why the route is not sea-only."""
+    src = np.asarray(rr.source_leg)
+    orig = np.cumsum(src < 0) - 1  # index of the last original waypoint at or before each point
+    speed = np.where(src[1:] >= 0, leg_speed[np.maximum(src[1:], 0)], leg_speed[np.maximum(orig[1:] - 1, 0)])
+    d = np.asarray(haversine_nmi(rr.lat_deg[:-1], rr.lon_deg[:-1], rr.lat_deg[1:], rr.lon_deg[1:]), dtype=float).reshape(-1)
+    hours = np.concatenate([[0.0], np.cumsum(d / speed)])
+    times = pd.DatetimeIndex(t0 + pd.to_timedelta(hours, unit="h"))
+    new = {k: np.where(src < 0, v[np.maximum(orig, 0)], np.nan) for k, v in weather.items()}
+    for fix in rr.repaired_legs:  # the arrival's step: its leg in is repaired, not over land
+        row = step_rows[fix["leg"] + 1]
+        row["rules_fired"] = [r for r in row["rules_fired"] if r != "leg_crosses_land"]
+        row["land_repair"] = {"added_nmi": fix["added_nmi"], "points": fix["points"]}
+    props = {"sea_only": bool(rr.sea_only), "land_repairs": list(rr.repaired_legs),
+             "not_proposed": None if rr.sea_only else f"not sea-only: {rr.reason}"}
+    return rr.lat_deg, rr.lon_deg, times, speed, new, props
 
 
 def threshold_inputs(sampler, vessel, limits=None):

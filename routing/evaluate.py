@@ -373,11 +373,28 @@ def evaluate_route(
         "n_imo_events": sum(e["kind"] == "imo" for e in events),
         "n_operator_events": sum(e["kind"] == "operator" for e in events),
         "no_weather_h": float(samples.loc[samples["no_data"], "dt_h"].sum()) if len(samples) else 0.0,
+        **land_summary(route),
         "rules_not_evaluated": skipped,
         "speed_loss_warnings": model_warnings,
         "weather_vars": sorted(weather),
     }
     return RouteEvaluation(evaluated, samples, legs, summary, events)
+
+
+def land_summary(route: Route) -> dict:
+    """The one land check (:func:`routing.land.legs_at_sea`, berths = the route's ends) of a route:
+    ``sea_only``, ``land_legs`` (indices of legs touching land pixels outside the berth radius) and
+    ``land_nmi`` (their length over land, sampled every 0.05 nmi)."""
+    from routing.land import land_nmi, legs_at_sea
+
+    if route.n_waypoints < 2:
+        return {"sea_only": True, "land_legs": [], "land_nmi": 0.0}
+    ok = legs_at_sea(route.lat_deg, route.lon_deg)
+    bad = np.flatnonzero(~ok)
+    ends = [(route.lat_deg[0], route.lon_deg[0]), (route.lat_deg[-1], route.lon_deg[-1])]
+    lat, lon = route.lat_deg, route.lon_deg
+    over = sum(float(land_nmi(lat[k : k + 2], lon[k : k + 2], berths=ends)[0]) for k in bad)
+    return {"sea_only": bool(ok.all()), "land_legs": bad.tolist(), "land_nmi": round(over, 3)}
 
 
 def _adverse_windows(samples: pd.DataFrame, mask: np.ndarray) -> list[tuple[pd.Timestamp, pd.Timestamp]]:

@@ -9,7 +9,10 @@ raster) has no land pixel overlapping it (``land_frac_max`` relaxes this).
 Edges follow a stencil of primitive steps ``(di, dj)``: 8 (king moves), 16 (+ knight moves),
 24 (+ (1, 3) moves) or 48 (every primitive step with max(|di|, |dj|) <= 4, angular resolution
 3.2-14.0 deg, Grifoll et al. 2022 section 2.2). **An edge is allowed only if every cell its
-segment touches is sea** (corner contacts included), where SIMROUTE tests only the end node.
+segment touches is sea** (corner contacts included), where SIMROUTE tests only the end node,
+and its great circle touches no land pixel: the one land check's pixel test
+(:func:`routing._land.gc_leg_ocean`, also used by smoothing and by :mod:`routing.land` for every
+other route), run for edges near land (cells with a land pixel within a margin that holds the arc).
 
 References
 ----------
@@ -220,7 +223,7 @@ class Mesh:
         if self.land_check not in LAND_CHECKS:
             raise ValueError(f"land_check must be one of {LAND_CHECKS}, got {self.land_check!r}")
         steps = stencil(self.edges)
-        clean = np.ones(shape, dtype=bool) if self.land is None else self.land.land_fraction(self.grid) <= 0.0
+        clean = np.ones(shape, dtype=bool) if self.land is None else self.land.land_fraction(self.grid, self._clean_margin_px(steps)) <= 0.0
         object.__setattr__(self, "sea", sea)
         object.__setattr__(self, "cell_ok", cell_ok)
         object.__setattr__(self, "cell_clean", clean)
@@ -233,6 +236,21 @@ class Mesh:
             px[0], px[1], px[2], px[3], px[4], self.land_check == "end_node",
         )  # fmt: skip
         object.__setattr__(self, "allowed", allowed)
+
+    def _clean_margin_px(self, steps) -> int:
+        """Pixels by which a cell is grown before it is called land-free (``cell_clean``).
+
+        An edge is a great circle; the cells it touches are found from the straight segment
+        between its end nodes in lat/lon, from which the arc strays by at most
+        ``d^2 / (2 cos^3 phi_m)`` rad (:mod:`routing._land`, d its angular length, phi_m the
+        largest |latitude|). Edges whose cells are land-free skip the pixel test, which is
+        exact only if no land pixel lies within that distance of those cells: the margin.
+        """
+        g = self.grid
+        d_rad = math.radians(max(g.dlat_deg, g.dlon_deg)) * float(np.max(np.hypot(steps[:, 0], steps[:, 1])))
+        phi = min(math.radians(max(abs(float(g.lat_deg[0])), abs(float(g.lat_deg[-1])))) + d_rad, math.radians(89.99))
+        pad_px = d_rad * d_rad / (2.0 * math.cos(phi) ** 3) * math.degrees(1.0) * _MASK_PX_PER_DEG
+        return max(1, int(math.ceil(pad_px + 1e-6)))
 
     def _px(self):
         """(ocean, r0, c0, px_per_deg, has_px) for the compiled land tests."""

@@ -112,6 +112,10 @@ class RoutePlan:
     routes: dict
     mesh: Mesh
     stats: dict = field(default_factory=dict)
+    #: The weather on the mesh as the search read it (for re-timing other routes with the same
+    #: model, :mod:`routing.compare`), and the vessel model it was searched with.
+    weather_arrays: WeatherArrays | None = None
+    ship: ShipModel | None = None
 
     def to_dict(self) -> dict:
         """The CLI's JSON object (with safety: the safe routes, each route's hours over the limits,
@@ -451,7 +455,7 @@ def plan_routes(
         "goal_node": int(goal_node),
         **safety_stats,
     }
-    return RoutePlan(gc_nmi, routes, mesh, stats)
+    return RoutePlan(gc_nmi, routes, mesh, stats, wx, req.ship)
 
 
 def _safe_routes(spec: SafetySpec, req, mesh, mw, wx, routes: dict, timings: dict, *, start_node, goal_node, t_node_h, t0_h,

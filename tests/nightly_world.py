@@ -20,7 +20,8 @@ WEATHER_END = "2025-02-02T06:00Z"
 
 
 def build_world(folder: Path, *, seed: int = 0, days: float = 30.0) -> dict:
-    """Write ``folder/ws.duckdb`` (ports, voyages, lanes) and ``folder/weather/*.nc``; return the paths."""
+    """Write ``folder/ws.duckdb`` (ports, voyages, lanes) and ``folder/weather/*.nc``; return the paths
+    (and ``positions``: the fixes the lanes were built from, for audits of the demo's voyages)."""
     from lanes.chain import build_lanes
     from lanes.io.portlist import read_port_lists
     from scenario.generator import ScenarioSettings, generate_scenario
@@ -45,4 +46,4 @@ def build_world(folder: Path, *, seed: int = 0, days: float = 30.0) -> dict:
     db = folder / "ws.duckdb"
     store_result(db, result, settings)
     info = write_scenario_weather(folder, seed=seed, weather=generate_weather(seed, start=WEATHER_START, end=WEATHER_END))
-    return {"db": db, "weather": folder / "weather", "storms": info["storms"], "folder": folder}
+    return {"db": db, "weather": folder / "weather", "storms": info["storms"], "folder": folder, "positions": positions}

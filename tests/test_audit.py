@@ -36,8 +36,9 @@ def hav_nmi(lat1, lon1, lat2, lon2):
     return 2 * R_NMI * math.asin(math.sqrt(a))
 
 
-def ais_track(n=121, step_s=30.0, lat=40.0, lon0=0.0, speed_kn=12.0):
-    """A ship sailing east along a parallel, one fix every ``step_s`` seconds, plus noise rows."""
+def ais_track(n=121, step_s=30.0, lat=40.0, lon0=5.0, speed_kn=12.0):
+    """A ship sailing east along a parallel (open sea between Menorca and Sardinia), one fix every
+    ``step_s`` seconds, plus noise rows."""
     t = T0 + pd.to_timedelta(np.arange(n) * step_s, unit="s")
     dlon = speed_kn * step_s / 3600.0 / (60.0 * math.cos(math.radians(lat)))
     df = pd.DataFrame({"mmsi": 219000001, "time_utc": t, "lat_deg": lat, "lon_deg": lon0 + dlon * np.arange(n), "sog_kn": speed_kn})
@@ -56,7 +57,7 @@ def test_track_to_route_thins_sorts_and_times():
     assert np.all(np.diff(r.time_utc.asi8) > 0)
     np.testing.assert_allclose(r.leg_speed_kn, 12.0, rtol=2e-3)  # speed made good along the parallel
     assert r.properties["mmsi"] == 219000001 and r.properties["n_kept"] == 13
-    assert r.name == "historical"
+    assert r.name == "as_sailed"
     with pytest.raises(TrackError, match="at least 2"):
         track_to_route(df.iloc[:1])
     with pytest.raises(TrackError, match="lack"):
@@ -71,28 +72,28 @@ def layered(times, lat, lon):
 
 
 def route(lat, name, speed=12.0):
-    lons = [0.0, 1.0, 2.0]
+    lons = [4.5, 5.5, 6.5]  # open sea between Menorca and Sardinia
     d = [hav_nmi(lat, lons[i], lat, lons[i + 1]) for i in range(2)]
     times = T0 + pd.to_timedelta(np.cumsum([0.0] + [x / speed for x in d]), unit="h")
     return Route(name, [lat] * 3, lons, times, [speed, speed])
 
 
 def test_audit_prefers_the_safer_alternative_and_explains():
-    track = route(40.0, "historical")
+    track = route(40.0, "as_sailed")
     alts = {"optimal": route(41.0, "optimal"), "min_distance": route(40.0, "min_distance", speed=13.0)}
     out = audit_routes(track, layered, VESSEL, limits=LIMITS, alternatives=alts)
     evs = out["evaluations"]
-    assert set(evs) == {"historical", "optimal", "min_distance"}
-    assert evs["historical"].summary["exposure_by_rule_h"]["hs"] == pytest.approx(track.time_h, rel=1e-9)
+    assert set(evs) == {"as_sailed", "optimal", "min_distance"} and out["reference"] == "as_sailed" and out["bias"] == {}
+    assert evs["as_sailed"].summary["exposure_by_rule_h"]["hs"] == pytest.approx(track.time_h, rel=1e-9)
     assert out["proposed"] == "optimal"  # no hours over the Hs limit (3 m < 4.5 m)
     text = " ".join(out["findings"])
     assert "up to 6.0 m" in text and "Proposed alternative: optimal (safer)" in text
     assert "hs " in text  # hours over the Hs limit are listed
-    assert list(out["table"].index) == ["historical", "optimal", "min_distance"]
+    assert list(out["table"].index) == ["as_sailed", "optimal", "min_distance"]
 
 
 def test_propose_as_safe_and_faster_or_nothing():
-    track = route(41.0, "historical")
+    track = route(41.0, "as_sailed")
     faster = route(41.0, "optimal", speed=14.0)
     slower = route(41.0, "min_distance", speed=10.0)
     out = audit_routes(track, layered, VESSEL, limits=LIMITS, alternatives={"optimal": faster, "min_distance": slower})
@@ -112,7 +113,7 @@ def test_track_waypoints_every_spacing_with_speeds_made_good():
     # then 12.6 .. 15 nmi at 6 kn (0.6 nmi, 6 min).
     along = [0.6 * k for k in range(21)] + [12.0] + [12.0 + 0.6 * (k + 1) for k in range(5)]
     minutes = [3.0 * k for k in range(21)] + [120.0] + [120.0 + 6.0 * (k + 1) for k in range(5)]
-    route = Route("historical", np.array(along) * deg_per_nmi, np.zeros(len(along)),
+    route = Route("as_sailed", np.array(along) * deg_per_nmi, np.zeros(len(along)),
                   pd.DatetimeIndex([t0 + pd.Timedelta(minutes=m) for m in minutes]), np.zeros(len(along) - 1))
     wp = track_waypoints(route, spacing_nmi=5.0)
     # the first fix, the first fixes past 5 and 10 nmi, and the last fix
@@ -150,8 +151,8 @@ def test_detour_factor_of_a_passage_and_of_an_out_and_back_window():
 
     deg = 180.0 / (math.pi * EARTH_RADIUS_NMI)  # 1 nmi of latitude
     t = pd.DatetimeIndex([pd.Timestamp("2025-01-01T00:00Z") + pd.Timedelta(hours=k) for k in range(3)])
-    passage = Route("historical", np.array([0.0, 10.0, 20.0]) * deg, np.zeros(3), t, np.full(2, 10.0))
+    passage = Route("as_sailed", np.array([0.0, 10.0, 20.0]) * deg, np.zeros(3), t, np.full(2, 10.0))
     assert detour_factor(passage) == pytest.approx(1.0)
     # 20 nmi out and 19.5 back: 39.5 nmi sailed, ends 0.5 nmi apart -> over the 1 nmi floor
-    back = Route("historical", np.array([0.0, 20.0, 0.5]) * deg, np.zeros(3), t, np.full(2, 20.0))
+    back = Route("as_sailed", np.array([0.0, 20.0, 0.5]) * deg, np.zeros(3), t, np.full(2, 20.0))
     assert detour_factor(back) == pytest.approx(39.5)

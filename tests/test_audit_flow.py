@@ -126,8 +126,16 @@ def test_audit_of_a_voyage_through_the_storm(workspace, tmp_path):
 
     report = tmp_path / "audit.html"
     out = run_audit(workspace, voyage_id="v1", report=report)
-    assert {"historical", "optimal", "safe_optimal", "min_distance", "deviation"} <= set(out)
-    hist = out["historical"]
+    assert {"as_sailed", "as_sailed_modelled", "optimal", "safe_optimal", "min_distance", "deviation"} <= set(out)
+    hist = out["as_sailed"]
+    # like for like: the modelled twin of the track is the reference, the bias is modelled minus AIS
+    assert out["reference"] == "as_sailed_modelled" and out["calm_water_speed"]["speed_kn"] > 0
+    twin = out["as_sailed_modelled"]
+    assert twin["dist_nmi"] == pytest.approx(hist["dist_nmi"], rel=1e-9) and twin["waypoints"][0][2] == hist["waypoints"][0][2]
+    assert out["bias"]["time_h"] == pytest.approx(twin["time_h"] - hist["time_h"], abs=1e-3)
+    assert out["bias"]["fuel_pct"] == pytest.approx((twin["fuel_t"] - hist["fuel_t"]) / hist["fuel_t"] * 100, abs=1e-2)
+    assert out["comparison"]["as_sailed_modelled"]["d_time_h"] == 0.0
+    assert out["comparison"]["optimal"]["d_time_h"] == pytest.approx(out["optimal"]["time_h"] - twin["time_h"], abs=1e-6)
     assert out["vessel_profile"] == "container-feeder"  # AIS cargo, 150 m
     assert hist["max_hs_m"] > 6.0 and hist["exposure_h"] > 0.5
     assert hist["exposure_by_rule_h"]["hs"] > 0.5
@@ -137,13 +145,12 @@ def test_audit_of_a_voyage_through_the_storm(workspace, tmp_path):
     best = out[out["proposed"]]
     assert best["adverse_h"] < hist["adverse_h"] or best["time_h"] < hist["time_h"]
     assert out["optimal"]["max_hs_m"] < hist["max_hs_m"]
-    assert out["comparison"]["historical"]["d_time_h"] == 0.0
     assert out["voyage"]["origin"] == "Alpha" and out["voyage"]["destination"] == "Beta"
     with open_workspace(workspace) as ws:
         routes = read_audit_routes(ws, "voyage:v1")
         events = read_audit_events(ws, "voyage:v1")
-    assert set(routes["role"]) == {"historical", "optimal", "safe_optimal", "min_distance", "deviation"}
-    assert (events["role"] == "historical").any()
+    assert set(routes["role"]) == {"as_sailed", "as_sailed_modelled", "optimal", "safe_optimal", "min_distance", "deviation"}
+    assert (events["role"] == "as_sailed").any()
     html = report.read_text()
     assert "TEST &lt;b&gt;SHIP&lt;/b&gt;" in html and "<b>SHIP</b>" not in html
 
@@ -161,14 +168,19 @@ def test_audit_cli_json_and_errors(workspace):
     assert obj["voyage"]["voyage_id"] is None and obj["voyage"]["mmsi"] == MMSI
     # no voyage, so no lane: the deviation walks the sailed track itself (said in the findings)
     assert any("walks the sailed track itself" in f for f in obj["findings"])
-    dev, hist = obj["deviation"], obj["historical"]
+    dev, hist = obj["deviation"], obj["as_sailed"]
     assert dev["waypoints"][0][:2] == pytest.approx(list(A), abs=1e-6)
     assert dev["waypoints"][-1][:2] == pytest.approx(list(B), abs=1e-6)
     assert dev["waypoints"][0][2] == hist["waypoints"][0][2]  # same departure
-    # it steps out of the storm the track sailed through
-    assert dev["max_hs_m"] < hist["max_hs_m"] - 0.5 and dev["exposure_h"] < hist["exposure_h"]
+    # it steps out of the storm the track sailed through (like for like: against the track sailed by the same model)
+    twin = obj["as_sailed_modelled"]
+    assert dev["max_hs_m"] < twin["max_hs_m"] - 0.5 and dev["exposure_h"] < twin["exposure_h"]
+    # every top-level key of the JSON object is documented in --help
+    help_text = " ".join(runner.invoke(app, ["audit", "--help"], terminal_width=200).stdout.split())
+    missing = [k for k in obj if k not in help_text]
+    assert missing == [], missing
     res = runner.invoke(app, ["audit", "--voyage", "v1", "--db", str(workspace)])
-    assert res.exit_code == 0 and "proposed:" in res.stdout and "historical" in res.stdout
+    assert res.exit_code == 0 and "proposed:" in res.stdout and "as_sailed_modelled" in res.stdout and "model bias" in res.stdout
     with pytest.raises(SystemExit) as exc:
         main(["audit", "--voyage", "nope", "--db", str(workspace)])
     assert exc.value.code == 2
@@ -199,8 +211,10 @@ def test_deviate_cli(workspace):
 
 
 def test_deviate_cli_says_when_the_deviation_is_not_safer(workspace, monkeypatch):
-    # ... and when the deviation meets the storm for longer than the lane (here: the lane's path at
-    # half speed, standing in for Algorithm 1's result), the table and --json say so in the same words.
+    # ... and when the deviation meets the storm for longer than the lane (here: the lane's path with
+    # an out-and-back leg inside the storm, standing in for Algorithm 1's result; every route is
+    # sailed by the vessel model, so only its geometry counts), the table and --json say so in the
+    # same words.
     from typer.testing import CliRunner
 
     import routing.deviate as routing_deviate
@@ -210,7 +224,11 @@ def test_deviate_cli_says_when_the_deviation_is_not_safer(workspace, monkeypatch
 
     def slow_deviation(lat, lon, spd, t0, **kwargs):
         dev = real(lat, lon, spd, t0, **kwargs)
-        return routing_deviate.lane_route(lat, lon, np.asarray(spd) * 0.5, t0, name=dev.name, properties=dev.properties)
+        k = int(np.argmin((np.asarray(lat) - STORM_LAT) ** 2 + (np.asarray(lon) - STORM_LON) ** 2))
+        la = np.r_[lat[: k + 1], lat[k] + 0.12, lat[k], lat[k] - 0.12, lat[k:]]
+        lo = np.r_[lon[: k + 1], lon[k] + 0.12, lon[k], lon[k] - 0.12, lon[k:]]
+        s = np.r_[spd[: k + 1], [spd[k]] * 3, spd[k:]]
+        return routing_deviate.lane_route(la, lo, s, t0, name=dev.name, properties=dev.properties)
 
     monkeypatch.setattr(routing_deviate, "deviate_lane", slow_deviation)
     args = ["deviate", "--lane", "L1", "--depart", "2025-01-15T00:00Z", "--db", str(workspace)]
@@ -242,7 +260,7 @@ def test_audit_flow_under_prefect(workspace, prefect_harness):
     from pipelines.audit import audit_flow
 
     out = audit_flow(db=str(workspace), voyage_id="v1")
-    assert out["audit_id"] == "voyage:v1" and out["historical"]["max_hs_m"] > 6.0
+    assert out["audit_id"] == "voyage:v1" and out["as_sailed"]["max_hs_m"] > 6.0
     assert math.isfinite(out["optimal"]["fuel_t"])
 
 
@@ -265,7 +283,7 @@ def test_demo_audit_step_finds_the_storm_voyage(workspace, tmp_path):
     lines = []
     out = step_audit(DemoContext(workdir=workdir, echo=lines.append))
     assert out["voyage_id"] == "v1" and out["proposed"] is not None
-    assert out["historical"]["exposure_h"] > 0.5 and (workdir / "audit.html").is_file()
+    assert out["as_sailed"]["exposure_h"] > 0.5 and (workdir / "audit.html").is_file()
     assert any("passed" in line and "storm T" in line for line in lines)
 
 

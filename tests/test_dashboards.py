@@ -295,13 +295,22 @@ def test_metrics_fall_back_to_route_values():
 # ------------------------------------------------------------------ maps
 
 
-def test_land_mask_at_map_resolution():
-    lon, lat, land = land_mask(2.0, 3.6, 39.0, 40.2, n=160)
-    assert land.shape == (lat.size, lon.size)
-    assert abs(lon[1] - lon[0] - 0.01) < 1e-9
+def test_land_mask_at_the_masks_own_resolution():
+    """The map's land is the 30" raster itself (the pixels the land check tests), not a resampling."""
+    from thresholds import land_raster
+
+    lon_e, lat_e, land = land_mask(2.0, 3.6, 39.0, 40.2)
+    assert land.shape == (lat_e.size - 1, lon_e.size - 1)
+    assert np.allclose(np.diff(lon_e), 1 / 120) and np.allclose(np.diff(lat_e), 1 / 120)
+    assert lon_e[0] <= 2.0 + 1e-9 and lon_e[-1] >= 3.6 - 1e-9 and lat_e[0] <= 39.0 + 1e-9 and lat_e[-1] >= 40.2 - 1e-9
+    centre_lat, centre_lon = np.meshgrid((lat_e[:-1] + lat_e[1:]) / 2, (lon_e[:-1] + lon_e[1:]) / 2, indexing="ij")
+    assert np.array_equal(land, land_raster.is_land(centre_lat, centre_lon))
+    # a big box is drawn in blocks that are land when any pixel is: land never disappears
+    lon_b, lat_b, big = land_mask(2.0, 3.6, 39.0, 40.2, max_px=50)
+    assert big.shape[1] <= 50 and big.sum() * (lon_b[1] - lon_b[0]) ** 2 >= land.sum() / 120 ** 2
 
     def at(la, lo):
-        return land[np.argmin(abs(lat - la)), np.argmin(abs(lon - lo))]
+        return land[np.searchsorted(lat_e, la) - 1, np.searchsorted(lon_e, lo) - 1]
 
     assert at(39.62, 2.95)  # inland Mallorca
     assert not at(39.3, 2.2)  # open sea south-west of Mallorca
@@ -328,10 +337,10 @@ def test_audit_report_renders_routing_audit_output(tmp_path):
         lat = np.asarray(lat, dtype=float)
         return {"hs_m": np.where(lat < 40.5, 6.0, 3.0), "wave_from_deg": np.full(lat.size, 270.0), "tm_s": np.full(lat.size, 5.0)}
 
-    def straight(lat, name, hours=(0.0, 4.6, 9.2)):
-        return Route(name, [lat] * 3, [0.0, 1.0, 2.0], t0 + pd.to_timedelta(list(hours), unit="h"), [10.0, 10.0])
+    def straight(lat, name, hours=(0.0, 4.6, 9.2)):  # open sea between Menorca and Sardinia
+        return Route(name, [lat] * 3, [4.5, 5.5, 6.5], t0 + pd.to_timedelta(list(hours), unit="h"), [10.0, 10.0])
 
-    out = audit_routes(straight(40.0, "historical"), weather, vessel, limits=OperatorLimits(name="t", hs_max_m=4.5),
+    out = audit_routes(straight(40.0, "as_sailed"), weather, vessel, limits=OperatorLimits(name="t", hs_max_m=4.5),
                        alternatives={"optimal": straight(41.0, "optimal")})
     rs = route_set_from_evaluations(out["evaluations"], out["table"], out["proposed"])
     audit = fx.audit()
@@ -342,7 +351,7 @@ def test_audit_report_renders_routing_audit_output(tmp_path):
     assert comp[0][2] == "time-optimal A* \u2605 proposed"
     rows = {r[0]: r[1:] for r in comp[1:]}
     table_ = out["table"]
-    assert rows["fuel burnt (STEAM2) [t]"][0] == f"{table_.loc['historical', 'fuel_t']:.2f}"
+    assert rows["fuel burnt (STEAM2) [t]"][0] == f"{table_.loc['as_sailed', 'fuel_t']:.2f}"
     assert rows["fuel burnt (STEAM2) [t]"][1].startswith(f"{table_.loc['optimal', 'fuel_t']:.2f} ({table_.loc['optimal', 'd_fuel_t']:+.2f}")
     assert rows["highest significant wave height met [m]"] == ["6.00", "3.00 (-3.00)"]
     text = " ".join(" ".join(page.text).split())

@@ -79,13 +79,13 @@ def test_lane_departure_model_adverse_and_failed():
     def straight(lat, name):
         return Route(name, [lat] * 3, [1.5, 2.25, 3.0], t0 + pd.to_timedelta([0.0, 2.9, 5.8], unit="h"), [12.0, 12.0])
 
-    out = audit_routes(straight(40.0, "historical"), weather, VESSEL, limits=OperatorLimits(name="t", hs_max_m=4.5),
+    out = audit_routes(straight(40.0, "as_sailed"), weather, VESSEL, limits=OperatorLimits(name="t", hs_max_m=4.5),
                        alternatives={"deviation": straight(40.5, "deviation")})
     dep = lane_departure_model(lane_id=3, origin="Barcelona", destination="Palma", depart_utc=t0, rules=["hs_m 5.0 > 4.5"],
                                evaluations=out["evaluations"], table=out["table"], proposed=out["proposed"], weather_ds=dataset())
     assert isinstance(dep, LaneDeparture) and dep.status == "adverse" and dep.lane_id == "3"
     assert dep.worst_hs_m == 5.0 and dep.worst_lat_deg == 40.0 and dep.worst_time_utc == t0  # first point of the highest Hs
-    assert dep.routes.proposed == "deviation" and set(dep.routes.routes) == {"historical", "deviation"}
+    assert dep.routes.proposed == "deviation" and set(dep.routes.routes) == {"as_sailed", "deviation"}
     snap = dep.routes.weather
     assert snap.time_utc == pd.Timestamp("2025-01-31T00:00Z")  # nearest step to the worst time
     assert snap.lon_deg.min() >= 1.5 - 1.0 and snap.lat_deg.max() <= 40.5 + 1.0

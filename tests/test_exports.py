@@ -55,6 +55,13 @@ def make_other() -> Route:
 # ------------------------------------------------------------------ GeoJSON
 
 
+def _hav(lat1, lon1, lat2, lon2):
+    """Great-circle distance on the mean sphere (written out here, not the project's). [nmi]"""
+    p1, p2 = np.radians(lat1), np.radians(lat2)
+    a = np.sin((p2 - p1) / 2) ** 2 + np.cos(p1) * np.cos(p2) * np.sin(np.radians(np.asarray(lon2) - lon1) / 2) ** 2
+    return 2 * (6371008.8 / 1852.0) * np.arcsin(np.sqrt(np.minimum(a, 1.0)))
+
+
 def test_geojson_parses_with_json_and_shapely(tmp_path):
     path = tmp_path / "routes.geojson"
     written = write_routes([make_route(), make_other()], path)
@@ -68,7 +75,17 @@ def test_geojson_parses_with_json_and_shapely(tmp_path):
     assert len(points) == 4 + 2
     line = shapely.geometry.shape(lines[0]["geometry"])
     assert line.geom_type == "LineString"
-    np.testing.assert_allclose(np.array(line.coords), np.column_stack([LON, LAT]), atol=1e-7)  # [lon, lat] order
+    xy = np.array(line.coords)  # [lon, lat] order, points along each great-circle leg (RFC 7946 lines are straight in lon/lat)
+    at = [int(np.argmin(np.hypot(xy[:, 0] - lo, xy[:, 1] - la))) for la, lo in zip(LAT, LON)]
+    np.testing.assert_allclose(xy[at], np.column_stack([LON, LAT]), atol=1e-7)  # every waypoint, in order
+    assert at == sorted(at) and at[0] == 0 and at[-1] == len(xy) - 1
+    for k in range(len(LAT) - 1):  # the points between two waypoints lie on the great circle, <= 1 nmi apart
+        seg = xy[at[k] : at[k + 1] + 1]
+        step = _hav(seg[:-1, 1], seg[:-1, 0], seg[1:, 1], seg[1:, 0])
+        assert step.max() <= 1.0 + 1e-6
+        assert step.sum() == pytest.approx(_hav(LAT[k], LON[k], LAT[k + 1], LON[k + 1]), abs=1e-4)
+    # this fixture's last leg cuts across Mallorca (12.7 nmi of land): the export says so
+    assert lines[0]["properties"]["sea_only"] is False and lines[0]["properties"]["line_step_nmi"] == 1.0
     assert lines[0]["properties"]["depart_utc"] == "2025-01-31T03:00:00Z"
     assert lines[0]["properties"]["arrive_utc"] == "2025-01-31T12:00:00Z"
     assert lines[0]["properties"]["time_h"] == pytest.approx(9.0)
@@ -107,9 +124,14 @@ def test_geojson_splits_at_the_antimeridian(tmp_path):
     path = tmp_path / "p.geojson"
     write_routes(route, path)
     geom = json.loads(path.read_text())["features"][0]["geometry"]
-    assert geom["type"] == "MultiLineString"
-    # Crossing at +-180 halfway in longitude: latitude 51.0 by linear interpolation.
-    assert geom["coordinates"] == [[[179.0, 50.0], [180.0, 51.0]], [[-180.0, 51.0], [-179.0, 52.0]]]
+    assert geom["type"] == "MultiLineString" and len(geom["coordinates"]) == 2
+    west, east = geom["coordinates"]
+    assert west[0] == [179.0, 50.0] and east[-1] == [-179.0, 52.0]
+    assert west[-1][0] == 180.0 and east[0][0] == -180.0 and west[-1][1] == east[0][1]
+    # the crossing is on the great circle: tan(lat) at lon 180 from the two ends (Williams, "Aviation Formulary")
+    p1, p2, l1, l2 = np.radians([50.0, 52.0, 179.0, 181.0])
+    lat_x = np.degrees(np.arctan((np.tan(p1) * np.sin(l2 - np.pi) + np.tan(p2) * np.sin(np.pi - l1)) / np.sin(l2 - l1)))
+    assert west[-1][1] == pytest.approx(lat_x, abs=1e-5)
     assert shapely.geometry.shape(geom).is_valid
 
 

@@ -136,20 +136,20 @@ def test_each_adverse_departure_has_a_deviation_and_an_astar_route(world, night)
     roles = routes.groupby(["path_id", "depart_utc"])["role"].apply(set)
     assert len(roles) == len(adverse)
     for r in adverse.itertuples():
-        assert roles[(r.path_id, r.depart_utc)] == {"historical", "deviation", "safe_optimal", "optimal", "min_distance"}
+        assert roles[(r.path_id, r.depart_utc)] == {"lane", "deviation", "safe_optimal", "optimal", "min_distance"}
     for row in routes.itertuples():
         route = Route.from_json(row.route_json)
         assert route.n_waypoints >= 2 and route.time_utc[0] == row.depart_utc
         assert route.dist_nmi == pytest.approx(row.dist_nmi, rel=1e-9)
         assert "search_s" not in route.properties  # no run-dependent timings in stored results
-    hist = routes[routes["role"] == "historical"].set_index(["path_id", "depart_utc"])
+    hist = routes[routes["role"] == "lane"].set_index(["path_id", "depart_utc"])
     opt = routes[routes["role"] == "optimal"].set_index(["path_id", "depart_utc"])
     # the A* route joins the same ends (within the mesh's snap distance)
     for key in hist.index:
         h, o = Route.from_json(hist.loc[key, "route_json"]), Route.from_json(opt.loc[key, "route_json"])
         assert _haversine_nmi(h.lat_deg[0], h.lon_deg[0], o.lat_deg[0], o.lon_deg[0]) < 10.0
         assert _haversine_nmi(h.lat_deg[-1], h.lon_deg[-1], o.lat_deg[-1], o.lon_deg[-1]) < 10.0
-    # ranking: risk avoided never increases down the list; deltas are proposed minus historical
+    # ranking: risk avoided never increases down the list; deltas are proposed minus the lane as planned
     ranked = adverse.sort_values("rank")
     assert list(ranked["rank"]) == list(range(1, len(ranked) + 1))
     assert (np.diff(ranked["risk_avoided_h"].to_numpy()) <= 1e-9).all()
@@ -162,6 +162,154 @@ def test_each_adverse_departure_has_a_deviation_and_an_astar_route(world, night)
         # proposed = safer (fewer adverse hours, then fewer IMO events, then lower max Hs) or as safe and faster
         assert r.risk_avoided_h >= -1e-9
         assert r.risk_avoided_h > 1e-9 or r.events_avoided > 0 or p["max_hs_m"] < h["max_hs_m"] or r.delta_time_h < 0
+
+
+BERTH_NMI = 1.5  # routing.land.BERTH_RADIUS_NMI: land is tolerated this close to a route's ends
+
+
+def _land_samples(route, step_nmi=0.1):
+    """Points every ``step_nmi`` along each great-circle leg, farther than the berth radius from the
+    route's ends, that lie on a land pixel: written out here (slerp + the raster's point look-up),
+    independent of the land check's pixel traversal."""
+    from thresholds import land_raster
+
+    lat, lon = np.radians(route.lat_deg), np.radians(route.lon_deg)
+    xyz = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
+    bad = []
+    for k in range(route.n_waypoints - 1):
+        a, b = xyz[k], xyz[k + 1]
+        d = np.arccos(np.clip(a @ b, -1.0, 1.0))
+        n = max(2, int(np.ceil(d * R_NMI / step_nmi)) + 1)
+        f = np.linspace(0.0, 1.0, n)[:, None]
+        p = a * np.sin((1 - f) * d) + b * np.sin(f * d) if d > 1e-12 else np.repeat(a[None], n, 0)
+        p = p / np.linalg.norm(p, axis=1, keepdims=True)
+        la, lo = np.degrees(np.arcsin(p[:, 2])), np.degrees(np.arctan2(p[:, 1], p[:, 0]))
+        far = (_haversine_nmi(route.lat_deg[0], route.lon_deg[0], la, lo) > BERTH_NMI) & (
+            _haversine_nmi(route.lat_deg[-1], route.lon_deg[-1], la, lo) > BERTH_NMI)
+        hit = far & land_raster.is_land(la, lo)
+        if hit.any():
+            bad.append((k, float(la[hit][0]), float(lo[hit][0])))
+    return bad
+
+
+def test_every_route_of_the_night_is_sea_only_by_independent_sampling(world, night):
+    """Every deviation, every proposed route (and every other route shown) of every adverse demo
+    lane-departure: no point of any leg on land, sampled every 0.1 nmi outside the berth radius."""
+    from routing.route import Route
+
+    _, t = night
+    routes = t["routes"]
+    assert set(routes["role"]) == {"lane", "deviation", "safe_optimal", "optimal", "min_distance"}
+    for row in routes.itertuples():
+        route = Route.from_json(row.route_json)
+        assert _land_samples(route) == [], (row.path_id, row.depart_utc, row.role)
+        assert route.properties.get("sea_only", True) is True
+
+
+def _max_gap_deg(lat_deg, dlat, dlon):
+    """Largest angle between neighbouring 48-edge stencil directions on the ground (Grifoll et al. 2022, section 2.2)."""
+    steps = [(i, j) for i in range(-4, 5) for j in range(-4, 5) if (i, j) != (0, 0) and math.gcd(abs(i), abs(j)) == 1]
+    ang = np.sort([math.degrees(math.atan2(j * dlat, i * dlon * math.cos(math.radians(lat_deg)))) % 360.0 for i, j in steps])
+    return float(np.max(np.diff(np.append(ang, ang[0] + 360.0))))
+
+
+def test_like_for_like_and_the_time_optimal_route_is_never_slower(world, night):
+    """Every route of a case sails from the same departure with the same vessel model (speed, loss model,
+    floor), and the smoothed time-optimal A* route is never slower than another route of the case by
+    more than the mesh's discretisation: the longest detour of a 48-direction path from a straight leg,
+    1 / cos(gap / 2) - 1 of the time, plus one cell diagonal at the route's mean speed for the ends
+    snapped to nodes; the safe time-optimal route is exempt (its search has the vessel's limits as a
+    constraint) and says so."""
+    from routing.route import Route
+
+    _, t = night
+    routes = t["routes"]
+    n_cases = 0
+    for (pid, dep), g in routes.groupby(["path_id", "depart_utc"]):
+        rs = {r.role: Route.from_json(r.route_json) for r in g.itertuples()}
+        opt = rs["optimal"].properties
+        for role, r in rs.items():
+            assert r.time_utc[0] == dep, (pid, dep, role)
+            if role != "safe_optimal":
+                assert (r.properties["speed_kn"], r.properties["speed_loss_model"], r.properties["floor_kn"]) == (
+                    opt["speed_kn"], opt["speed_loss_model"], opt["floor_kn"]), (pid, dep, role)
+        spacing = opt["mesh_spacing_deg"]
+        lon0, lat0, lon1, lat1 = opt["mesh_bbox"]
+        gap = max(_max_gap_deg(la, spacing, spacing) for la in (lat0, lat1))
+        diag = math.hypot(spacing, spacing * math.cos(math.radians(max(abs(lat0), abs(lat1))))) * R_NMI * math.pi / 180.0
+        T = rs["optimal"].time_h
+        tol = (1.0 / math.cos(math.radians(gap / 2.0)) - 1.0) * T + diag / (rs["optimal"].dist_nmi / T)
+        for role, r in rs.items():
+            if role not in ("optimal", "safe_optimal"):
+                assert T <= r.time_h + tol + 1e-6, (pid, dep, role, T, r.time_h, tol)
+        n_cases += 1
+    assert n_cases == int((t["departures"]["status"] == "adverse").sum()) > 0
+
+
+@pytest.fixture(scope="module")
+def demo_audit(world):
+    """The demo's audit: the voyage at sea nearest storm A's centre at its peak (Barcelona -> Palma),
+    in the demo's weather around it, its lane's deviation, as ``stormlane demo`` runs it."""
+    from pipelines.audit import AuditInputs, _lane_for_voyage, audit_voyage
+    from pipelines.config import load_operator_profile, load_vessel
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_voyages
+    from weather.io import read_local
+    from weather.io.scenario_files import write_scenario_weather
+    from weather.scenario import generate_weather, make_storms
+
+    storm = make_storms(0)[0]
+    peak = pd.Timestamp(storm.to_dict()["peak_utc"])
+    peak = peak.tz_localize("UTC") if peak.tzinfo is None else peak.tz_convert("UTC")
+    track = storm.to_dict()
+    tt = pd.DatetimeIndex(pd.to_datetime(track["track_utc"], utc=True)).asi8
+    c_lat, c_lon = np.interp(peak.value, tt, track["track_lat"]), np.interp(peak.value, tt, track["track_lon"])
+    pos = world["positions"]
+    with open_workspace(world["db"]) as ws:
+        v = read_voyages(ws, kind="port_to_port")
+        v = v[(v["depart_utc"] <= peak) & (v["arrive_utc"] >= peak)]
+        best = None
+        for row in v.itertuples(index=False):
+            p = pos[(pos["mmsi"] == row.mmsi) & (pos["time_utc"] - peak).abs().le(pd.Timedelta(hours=1))]
+            if len(p):
+                i = int(np.argmin(np.abs((p["time_utc"] - peak).dt.total_seconds().to_numpy())))
+                d = float(_haversine_nmi(c_lat, c_lon, p["lat_deg"].iloc[i], p["lon_deg"].iloc[i]))
+                best = min(best, (d, row), key=lambda x: x[0]) if best else (d, row)
+        voyage = best[1]._asdict()
+        lane_id, lane = _lane_for_voyage(ws, voyage)
+    sel = (pos["mmsi"] == voyage["mmsi"]) & pos["time_utc"].between(voyage["depart_utc"], voyage["arrive_utc"])
+    folder = world["folder"] / "audit-weather"
+    info = write_scenario_weather(folder, seed=0, weather=generate_weather(0, start=voyage["depart_utc"].floor("D") - pd.Timedelta(hours=6),
+                                                                           end=voyage["arrive_utc"].ceil("D") + pd.Timedelta(hours=6)))
+    ds, meta = read_local([str(p) for p in sorted((folder / "weather").glob("*.nc"))])
+    limits = load_operator_profile(None)
+    inputs = AuditInputs(positions=pos[sel].reset_index(drop=True), mmsi=int(voyage["mmsi"]), start_utc=voyage["depart_utc"],
+                         end_utc=voyage["arrive_utc"], weather_ds=ds, weather_meta=meta, vessel=load_vessel("ro-pax"),
+                         vessel_profile="ro-pax", limits=limits, profile_name=limits.name, voyage=voyage, lane=lane, lane_id=lane_id)
+    assert info and best[0] < 40.0
+    return voyage, audit_voyage(inputs)
+
+
+def test_the_demo_audit_is_sea_only_like_for_like_and_states_the_bias(demo_audit):
+    voyage, out = demo_audit
+    evs = out["evaluations"]
+    assert {"as_sailed", "as_sailed_modelled", "optimal", "safe_optimal", "min_distance", "deviation"} <= set(evs)
+    assert out["reference"] == "as_sailed_modelled" and list(out["table"].loc["as_sailed_modelled", ["d_time_h", "d_fuel_t"]]) == [0, 0]
+    sailed, twin = evs["as_sailed"].summary, evs["as_sailed_modelled"].summary
+    assert out["bias"]["time_h"] == pytest.approx(twin["time_h"] - sailed["time_h"], abs=1e-3)
+    assert out["bias"]["fuel_pct"] == pytest.approx((twin["fuel_t"] - sailed["fuel_t"]) / sailed["fuel_t"] * 100.0, abs=1e-2)
+    # the track as shown (AIS fixes, thinned) and every route of the comparison: at sea
+    for role, ev in evs.items():
+        assert _land_samples(ev.route) == [], role
+    prop = out["proposed"]
+    assert prop is None or (evs[prop].summary["sea_only"] and evs[prop].summary["no_weather_h"] <= twin["no_weather_h"] + 0.01)
+    # the time-optimal route is not slower than any route sailed by the same model, beyond the mesh's discretisation
+    for gap in out["optimality"]:
+        assert gap["holds"] or gap["constraint"], gap
+        if gap["route"] != "safe_optimal":
+            assert evs["optimal"].route.time_h <= evs[gap["route"]].route.time_h + gap["tolerance_h"] + 1e-6
+    words = " ".join(out["findings"])
+    assert "the model's bias on this voyage" in words and f"Proposed alternative: {prop.replace('_', '-')}" in words
 
 
 def test_report_and_exports_are_written(world, night):
@@ -192,7 +340,7 @@ def test_report_and_exports_are_written(world, night):
     assert len(geo) == summary["adverse"]
     first = json.loads(geo[0].read_text(encoding="utf-8"))
     assert first["type"] == "FeatureCollection" and first["features"]
-    assert {f["properties"].get("route") for f in first["features"]} >= {"historical", "deviation", "optimal"}
+    assert {f["properties"].get("route") for f in first["features"]} >= {"lane", "deviation", "optimal"}
     # the proposed route of every reroute as RTZ (and GPX), the same waypoints as stored
     d, routes = t["departures"], t["routes"].set_index(["path_id", "depart_utc", "role"])
     props = d[d["proposed"].notna()]

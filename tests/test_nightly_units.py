@@ -114,8 +114,8 @@ def test_storage_replaces_a_run_as_a_whole(workspace_path):
     ])
     routes = pd.DataFrame([{"path_id": "L1", "depart_utc": t, "role": r, "time_h": 10.0, "dist_nmi": 150.0, "max_hs_m": 5.0,
                             "mean_hs_m": 3.0, "fuel_t": 20.0, "co2_t": 60.0, "exposure_h": 2.0, "adverse_h": 2.5,
-                            "n_safety_events": 1, "no_weather_h": 0.0, "route_json": "{}"} for r in ("historical", "deviation")])
-    events = pd.DataFrame([{"path_id": "L1", "depart_utc": t, "role": "historical", "criterion": "hs", "kind": "operator",
+                            "n_safety_events": 1, "no_weather_h": 0.0, "route_json": "{}"} for r in ("lane", "deviation")])
+    events = pd.DataFrame([{"path_id": "L1", "depart_utc": t, "role": "lane", "criterion": "hs", "kind": "operator",
                             "start_utc": t, "end_utc": t + pd.Timedelta(hours=2), "duration_h": 2.0, "lat_deg": 40.0,
                             "lon_deg": 3.0, "max_margin": 0.5}])
     with open_workspace(workspace_path) as ws:
@@ -158,9 +158,9 @@ def test_ranking_puts_most_risk_avoided_first_then_cost_then_failures():
     hist = _evaluation(10.0, 4.0, 2, fuel_t=10.0)
     outcomes = [
         {"path_id": "p", "depart_utc": t0, "status": "adverse", "proposed": "deviation",
-         "evaluations": {"historical": hist, "deviation": _evaluation(11.0, 1.0, 0, fuel_t=11.0)}},  # 3 h avoided, +1 h
+         "evaluations": {"lane": hist, "deviation": _evaluation(11.0, 1.0, 0, fuel_t=11.0)}},  # 3 h avoided, +1 h
         {"path_id": "q", "depart_utc": t0, "status": "adverse", "proposed": "optimal",
-         "evaluations": {"historical": hist, "optimal": _evaluation(9.5, 1.0, 2, fuel_t=9.0)}},  # 3 h avoided, -0.5 h, 0 events
+         "evaluations": {"lane": hist, "optimal": _evaluation(9.5, 1.0, 2, fuel_t=9.0)}},  # 3 h avoided, -0.5 h, 0 events
         {"path_id": "r", "depart_utc": t0, "status": "failed", "error": "NoRouteError: no sea route"},
     ]
     res = assemble(night, screen, outcomes)

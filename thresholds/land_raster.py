@@ -18,10 +18,11 @@ process then memory-maps: a window of a few degrees reads a few hundred kB.
 * When the folder cannot be written, the window is inflated directly from the package file,
   keeping only its rows (same bounded memory, ~1-2 s per call) and a warning says why.
 
-Pixel (r, c) covers lat (90 - (r+1)/120, 90 - r/120] and lon [-180 + c/120, -180 + (c+1)/120),
-the package's own indexing (``globe.lat_to_index`` / ``lon_to_index``). Columns wrap modulo
-43 200, so any longitude frame (e.g. lon > 180 on a route across the antimeridian) reads the
-right pixels.
+Pixel (r, c) covers lat (90 - (r+1)/120, 90 - r/120] and lon [-180 + c/120, -180 + (c+1)/120)
+(windows, :func:`read_ocean`); point look-ups (:func:`is_ocean`) use the package's own index
+arithmetic (``globe.lat_to_index`` / ``lon_to_index``), so they agree with it even on pixel
+edges. Columns wrap modulo 43 200, so any longitude frame (e.g. lon > 180 on a route across the
+antimeridian) reads the right pixels.
 
 References
 ----------
@@ -211,13 +212,30 @@ def read_ocean(r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
     return np.concatenate([_unpack_cols(rows, a, N_COLS), _unpack_cols(rows, 0, b - N_COLS)], axis=1)
 
 
+def _axes() -> tuple:
+    """(first, step, min, max) of the package's ``lat`` and ``lon`` axes, read once from its file."""
+    if "axes" not in _raster_cache:
+        out = []
+        with zipfile.ZipFile(source_path()) as z:
+            for name in ("lat.npy", "lon.npy"):
+                with z.open(name) as f:
+                    a = np.lib.format.read_array(f)
+                out.append((float(a[0]), float(a[1] - a[0]), float(a.min()), float(a.max())))
+        _raster_cache["axes"] = tuple(out)
+    return _raster_cache["axes"]
+
+
 def pixel_rc(lat_deg, lon_deg) -> tuple[np.ndarray, np.ndarray]:
-    """Raster row and column of points (rows clipped to the raster as the package does, columns
-    modulo N_COLS)."""
-    lat = np.asarray(lat_deg, dtype=float)
+    """Raster row and column of points, computed exactly as the package's ``lat_to_index`` /
+    ``lon_to_index`` do (clipped to its axes, ``(x - first) / step`` truncated, with the package's
+    own float step: a point exactly on a pixel edge falls where the package puts it); longitudes
+    of any frame are first brought into [-180, 180)."""
+    (la0, dla, la_min, la_max), (lo0, dlo, lo_min, lo_max) = _axes()
+    lat = np.clip(np.asarray(lat_deg, dtype=float), la_min, la_max)
     lon = np.asarray(lon_deg, dtype=float)
-    r = np.clip(np.floor((90.0 - lat) * PX_PER_DEG), 0, N_ROWS - 1).astype(np.int64)
-    c = np.mod(np.floor((lon + 180.0) * PX_PER_DEG), N_COLS).astype(np.int64)
+    lon = np.clip(np.where((lon >= -180.0) & (lon <= 180.0), lon, np.mod(lon + 180.0, 360.0) - 180.0), lo_min, lo_max)
+    r = np.clip(((lat - la0) / dla).astype(np.int64), 0, N_ROWS - 1)
+    c = np.clip(((lon - lo0) / dlo).astype(np.int64), 0, N_COLS - 1)
     return r, c
 
 

@@ -40,10 +40,26 @@ def register(app: typer.Typer) -> None:
         minimum-distance routes and the cargo-safe deviation (of the voyage's lane, else of the
         sailed track) for the same departure.
 
-        Prints the comparison table (time, distance, Hs met, fuel, CO2, hours over limits, IMO
-        events) and the findings; with --json one object with a key per route. An --mmsi window
-        is audited under way (a stationary start or end is trimmed); a window holding two or more
-        of the ship's voyages is refused: audit them one --voyage at a time.
+        Two rows for the voyage: as_sailed (its AIS times, the truth) and as_sailed_modelled (the
+        same track re-timed by the vessel model from the same departure at the voyage's calm-water
+        speed, from its AIS speeds in low sea states, else the profile's). The alternatives are
+        sailed by the same model; every delta is against as_sailed_modelled, and the model's bias
+        (modelled minus AIS) is printed next to them. Prints the comparison table (time, distance,
+        Hs met, fuel, CO2, hours over limits, IMO events) and the findings. An --mmsi window is
+        audited under way (a stationary start or end is trimmed); a window holding two or more of
+        the ship's voyages is refused: audit them one --voyage at a time.
+
+        --json prints one object with the keys: audit_id; voyage (voyage_id, mmsi, ship_name,
+        start_utc, end_utc, lane_id, origin, destination); vessel_profile; operator_profile;
+        weather; calm_water_speed (speed_kn, source: ais_low_sea or profile, low_sea_h, low_hs_m);
+        as_sailed and as_sailed_modelled, and optimal, safe_optimal, min_distance, deviation when
+        computed (each: time_h, dist_nmi, max_hs_m, mean_hs_m, fuel_t, co2_t, exposure_h,
+        adverse_h, n_safety_events, no_weather_h, sea_only, land_legs, land_nmi, events,
+        waypoints ...); bias (modelled minus AIS: time_h, time_pct, fuel_t, fuel_pct, co2_t,
+        co2_pct); reference (the role of the deltas); proposed (a role or null: never a route
+        that crosses land or has more no_weather_h than the reference); comparison (per role:
+        values and d_<metric> deltas against the reference); optimality (per route: gap_h,
+        tolerance_h, holds, constraint); findings.
 
         Example (a ship through a storm, between two times):
 
@@ -72,9 +88,13 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"vessel profile {summary['vessel_profile']}, operator limits {summary['operator_profile']}")
         cols = [("time_h", "time h", 1), ("dist_nmi", "nmi", 1), ("max_hs_m", "max Hs", 2), ("mean_hs_m", "mean Hs", 2),
                 ("fuel_t", "fuel t", 2), ("co2_t", "CO2 t", 2), ("exposure_h", "over limits h", 1), ("n_safety_events", "IMO events", 0)]
-        typer.echo(f"{'route':<14}" + "".join(f"{label:>14}" for _, label, _ in cols))
+        typer.echo(f"{'route':<20}" + "".join(f"{label:>14}" for _, label, _ in cols))
         for role, row in summary["comparison"].items():
-            typer.echo(f"{role:<14}" + "".join(f"{_fmt(row.get(c), d):>14}" for c, _, d in cols))
+            typer.echo(f"{role:<20}" + "".join(f"{_fmt(row.get(c), d):>14}" for c, _, d in cols))
+        b = summary.get("bias") or {}
+        if b:
+            typer.echo(f"model bias (modelled - AIS): time {_fmt(b.get('time_h'))} h ({_fmt(b.get('time_pct'), 1)} %), "
+                       f"fuel {_fmt(b.get('fuel_t'))} t ({_fmt(b.get('fuel_pct'), 1)} %); deltas are against {summary.get('reference')}")
         typer.echo(f"proposed: {summary['proposed'] or 'none'}")
         for line in summary["findings"]:
             typer.echo(f"- {line}")

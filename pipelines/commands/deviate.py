@@ -24,7 +24,12 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Walk the lane's centroids from the departure and move every adverse one to the nearest
         cell that passes the vessel's thresholds (R-tree, <= 10 candidates, within 3 h of sailing),
-        keeping legs at sea and recomputing ETAs; prints what moved and the comparison with the lane.
+        keeping legs at sea (a leg over land is replaced by the shortest sea path; a deviation that
+        cannot be repaired is not proposed) and recomputing ETAs; prints what moved and the
+        comparison with the lane as planned. Both are sailed by the same vessel model from the
+        departure: the lane's typical AIS speed minus the speed loss. --json adds speed_kn,
+        reference ("lane"), proposed (false with the reason in notes) and each route's sea_only,
+        land_legs, land_nmi, no_weather_h.
 
         Example:
 
@@ -46,8 +51,10 @@ def register(app: typer.Typer) -> None:
                    f"{b['exposure_h']:.1f} h over limits, {b['n_safety_events']} IMO event(s); "
                    f"{b['n_deviated']} point(s) moved, {b['n_unresolved']} unresolved, {b['n_legs_adverse']} adverse leg(s)")
         for s in out["steps"]:
-            if s["status"] in ("deviated", "unresolved") or s["rules_fired"]:
-                typer.echo(f"    #{s['seq']}: {s['status']} ({', '.join(s['rules_fired']) or 'ok'}), moved {s['moved_nmi']:.1f} nmi")
+            fix = s.get("land_repair")
+            if s["status"] in ("deviated", "unresolved") or s["rules_fired"] or fix:
+                typer.echo(f"    #{s['seq']}: {s['status']} ({', '.join(s['rules_fired']) or 'ok'}), moved {s['moved_nmi']:.1f} nmi"
+                           + (f"; leg in over land, replaced by the shortest sea path (+{fix['added_nmi']:.1f} nmi)" if fix else ""))
         m = out["metrics"]
         if m["hs_decrease_pct"] is not None and m["hs_decrease_pct"] == m["hs_decrease_pct"]:
             typer.echo(f"  mean Hs over the lane's adverse portion: {m['hs_decrease_pct']:.0f} % lower on the deviation")

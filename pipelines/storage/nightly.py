@@ -6,10 +6,11 @@
 ``nightly_departures``
     One row per lane-departure checked (adverse or not): the vessel profile, the screen's verdict
     (``ok``, ``adverse``, ``failed``) with the rules that fired and why, the worst point, the
-    proposed alternative, its rank and the deltas (proposed minus historical).
+    proposed alternative, its rank and the deltas (proposed minus the lane as planned, sailed by the
+    same vessel model).
 ``nightly_routes``
-    One row per route of an adverse lane-departure (``historical``, ``deviation``, ``optimal``,
-    ``min_distance``): headline numbers of its evaluation and the route as JSON
+    One row per route of an adverse lane-departure (``lane``, ``deviation``, ``safe_optimal``,
+    ``optimal``, ``min_distance``; ``historical`` in runs stored before the like-for-like comparison): headline numbers of its evaluation and the route as JSON
     (:meth:`routing.route.Route.to_json`).
 ``nightly_events``
     The IMO and operator-limit events found on each of those routes.

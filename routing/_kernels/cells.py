@@ -10,6 +10,7 @@ import numpy as np
 from numba import njit
 
 from routing._kernels.core import _haversine, _intermediate
+from routing._land import box_ocean, gc_leg_ocean  # the one land check's pixel tests (routing/land.py)
 
 
 @njit
@@ -17,44 +18,10 @@ def _segment_cells_sea(x0, y0, x1, y1, sea):
     """True when every mesh cell whose closed square the index-space segment touches is sea.
 
     Cell (r, c) is the square [c - 1/2, c + 1/2] x [r - 1/2, r + 1/2] around node (r, c);
-    touching a corner counts (conservative). Cells outside the mesh count as land.
+    touching a corner counts (conservative). Cells outside the mesh count as land. The traversal
+    is the land check's (``routing._land.box_ocean``, squares [c, c + 1]: shifted by half a cell).
     """
-    ny, nx = sea.shape
-    xmin = min(x0, x1)
-    xmax = max(x0, x1)
-    eps = 1e-9
-    c_lo = int(math.ceil(xmin - 0.5 - eps))
-    c_hi = int(math.floor(xmax + 0.5 + eps))
-    for c in range(c_lo, c_hi + 1):
-        if c < 0 or c >= nx:
-            return False
-        if x1 == x0:
-            ya, yb = y0, y1
-        else:
-            xa = max(xmin, c - 0.5)
-            xb = min(xmax, c + 0.5)
-            ya = y0 + (y1 - y0) * (xa - x0) / (x1 - x0)
-            yb = y0 + (y1 - y0) * (xb - x0) / (x1 - x0)
-        ylo = min(ya, yb)
-        yhi = max(ya, yb)
-        r_lo = int(math.ceil(ylo - 0.5 - eps))
-        r_hi = int(math.floor(yhi + 0.5 + eps))
-        for r in range(r_lo, r_hi + 1):
-            if r < 0 or r >= ny:
-                return False
-            if not sea[r, c]:
-                return False
-    return True
-
-
-@njit
-def _pixels_ocean(lat1, lon1, lat2, lon2, ocean, px_r0, px_c0, ppd):
-    """True when the straight pixel-space segment between two points touches only ocean pixels."""
-    x0 = (lon1 + 180.0) * ppd - px_c0 - 0.5
-    y0 = (90.0 - lat1) * ppd - px_r0 - 0.5
-    x1 = (lon2 + 180.0) * ppd - px_c0 - 0.5
-    y1 = (90.0 - lat2) * ppd - px_r0 - 0.5
-    return _segment_cells_sea(x0, y0, x1, y1, ocean)
+    return box_ocean(x0 + 0.5, y0 + 0.5, x1 + 0.5, y1 + 0.5, 1e-9, sea)
 
 
 @njit
@@ -95,8 +62,10 @@ def _cells_ok(x0, y0, x1, y1, cell_ok, cell_clean):
 def _gc_leg_is_sea(lat1, lon1, lat2, lon2, lat0, lon0, dlat, dlon, cell_ok, cell_clean, ocean, px_r0, px_c0, ppd, has_px, step_nmi, radius):
     """True when the great-circle leg (deg) touches only passable cells and no land pixel.
 
-    Checked in great-circle pieces of at most ``step_nmi``; pieces in land-free cells skip the
-    pixel traversal.
+    Cells are checked in great-circle pieces of at most ``step_nmi``; when any piece touches a
+    cell holding land (within the clean-cell margin) the whole leg goes through the one land
+    check's pixel test (``gc_leg_ocean``, as ``routing.land.legs_at_sea`` runs it), so smoothing
+    and every later check of the same leg agree.
     """
     deg = math.pi / 180.0
     la1 = lat1 * deg
@@ -108,6 +77,7 @@ def _gc_leg_is_sea(lat1, lon1, lat2, lon2, lat0, lon0, dlat, dlon, cell_ok, cell
     if n < 1:
         n = 1
     alat, alon = lat1, lon1
+    near_land = False
     for q in range(n):
         if q == n - 1:
             blat, blon = lat2, lon2
@@ -119,10 +89,10 @@ def _gc_leg_is_sea(lat1, lon1, lat2, lon2, lat0, lon0, dlat, dlon, cell_ok, cell
         )
         if not ok:
             return False
-        if has_px and not clean:
-            if not _pixels_ocean(alat, alon, blat, blon, ocean, px_r0, px_c0, ppd):
-                return False
+        near_land = near_land or not clean
         alat, alon = blat, blon
+    if has_px and near_land:
+        return gc_leg_ocean(lat1, lon1, lat2, lon2, ocean, px_r0, px_c0, ppd)
     return True
 
 
@@ -156,7 +126,7 @@ def allowed_edges(sea, cell_ok, cell_clean, cells, counts, di, dj, lat0, lon0, d
                     if not ok:
                         continue
                     if has_px and not clean:
-                        if not _pixels_ocean(
+                        if not gc_leg_ocean(
                             lat0 + j * dlat, lon0 + i * dlon, lat0 + j2 * dlat, lon0 + i2 * dlon, ocean, px_r0, px_c0, ppd
                         ):
                             continue
