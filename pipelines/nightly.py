@@ -940,7 +940,7 @@ def reroute_lane(job: LaneJob) -> list[dict]:
     """
     from routing.astar import ShipModel
     from routing.audit import propose
-    from routing.compare import lane_departure, optimality_gaps, plan_bbox
+    from routing.compare import lane_departure, optimality_gaps, plan_bbox, sea_checks
     from routing.deviate import threshold_inputs
     from routing.evaluate import comparison_table, evaluate_route
     from routing.planner import RouteRequest, plan_routes
@@ -956,6 +956,7 @@ def reroute_lane(job: LaneJob) -> list[dict]:
         ship = ShipModel.from_vessel(vessel, job.speed_loss)
         start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
         bbox = plan_bbox(start, goal, lat, lon, job.weather)
+        fixed = sea_checks(lat, lon)[1](lat, lon)  # the lane's legs over land, repaired once for every departure
     except Exception as err:  # noqa: BLE001 - the whole lane fails, the night goes on
         log.warning("lane %s: setup failed: %s", job.path_id, err)
         return [{"path_id": job.path_id, "depart_utc": t, "status": "failed", "error": f"{type(err).__name__}: {err}"}
@@ -968,7 +969,8 @@ def reroute_lane(job: LaneJob) -> list[dict]:
                 plan = plan_routes(req, job.weather)
             else:
                 plan = plan_routes(req, job.weather, safety=job.safety, vessel=vessel, limits=job.limits)
-            routes = lane_departure(lat, lon, spd, t, plan, weather_at=weather_at, check=check, cells=cells, properties=props)
+            routes = lane_departure(lat, lon, spd, t, plan, weather_at=weather_at, check=check, cells=cells, properties=props,
+                                    fixed=fixed)
             if "safe_optimal_smoothed" in plan.routes:
                 routes["safe_optimal"] = _clean_route(plan.routes["safe_optimal_smoothed"], "safe_optimal")
             routes["optimal"] = _clean_route(plan.routes["optimal_smoothed"], "optimal")

@@ -163,7 +163,7 @@ def sea_checks(lat_deg, lon_deg):
 
 
 def lane_departure(lat_deg, lon_deg, speed_kn, depart_utc, plan, *, weather_at, check, cells, properties=None,
-                   lane_role: str = "lane") -> dict:
+                   lane_role: str = "lane", fixed=None) -> dict:
     """The lane as planned and its cargo-safe deviation for one departure, sailed like the A* routes.
 
     * ``lane``: the centroid path, legs over land replaced by the shortest sea path
@@ -173,6 +173,9 @@ def lane_departure(lat_deg, lon_deg, speed_kn, depart_utc, plan, *, weather_at, 
       the speeds the model makes on the lane's legs, its land legs repaired, then sailed by the
       same model.
 
+    ``fixed`` is the lane's own repair (:func:`routing.seapath.repair_route` of the centroids), the
+    same for every departure: pass it to compute it once per lane.
+
     Returns ``{lane_role: Route, "deviation": Route}``; each says ``sea_only`` and what was repaired.
     """
     from routing.deviate import deviate_lane
@@ -180,7 +183,7 @@ def lane_departure(lat_deg, lon_deg, speed_kn, depart_utc, plan, *, weather_at, 
     lat, lon = np.asarray(lat_deg, dtype=float), np.asarray(lon_deg, dtype=float)
     props = dict(properties or {})
     leg_at_sea, repair = sea_checks(lat, lon)
-    fixed = repair(lat, lon)
+    fixed = repair(lat, lon) if fixed is None else fixed
     lane = retime(fixed.lat_deg, fixed.lon_deg, depart_utc, plan, name=lane_role,
                   properties={**props, "sea_only": fixed.sea_only, "land_repairs": fixed.repaired_legs,
                               "not_proposed": None if fixed.sea_only else f"not sea-only: {fixed.reason}"})
