@@ -69,12 +69,13 @@ def map_extent(routes: dict, weather: WeatherSnapshot | None = None, pad_frac: f
     return lon0 - pad_lon, lon1 + pad_lon, max(lat0 - pad_lat, -89.9), min(lat1 + pad_lat, 89.9)
 
 
-def land_mask(lon0: float, lon1: float, lat0: float, lat1: float, max_px: int = 4000):
+def land_mask(lon0: float, lon1: float, lat0: float, lat1: float, max_px: int = 2400):
     """Land over a box at the 30" mask's own resolution (global-land-mask, through the cache of
     :mod:`thresholds.land_raster`), so a map shows exactly the land the land check sees.
 
-    Boxes wider or taller than ``max_px`` raster pixels are drawn in blocks of k x k pixels,
-    a block being land when any of its pixels is (land is never hidden, only thickened).
+    Boxes wider or taller than ``max_px`` raster pixels (20 deg; a map is ~620 screen pixels wide)
+    are drawn in blocks of k x k pixels, a block being land when any of its pixels is (land is
+    never hidden, only thickened).
 
     Returns
     -------
@@ -197,8 +198,8 @@ def route_map_png(
                 handles.append(Line2D([], [], color="#333333", marker=r"$\rightarrow$", markersize=12, linestyle="none", label="mean wave direction (travelling to)"))
 
     lon_e, lat_e, land = land_mask(lon0, lon1, lat0, lat1)
-    rgba = np.zeros(land.shape + (4,))
-    rgba[land] = (*LAND_RGB, 1.0)
+    rgba = np.zeros(land.shape + (4,), dtype=np.uint8)  # 4 bytes a pixel: the mask's own resolution stays small
+    rgba[land] = [round(255 * x) for x in (*LAND_RGB, 1.0)]
     ax.imshow(rgba, extent=(lon_e[0], lon_e[-1], lat_e[0], lat_e[-1]), origin="lower", interpolation="nearest", zorder=4, aspect="auto")
 
     halo = [withStroke(linewidth=4.5, foreground="white")]
