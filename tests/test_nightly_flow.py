@@ -510,6 +510,7 @@ def test_cli_missing_inputs_fail_before_the_flow_starts(world, tmp_path, capsys)
 def test_fetched_weather_retries_network_failures_and_is_requested_for_the_night(world, night, monkeypatch):
     """``--fetch``: the download task retries a network failure; the requests cover the lanes and the night."""
     import pipelines.nightly as nightly
+    import pipelines.nightly.flow as nightly_flow
     import pipelines.weather as pw
     from weather.errors import FetchError
 
@@ -525,7 +526,7 @@ def test_fetched_weather_retries_network_failures_and_is_requested_for_the_night
         return [p for n, p in files.items() if n.startswith("cmems")]
 
     monkeypatch.setattr(pw, "fetch_files", fake_fetch)
-    monkeypatch.setattr(nightly, "FETCH_RETRY_DELAYS_S", (0, 0, 0))
+    monkeypatch.setattr(nightly_flow, "FETCH_RETRY_DELAYS_S", (0, 0, 0))
     nightly._flow.cache_clear()
     try:
         _, t = night

@@ -1,0 +1,100 @@
+"""Nightly stage 5, rank: the screen merged with the lanes' outcomes, ranked, as the rows to store."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pandas as pd
+
+from pipelines.nightly.night import REFERENCE, Night, NightResult
+from pipelines.nightly.reroute import _clean_route
+
+def _risk(outcome: dict) -> dict:
+    """Risk avoided and cost of the proposed alternative against the lane as planned (same model)."""
+    evs = outcome.get("evaluations") or {}
+    hist = evs.get(REFERENCE)
+    prop = outcome.get("proposed")
+    if hist is None or prop is None:
+        return {"risk_avoided_h": 0.0, "events_avoided": 0, "delta_time_h": None, "delta_fuel_t": None, "delta_co2_t": None}
+    h, a = hist.summary, evs[prop].summary
+    return {"risk_avoided_h": float(h["adverse_h"] - a["adverse_h"]), "events_avoided": int(h["n_safety_events"] - a["n_safety_events"]),
+            "delta_time_h": float(a["time_h"] - h["time_h"]), "delta_fuel_t": float(a["fuel_t"] - h["fuel_t"]),
+            "delta_co2_t": float(a["co2_t"] - h["co2_t"])}
+
+
+def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightResult:
+    """Merge the screen with the per-lane outcomes, rank, and build the rows to store (pure).
+
+    Ranking: adverse lane-departures by risk avoided (hours over an operator limit or in an IMO
+    situation, lane as planned minus proposed; 0 without a proposal), then IMO events avoided, then
+    the cost (extra hours, then extra fuel), then lane and time; failed ones after them.
+    """
+    by_key = {(o["path_id"], pd.Timestamp(o["depart_utc"])): o for o in outcomes}
+    paths = {p.path_id: p for p in night.paths}
+    cases = []
+    dep_rows, route_rows, event_rows = [], [], []
+    for r in screen.to_dict("records"):
+        key = (r["path_id"], pd.Timestamp(r["depart_utc"]))
+        p = paths[r["path_id"]]
+        o = by_key.get(key)
+        status = "ok"
+        if r["error"] is not None and not (isinstance(r["error"], float) and math.isnan(r["error"])):
+            status, error = "failed", r["error"]
+        elif r["adverse"]:
+            if o is None:
+                status, error = "failed", "the lane's task did not return this departure"
+            else:
+                status, error = o["status"], o.get("error")
+        else:
+            error = None
+        row = {"path_id": r["path_id"], "lane_id": p.lane_id, "origin": p.origin, "destination": p.destination,
+               "depart_utc": key[1], "vessel_profile": p.vessel_profile, "status": status, "rules": ",".join(r["rules"]),
+               "reasons_json": json.dumps(r["reasons"]), "n_points": int(r["n_points"]),
+               "n_points_no_weather": int(r["n_points_no_weather"]), "max_hs_m": r["max_hs_m"],
+               "worst_time_utc": r["worst_time_utc"], "worst_lat_deg": r["worst_lat_deg"], "worst_lon_deg": r["worst_lon_deg"],
+               "proposed": None, "rank": None, "risk_avoided_h": None, "events_avoided": None, "delta_time_h": None,
+               "delta_fuel_t": None, "delta_co2_t": None, "error": error}
+        if status == "adverse":
+            row["proposed"] = o["proposed"]
+            row.update(_risk(o))
+        dep_rows.append(row)
+        if status in ("adverse", "failed"):
+            cases.append({"row": row, "reasons": r["reasons"], "outcome": o if status == "adverse" else None})
+
+    def rank_key(case):
+        row = case["row"]
+        if row["status"] == "failed":
+            return (1, 0.0, 0, 0.0, 0.0, row["path_id"], row["depart_utc"])
+        return (0, -round(row["risk_avoided_h"], 9), -row["events_avoided"], round(row["delta_time_h"] or 0.0, 9),
+                round(row["delta_fuel_t"] or 0.0, 9), row["path_id"], row["depart_utc"])
+
+    cases.sort(key=rank_key)
+    for k, case in enumerate(cases, start=1):
+        case["row"]["rank"] = k
+        o = case["outcome"]
+        if o is None:
+            continue
+        for role, ev in o["evaluations"].items():
+            s = ev.summary
+            route_rows.append({"path_id": case["row"]["path_id"], "depart_utc": case["row"]["depart_utc"], "role": role,
+                               **{c: s.get(c) for c in ("time_h", "dist_nmi", "max_hs_m", "mean_hs_m", "fuel_t", "co2_t",
+                                                         "exposure_h", "adverse_h", "n_safety_events", "no_weather_h")},
+                               "route_json": _clean_route(ev.route).to_json()})
+            for e in ev.events:
+                event_rows.append({"path_id": case["row"]["path_id"], "depart_utc": case["row"]["depart_utc"], "role": role,
+                                   "criterion": e["criterion"], "kind": e["kind"], "start_utc": pd.Timestamp(e["start_utc"]),
+                                   "end_utc": pd.Timestamp(e["end_utc"]), "duration_h": float(e["duration_h"]),
+                                   "lat_deg": e.get("start_lat_deg"), "lon_deg": e.get("start_lon_deg"), "max_margin": e.get("max_margin")})
+    from pipelines.storage.nightly import DEPARTURE_COLUMNS, EVENT_COLUMNS, ROUTE_COLUMNS
+
+    deps = pd.DataFrame(dep_rows, columns=list(DEPARTURE_COLUMNS))
+    counts = {
+        "lanes_checked": len(night.paths),
+        "departures_checked": len(deps),
+        "adverse": int((deps["status"] == "adverse").sum()),
+        "failed": int((deps["status"] == "failed").sum()),
+        "reroutes": int(((deps["status"] == "adverse") & deps["proposed"].notna()).sum()),
+    }
+    return NightResult(deps, pd.DataFrame(route_rows, columns=list(ROUTE_COLUMNS)),
+                       pd.DataFrame(event_rows, columns=list(EVENT_COLUMNS)), cases, counts)

@@ -1,0 +1,122 @@
+"""Nightly stage 4, reroute: one job per lane with adverse departures (what a worker receives),
+and its work: the lane as planned, the deviation and the A* routes, evaluated like for like."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+
+import numpy as np
+import pandas as pd
+
+from pipelines.nightly.night import REFERENCE, VOLATILE_PROPERTIES, LaneJob, Night
+
+log = logging.getLogger(__name__)
+
+def lane_jobs(night: Night, screen: pd.DataFrame) -> list[LaneJob]:
+    """One job per lane with at least one adverse departure (pure)."""
+    from pipelines.routing_weather import field_from_dataset
+
+    field_ = field_from_dataset(night.weather_ds)
+    adverse = screen[screen["adverse"] & screen["error"].isna()]
+    jobs = []
+    by_id = {p.path_id: p for p in night.paths}
+    for pid, g in adverse.groupby("path_id", sort=True):
+        p = by_id[pid]
+        jobs.append(LaneJob(path_id=pid, lane_id=p.lane_id, centroids=p.centroids, vessel=night.vessels[p.vessel_profile],
+                            limits=night.limits, speed_loss=night.params.speed_loss,
+                            departures=sorted(pd.Timestamp(t) for t in g["depart_utc"]), weather=field_,
+                            safety=night.params.safety))
+    return jobs
+
+
+def lane_speed_vessel(vessel, centroids: pd.DataFrame):
+    """The vessel sailing at the lane's typical speed (median of the centroids' speeds), so the
+    A* routes and the evaluations compare like with like; the profile's speed when the lane has none."""
+    v = centroids["speed_kn"].to_numpy(dtype=float)
+    v = v[np.isfinite(v) & (v > 0)]
+    if v.size == 0:
+        return vessel
+    s = float(np.median(v))
+    if not s > vessel.min_speed_kn:
+        return vessel
+    return dataclasses.replace(vessel, speed_kn=s)
+
+
+def _clean_route(route, name: str | None = None):
+    """A route without run-dependent properties (timings), optionally renamed."""
+    from routing.route import Route
+
+    props = {k: v for k, v in route.properties.items() if k not in VOLATILE_PROPERTIES}
+    return Route(name or route.name, route.lat_deg, route.lon_deg, route.time_utc, route.leg_speed_kn, dict(route.weather), props)
+
+
+def reroute_lane(job: LaneJob) -> list[dict]:
+    """The work of one lane (pure): deviation, A* routes and evaluations per adverse departure.
+
+    Returns
+    -------
+    list of dict
+        Per departure: ``path_id``, ``depart_utc``, ``status`` (``adverse`` or ``failed``),
+        ``evaluations`` (role -> RouteEvaluation), ``table`` (comparison), ``proposed`` and
+        ``error``. A departure that raises is ``failed`` with ``"<Error>: message"``; the
+        others still run.
+    """
+    from routing.astar import ShipModel
+    from routing.audit import propose
+    from routing.compare import lane_departure, optimality_gaps, plan_bbox, sea_checks
+    from routing.deviate import threshold_inputs
+    from routing.evaluate import comparison_table, evaluate_route
+    from routing.planner import RouteRequest, plan_routes
+    from routing.sampling import PointSampler
+
+    out = []
+    try:
+        c = job.centroids.sort_values("seq")
+        lat, lon, spd = c["lat_deg"].to_numpy(float), c["lon_deg"].to_numpy(float), c["speed_kn"].to_numpy(float)
+        vessel = lane_speed_vessel(job.vessel, c)
+        sampler = PointSampler.from_field(job.weather)
+        weather_at, check, cells = threshold_inputs(sampler, vessel, job.limits)
+        ship = ShipModel.from_vessel(vessel, job.speed_loss)
+        start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
+        bbox = plan_bbox(start, goal, lat, lon, job.weather)
+        fixed = sea_checks(lat, lon)[1](lat, lon)  # the lane's legs over land, repaired once for every departure
+    except Exception as err:  # noqa: BLE001 - the whole lane fails, the night goes on
+        log.warning("lane %s: setup failed: %s", job.path_id, err)
+        return [{"path_id": job.path_id, "depart_utc": t, "status": "failed", "error": f"{type(err).__name__}: {err}"}
+                for t in job.departures]
+    props = {"lane_id": job.lane_id, "path_id": job.path_id, "vessel": vessel.name}
+    for t in job.departures:
+        try:
+            req = RouteRequest(start, goal, t, ship, vessel_name=vessel.name, bbox=bbox)
+            if job.safety == "none":
+                plan = plan_routes(req, job.weather)
+            else:
+                plan = plan_routes(req, job.weather, safety=job.safety, vessel=vessel, limits=job.limits)
+            routes = lane_departure(lat, lon, spd, t, plan, weather_at=weather_at, check=check, cells=cells, properties=props,
+                                    fixed=fixed)
+            if "safe_optimal_smoothed" in plan.routes:
+                routes["safe_optimal"] = _clean_route(plan.routes["safe_optimal_smoothed"], "safe_optimal")
+            routes["optimal"] = _clean_route(plan.routes["optimal_smoothed"], "optimal")
+            routes["min_distance"] = _clean_route(plan.routes["min_distance"])
+            evs = {role: evaluate_route(r, sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss)
+                   for role, r in routes.items()}
+            out.append({"path_id": job.path_id, "depart_utc": t, "status": "adverse", "evaluations": evs,
+                        "table": comparison_table(evs, reference=REFERENCE), "proposed": propose(evs, reference=REFERENCE),
+                        "optimality": optimality_gaps(routes, plan), "error": None})
+        except Exception as err:  # noqa: BLE001 - one departure fails, the others run
+            log.warning("lane %s departing %s failed: %s", job.path_id, t, err)
+            out.append({"path_id": job.path_id, "depart_utc": t, "status": "failed", "error": f"{type(err).__name__}: {err}"})
+    return out
+
+
+def _collect(jobs: list[LaneJob], results: list) -> list[dict]:
+    """Outcomes of the lane jobs; a job that raised marks every departure of its lane failed."""
+    outcomes = []
+    for job, res in zip(jobs, results):
+        if isinstance(res, BaseException):
+            outcomes += [{"path_id": job.path_id, "depart_utc": t, "status": "failed", "error": f"{type(res).__name__}: {res}"}
+                         for t in job.departures]
+        else:
+            outcomes += list(res)
+    return outcomes

@@ -1,0 +1,65 @@
+"""Nightly stage 7, storage glue (I/O): the ``nightly_runs`` row, the write of a night's rows, and
+the summary the CLI prints and returns as JSON."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+
+from pipelines.nightly.night import Night, NightResult
+
+def run_row(night: Night, result: NightResult, started_utc, finished_utc, report: dict | None, timings: dict) -> dict:
+    """The ``nightly_runs`` row of a night."""
+    ds = night.weather_ds
+    times = pd.DatetimeIndex(ds["time_utc"].values).tz_localize("UTC")
+    files = night.weather_meta.get("files") or night.weather_meta.get("source_files") or []
+    params = night.params.model_dump()
+    summary = {**result.counts, "run_id": night.run_id, "timings_s": timings, "report": (report or {}).get("report")}
+    return {
+        "run_id": night.run_id, "now_utc": night.now_utc, "window_start_utc": night.departures[0],
+        "window_end_utc": night.departures[0] + pd.Timedelta(hours=night.params.window_h), "step_h": night.params.step_h,
+        "n_departure_times": len(night.departures), "lanes_checked": result.counts["lanes_checked"],
+        "departures_checked": result.counts["departures_checked"], "n_adverse": result.counts["adverse"],
+        "n_failed": result.counts["failed"], "n_reroutes": result.counts["reroutes"], "weather_source": night.weather_source,
+        "weather_product": str(night.weather_meta.get("product") or ds.attrs.get("product", "")),
+        "weather_files": json.dumps([str(f) for f in (files if isinstance(files, (list, tuple)) else [files])]),
+        "weather_start_utc": times[0], "weather_end_utc": times[-1], "weather_digest": night.weather_digest,
+        "lanes_digest": night.lanes_digest, "params_json": json.dumps(params, sort_keys=True, default=str),
+        "started_utc": started_utc, "finished_utc": finished_utc, "report_path": (report or {}).get("report"),
+        "summary_json": json.dumps(summary, default=str),
+    }
+
+
+def store_night(db, night: Night, result: NightResult, run: dict) -> dict:
+    """I/O step: write the night's rows (replacing the same run id) and return the row counts."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.nightly import count_rows, write_run
+
+    with open_workspace(db) as ws:
+        write_run(ws, run, result.departures, result.routes, result.events)
+        return count_rows(ws)
+
+
+def summary_of(night: Night, result: NightResult, report: dict | None, timings: dict, top: int = 10) -> dict:
+    """The CLI's JSON object (``reference`` names what every delta is measured against)."""
+    d = result.departures
+    ranked = d[d["rank"].notna()].sort_values("rank").head(top)
+    return {
+        "run_id": night.run_id,
+        "now_utc": night.now_utc.isoformat(),
+        "window": {"start_utc": night.departures[0].isoformat(), "hours": night.params.window_h, "step_h": night.params.step_h,
+                   "departures": len(night.departures)},
+        **result.counts,
+        "weather": {"source": night.weather_source, "product": str(night.weather_meta.get("product", "")),
+                    "digest": night.weather_digest[:16]},
+        "report": (report or {}).get("report"),
+        "exports": (report or {}).get("exports", 0),
+        "out": str(night.out),
+        "timings_s": timings,
+        "reference": "lane: the lane as planned, sailed by the same vessel model (the lane's typical AIS speed minus the speed "
+                     "loss) from the same departure in the same weather; every delta is proposed minus it",
+        "top": [{"rank": int(r["rank"]), "lane": r["path_id"], "depart_utc": r["depart_utc"].isoformat(), "status": r["status"],
+                 "rules": r["rules"], "proposed": r["proposed"], "risk_avoided_h": r["risk_avoided_h"],
+                 "delta_time_h": r["delta_time_h"], "error": r["error"]} for r in ranked.to_dict("records")],
+    }
