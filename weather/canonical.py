@@ -127,11 +127,33 @@ def normalise_weather(
             f"{source}: none of the expected variables {', '.join(variable_map)} found for {product} "
             f"(file has: {', '.join(map(str, ds.data_vars)) or 'no variables'})"
         )
+    ds, names = _time_lat_lon(ds, source)
+    times = to_utc_naive(ds[names[0]].values)
+    lat = np.asarray(ds[names[1]].values, dtype=float)
+    lon = np.asarray(ds[names[2]].values, dtype=float)
+    if lat.ndim != 1 or lon.ndim != 1:
+        raise WeatherFileError(f"{source}: only regular lat/lon grids are supported (latitude has {lat.ndim} dims)")
+    out_vars = {dst: _canonical_values(ds, src, dst, names, units_override, source) for src, dst in present.items()}
+    out = _sorted_canonical(out_vars, times, lat, lon, source)
+    out.attrs = {
+        "product": product,
+        "source_files": "; ".join(map(str, source_files)),
+        "Conventions": "stormlane canonical weather (CF-like)",
+        **(attrs or {}),
+    }
+    return out
+
+
+def _time_lat_lon(ds: xr.Dataset, source: str) -> tuple[xr.Dataset, tuple[str, str, str]]:
+    """Find the time, latitude and longitude names and make time a dimension.
+
+    GRIB decodes to a ``step`` dimension with a ``valid_time`` coordinate along it, or to a scalar
+    time: both become a ``time`` dimension here.
+    """
     t_name = _find(ds, _TIME_NAMES, "time", source)
     lat_name = _find(ds, _LAT_NAMES, "latitude", source)
     lon_name = _find(ds, _LON_NAMES, "longitude", source)
     if t_name not in ds.dims:
-        # e.g. GRIB: dim "step" with a valid_time coordinate along it, or a scalar time.
         tdims = ds[t_name].dims
         if len(tdims) == 1:
             ds = ds.swap_dims({tdims[0]: t_name})
@@ -139,33 +161,50 @@ def normalise_weather(
             ds = ds.expand_dims(t_name)
         else:
             raise WeatherFileError(f"{source}: time coordinate {t_name!r} has dims {tdims}, expected one")
-    times = to_utc_naive(ds[t_name].values)
-    lat = np.asarray(ds[lat_name].values, dtype=float)
-    lon = np.asarray(ds[lon_name].values, dtype=float)
-    if lat.ndim != 1 or lon.ndim != 1:
-        raise WeatherFileError(f"{source}: only regular lat/lon grids are supported (latitude has {lat.ndim} dims)")
+    return ds, (t_name, lat_name, lon_name)
 
-    out_vars = {}
-    for src, dst in present.items():
-        da = ds[src]
-        extra = [d for d in da.dims if d not in (t_name, lat_name, lon_name)]
-        for d in extra:
-            if da.sizes[d] != 1:
-                raise WeatherFileError(f"{source}: variable {src!r} has extra dimension {d!r} of size {da.sizes[d]}; select one level first")
-            da = da.isel({d: 0}, drop=True)
-        if t_name not in da.dims:
-            da = da.expand_dims({t_name: ds.sizes[t_name]})
-        da = da.transpose(t_name, lat_name, lon_name)
-        units = (units_override or {}).get(src, da.attrs.get("units"))
-        factor = unit_factor(dst, units, source, src)
-        values = np.asarray(da.values, dtype=np.float32)
-        if factor != 1.0:
-            values = values * np.float32(factor)
-        if dst in DIRECTION_VARS and (np.nanmin(values) < 0.0 or np.nanmax(values) >= 360.0):
-            values = np.mod(values, np.float32(360.0))
-        out_vars[dst] = (values, {"units": CANONICAL_VARS[dst][0], "long_name": CANONICAL_VARS[dst][1], "source_name": src,
-                                  "source_units": "" if units is None else str(units)})
 
+def _canonical_values(ds: xr.Dataset, src: str, dst: str, names: tuple[str, str, str],
+                      units_override: dict[str, str] | None, source: str) -> tuple[np.ndarray, dict]:
+    """One source variable as float32 (time, lat, lon) in canonical units, with its attributes.
+
+    Singleton extra dimensions (a height or depth level) are dropped; larger ones are an error (the
+    user must select a level). Directions are wrapped into [0, 360).
+    """
+    t_name, lat_name, lon_name = names
+    da = ds[src]
+    for d in [d for d in da.dims if d not in names]:
+        if da.sizes[d] != 1:
+            raise WeatherFileError(f"{source}: variable {src!r} has extra dimension {d!r} of size {da.sizes[d]}; select one level first")
+        da = da.isel({d: 0}, drop=True)
+    if t_name not in da.dims:
+        da = da.expand_dims({t_name: ds.sizes[t_name]})
+    da = da.transpose(t_name, lat_name, lon_name)
+    units = (units_override or {}).get(src, da.attrs.get("units"))
+    factor = unit_factor(dst, units, source, src)
+    values = np.asarray(da.values, dtype=np.float32)
+    if factor != 1.0:
+        values = values * np.float32(factor)
+    if dst in DIRECTION_VARS and (np.nanmin(values) < 0.0 or np.nanmax(values) >= 360.0):
+        values = np.mod(values, np.float32(360.0))
+    return values, {"units": CANONICAL_VARS[dst][0], "long_name": CANONICAL_VARS[dst][1], "source_name": src,
+                    "source_units": "" if units is None else str(units)}
+
+
+def _reorder(arr: np.ndarray, order: np.ndarray, axis: int) -> np.ndarray:
+    """Apply an axis permutation, as a view when it is the identity or a reversal."""
+    n = arr.shape[axis]
+    if np.array_equal(order, np.arange(n)):
+        return arr
+    index = [slice(None)] * arr.ndim
+    index[axis] = slice(None, None, -1) if np.array_equal(order, np.arange(n)[::-1]) else order
+    return arr[tuple(index)]
+
+
+def _sorted_canonical(out_vars: dict, times: np.ndarray, lat: np.ndarray, lon: np.ndarray,
+                      source: str) -> xr.Dataset:
+    """The canonical dataset: times ascending without repeats (the first of equal times kept),
+    latitudes ascending, longitudes wrapped to [-180, 180) and ascending."""
     lon_wrapped = (lon + 180.0) % 360.0 - 180.0
     lon_order = np.argsort(lon_wrapped, kind="stable")
     lat_order = np.argsort(lat, kind="stable")
@@ -176,21 +215,11 @@ def normalise_weather(
     lon_sorted = lon_wrapped[lon_order]
     if np.any(np.diff(lon_sorted) == 0) or np.any(np.diff(lat[lat_order]) == 0):
         raise WeatherFileError(f"{source}: duplicate latitude or longitude values")
-
-    def reorder(arr, order, axis):
-        """Apply an axis permutation, as a view when it is the identity or a reversal."""
-        n = arr.shape[axis]
-        if np.array_equal(order, np.arange(n)):
-            return arr
-        index = [slice(None)] * arr.ndim
-        index[axis] = slice(None, None, -1) if np.array_equal(order, np.arange(n)[::-1]) else order
-        return arr[tuple(index)]
-
     data_vars = {}
     for dst, (values, vattrs) in out_vars.items():
-        arr = reorder(reorder(reorder(values, t_idx, 0), lat_order, 1), lon_order, 2)
+        arr = _reorder(_reorder(_reorder(values, t_idx, 0), lat_order, 1), lon_order, 2)
         data_vars[dst] = (("time_utc", "lat", "lon"), np.ascontiguousarray(arr), vattrs)
-    out = xr.Dataset(
+    return xr.Dataset(
         data_vars,
         coords={
             "time_utc": ("time_utc", times[t_idx], {"long_name": "time (UTC)"}),
@@ -198,13 +227,6 @@ def normalise_weather(
             "lon": ("lon", lon_sorted, {"units": "degrees_east"}),
         },
     )
-    out.attrs = {
-        "product": product,
-        "source_files": "; ".join(map(str, source_files)),
-        "Conventions": "stormlane canonical weather (CF-like)",
-        **(attrs or {}),
-    }
-    return out
 
 
 def validate_canonical(ds: xr.Dataset, what: str = "weather") -> None:
