@@ -17,10 +17,6 @@ from pipelines.times import utc_or_none
 from thresholds.errors import StormlaneError
 from pipelines.vessels import DEFAULT_VESSEL, workspace_lane_profiles
 
-#: Vessel profile of a deviation when none is given: the seed paper studies container ships
-#: under 200 m (Lpp < 200 m limits).
-
-
 class DeviationInputError(StormlaneError):
     """Unknown lane, bad departure time or weather that does not cover the lane-departure."""
 
@@ -137,17 +133,12 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         against lane) and ``deviation_id``.
     """
     from pipelines.config import load_operator_profile, load_vessel
+    from pipelines.nightly import lane_speed_vessel
     from pipelines.routing_weather import field_from_dataset
     from pipelines.storage import open_workspace
-    from pipelines.storage.lanes import read_lane_centroids, read_lanes
     from pipelines.storage.results import write_deviation
-    from pipelines.nightly import lane_speed_vessel
-    from routing.astar import ShipModel
     from routing.audit import not_proposable
-    from routing.compare import lane_departure, plan_bbox
-    from routing.deviate import lane_route, threshold_inputs
-    from routing.evaluate import comparison_metrics, evaluate_route
-    from routing.planner import RouteRequest, plan_routes
+    from routing.evaluate import comparison_metrics
     from routing.sampling import PointSampler
 
     db = Path(db)
@@ -156,64 +147,14 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     t0 = utc_or_none(depart)
     if t0 is None:
         raise DeviationInputError(f"--depart {depart!r} is not an ISO 8601 time")
-    with open_workspace(db) as ws:
-        lanes = read_lanes(ws)
-        lane = read_lane_centroids(ws, str(lane_id))
-        if vessel is None and not lane.empty:  # the lane's own ships (pipelines.vessels)
-            vessel = workspace_lane_profiles(ws).get(str(lane_id), DEFAULT_VESSEL)
-        if lane.empty:
-            known = ", ".join(lanes["lane_id"].astype(str).head(8))
-            raise DeviationInputError(f"no lane {lane_id!r} in {db} ({len(lanes)} lanes{': ' + known if known else ''})")
-        lane = lane.sort_values("seq")
-        d = float(np.sum(np.hypot(np.diff(lane["lat_deg"]), np.diff(lane["lon_deg"]) * np.cos(np.deg2rad(lane["lat_deg"].mean())))) * 60.0)
-        v = float(np.nanmedian(lane["speed_kn"])) if np.isfinite(lane["speed_kn"]).any() else 10.0
-        window_end = t0 + pd.Timedelta(hours=2.0 * d / max(v, 1.0) + 6.0)
-        files = [str(p) for p in weather]
-        if files:
-            from weather.io import read_local
-
-            ds, meta = read_local(files)
-            label = weather_label(meta.get("product") or ds.attrs.get("product"),
-                                  source_files=meta.get("source_files") or ds.attrs.get("source_files") or files)
-            span = pd.DatetimeIndex(ds["time_utc"].values[[0, -1]])
-            span = span.tz_localize("UTC") if span.tz is None else span.tz_convert("UTC")
-            check_departure_in_weather(t0, span[0], span[-1], label)
-        else:
-            from pipelines.storage.weather import get_grid
-
-            try:
-                g = get_grid(ws)
-            except StormlaneError:
-                raise DeviationInputError(f"no weather in the workspace {db}: load some with `stormlane weather load PATH...` "
-                                          "or pass --weather FILE...") from None
-            label = weather_label(g["product"], grid=g["name"], source_files=g.get("source_files"))
-            check_departure_in_weather(t0, utc_or_none(g["start_utc"]), utc_or_none(g["end_utc"]), label)  # the grid's whole span
-            try:
-                ds, meta = weather_from_workspace(ws, t0, window_end)
-            except AuditError as err:
-                raise DeviationInputError(str(err)) from None
-    check_lane_in_weather(ds, lane, str(lane_id), t0, window_end, label)
-    vessel_name = vessel or DEFAULT_VESSEL
+    files = [str(p) for p in weather]
+    lane, vessel_name, ds, meta, label = _lane_and_weather(db, str(lane_id), t0, files, vessel)
     limits = load_operator_profile(profile)
     field_ = field_from_dataset(ds)
     sampler = PointSampler.from_field(field_)
     ves = lane_speed_vessel(load_vessel(vessel_name), lane)
-    weather_at, check, cells = threshold_inputs(sampler, ves, limits)
-    lat, lon, spd = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy()
-    # a lane that meets no weather at all would read 0 h over the limits: refuse it first
-    check_lane_meets_weather(evaluate_route(lane_route(lat, lon, spd, t0, default_speed_kn=ves.speed_kn), sampler, ves,
-                                            limits=limits).summary, lane, str(lane_id), label)
-    start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
-    req = RouteRequest(start, goal, t0, ShipModel.from_vessel(ves), vessel_name=vessel_name, bbox=plan_bbox(start, goal, lat, lon, field_))
-    try:
-        plan = plan_routes(req, field_)
-    except StormlaneError as err:
-        raise DeviationInputError(f"lane {lane_id}: the vessel model's mesh cannot be built: {err}") from None
-    pair = lane_departure(lat, lon, spd, t0, plan, weather_at=weather_at, check=check, cells=cells, properties={"lane_id": str(lane_id)})
-    lane_r, dev = pair["lane"], pair["deviation"]
-    ev_lane = evaluate_route(lane_r, sampler, ves, limits=limits)
+    ev_lane, ev_dev, dev = _lane_and_deviation(lane, str(lane_id), t0, field_, sampler, ves, vessel_name, limits, label)
     lane_summary = ev_lane.to_dict(waypoints=True)
-    ev_dev = evaluate_route(dev, sampler, ves, limits=limits)
     dev_summary = {**ev_dev.to_dict(waypoints=True), "n_deviated": dev.properties["n_deviated"],
                    "n_unresolved": dev.properties["n_unresolved"], "n_legs_adverse": dev.properties["n_legs_adverse"],
                    "land_repairs": dev.properties.get("land_repairs", [])}
@@ -226,7 +167,6 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     if dev.time_utc[-1] > sampler.end_utc:
         notes.append(f"the deviation arrives {dev.time_utc[-1].isoformat()}, after the weather ends ({sampler.end_utc.isoformat()})")
     notes = [n for n in notes if n]
-    steps = dev.properties["steps"]
     return {
         "deviation_id": deviation_id,
         "lane_id": str(lane_id),
@@ -238,8 +178,99 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         "weather": {"files": files, **{k: v for k, v in meta.items() if isinstance(v, (str, int, float))}},
         "lane": lane_summary,
         "deviation": dev_summary,
-        "steps": steps,
+        "steps": dev.properties["steps"],
         "metrics": comparison_metrics(ev_lane, ev_dev),
         "note": "\n".join(notes) or None,
         "notes": notes,
     }
+
+
+def _lane_and_weather(db: Path, lane_id: str, t0: pd.Timestamp, files: list[str], vessel: str | None):
+    """The lane's centroids (in sequence), the vessel profile's name (given, else the lane's own
+    ships' by :mod:`pipelines.vessels`), and the weather that covers the lane from ``t0``: the
+    ``files`` when given, else the workspace's grid. Returns (lane, vessel name, dataset, meta, label).
+
+    The weather window is twice the lane's length at its median AIS speed, plus 6 h: room for a
+    slower deviation (the speed-loss model slows the ship in waves).
+    """
+    from pipelines.storage import open_workspace
+    from pipelines.storage.lanes import read_lane_centroids, read_lanes
+
+    with open_workspace(db) as ws:
+        lanes = read_lanes(ws)
+        lane = read_lane_centroids(ws, lane_id)
+        if lane.empty:
+            known = ", ".join(lanes["lane_id"].astype(str).head(8))
+            raise DeviationInputError(f"no lane {lane_id!r} in {db} ({len(lanes)} lanes{': ' + known if known else ''})")
+        if vessel is None:  # the lane's own ships (pipelines.vessels)
+            vessel = workspace_lane_profiles(ws).get(lane_id, DEFAULT_VESSEL)
+        lane = lane.sort_values("seq")
+        d = float(np.sum(np.hypot(np.diff(lane["lat_deg"]), np.diff(lane["lon_deg"]) * np.cos(np.deg2rad(lane["lat_deg"].mean())))) * 60.0)
+        v = float(np.nanmedian(lane["speed_kn"])) if np.isfinite(lane["speed_kn"]).any() else 10.0
+        window_end = t0 + pd.Timedelta(hours=2.0 * d / max(v, 1.0) + 6.0)
+        if files:
+            ds, meta, label = _weather_from_files(files, t0)
+        else:
+            ds, meta, label = _weather_from_grid(ws, db, t0, window_end)
+    check_lane_in_weather(ds, lane, lane_id, t0, window_end, label)
+    return lane, vessel, ds, meta, label
+
+
+def _weather_from_files(files: list[str], t0: pd.Timestamp):
+    """The weather files read as one dataset; the departure must lie in their time span."""
+    from weather.io import read_local
+
+    ds, meta = read_local(files)
+    label = weather_label(meta.get("product") or ds.attrs.get("product"),
+                          source_files=meta.get("source_files") or ds.attrs.get("source_files") or files)
+    span = pd.DatetimeIndex(ds["time_utc"].values[[0, -1]])
+    span = span.tz_localize("UTC") if span.tz is None else span.tz_convert("UTC")
+    check_departure_in_weather(t0, span[0], span[-1], label)
+    return ds, meta, label
+
+
+def _weather_from_grid(ws, db: Path, t0: pd.Timestamp, window_end: pd.Timestamp):
+    """The workspace grid's weather from ``t0`` to ``window_end``; the departure must lie in the
+    grid's whole span."""
+    from pipelines.storage.weather import get_grid
+
+    try:
+        g = get_grid(ws)
+    except StormlaneError:
+        raise DeviationInputError(f"no weather in the workspace {db}: load some with `stormlane weather load PATH...` "
+                                  "or pass --weather FILE...") from None
+    label = weather_label(g["product"], grid=g["name"], source_files=g.get("source_files"))
+    check_departure_in_weather(t0, utc_or_none(g["start_utc"]), utc_or_none(g["end_utc"]), label)
+    try:
+        ds, meta = weather_from_workspace(ws, t0, window_end)
+    except AuditError as err:
+        raise DeviationInputError(str(err)) from None
+    return ds, meta, label
+
+
+def _lane_and_deviation(lane, lane_id, t0, field_, sampler, ves, vessel_name, limits, label):
+    """The lane and its deviation, both sailed by the vessel model from ``t0`` in the same weather
+    (:func:`routing.compare.lane_departure`), evaluated. Returns (lane evaluation, deviation
+    evaluation, deviation route)."""
+    from routing.astar import ShipModel
+    from routing.compare import lane_departure, plan_bbox
+    from routing.deviate import lane_route, threshold_inputs
+    from routing.evaluate import evaluate_route
+    from routing.planner import RouteRequest, plan_routes
+
+    weather_at, check, cells = threshold_inputs(sampler, ves, limits)
+    lat, lon, spd = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy()
+    # a lane that meets no weather at all would read 0 h over the limits: refuse it first
+    check_lane_meets_weather(evaluate_route(lane_route(lat, lon, spd, t0, default_speed_kn=ves.speed_kn), sampler, ves,
+                                            limits=limits).summary, lane, lane_id, label)
+    start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
+    req = RouteRequest(start, goal, t0, ShipModel.from_vessel(ves), vessel_name=vessel_name,
+                       bbox=plan_bbox(start, goal, lat, lon, field_))
+    try:
+        plan = plan_routes(req, field_)
+    except StormlaneError as err:
+        raise DeviationInputError(f"lane {lane_id}: the vessel model's mesh cannot be built: {err}") from None
+    pair = lane_departure(lat, lon, spd, t0, plan, weather_at=weather_at, check=check, cells=cells,
+                          properties={"lane_id": lane_id})
+    lane_r, dev = pair["lane"], pair["deviation"]
+    return evaluate_route(lane_r, sampler, ves, limits=limits), evaluate_route(dev, sampler, ves, limits=limits), dev
