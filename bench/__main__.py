@@ -61,9 +61,16 @@ def main(argv: list[str] | None = None) -> int:
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     for name in names:
-        mod = importlib.import_module(f"bench.{name}")
-        groups, notes = mod.build(cfg)
-        section = _harness.run_groups(cfg, f"bench/{name}.py", groups, notes)
+        try:
+            mod = importlib.import_module(f"bench.{name}")
+            groups, notes = mod.build(cfg)
+            section = _harness.run_groups(cfg, f"bench/{name}.py", groups, notes)
+        except Exception as err:  # noqa: BLE001 - one broken script must not lose the others' figures
+            import traceback
+
+            tail = traceback.format_exc().strip().splitlines()[-3:]
+            print(f"== bench/{name}.py FAILED: {err}", flush=True)
+            section = {"script": f"bench/{name}.py", "groups": [], "notes": [], "error": " | ".join(tail)}
         if partial:
             section["run_alone_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
             results.setdefault("sections_run_alone", [])

@@ -246,9 +246,11 @@ def render_table(results: dict) -> str:
         lines.append(f"| {name} | {m['title']} | {_ours_cell(o, 'cold')} | {_ours_cell(o, 'warm')} | {base_label} | {bcold} | "
                      f"{bwarm} | {rc} | {rw} | {mem} | {_load(g)} | {_targets(m)} |")
     skipped = [(name, g) for name in results["benchmarks"] for g in results["benchmarks"][name]["groups"] if g.get("skipped")]
-    if skipped:
+    failed = [(name, sec["error"]) for name, sec in results["benchmarks"].items() if sec.get("error")]
+    if skipped or failed:
         lines.append("")
         lines += [f"Skipped: {name} / {g['title']}: {g['skipped']}" for name, g in skipped]
+        lines += [f"**Failed**: bench/{name}.py: {err}" for name, err in failed]
     return "\n".join(lines) + "\n"
 
 
@@ -317,6 +319,8 @@ def render_page(results: dict) -> str:
     for name in [n for n in SCRIPT_ORDER if n in results["benchmarks"]] + [n for n in results["benchmarks"] if n not in SCRIPT_ORDER]:
         sec = results["benchmarks"][name]
         out += [f"## `{sec['script']}`", ""]
+        if sec.get("error"):
+            out += [f"**The script failed**: {sec['error']}", ""]
         out += [f"- {n}" for n in sec.get("notes", [])]
         if sec.get("notes"):
             out.append("")
