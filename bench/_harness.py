@@ -67,7 +67,7 @@ class Config:
     cache_dir: Path = field(default_factory=lambda: Path(os.environ.get(
         "STORMLANE_BENCH_CACHE", Path(tempfile.gettempdir()) / "stormlane-bench-cache")))
     timeout_s: float = 900.0
-    empty_budget_s: float = 25.0  # empty-cache runs of one side stop once they took this long (n recorded)
+    empty_budget_s: float = 12.0  # empty-cache runs of one side stop once they took this long (n recorded)
     verbose: bool = True
 
     @property
