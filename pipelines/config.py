@@ -107,7 +107,7 @@ _VESSEL_REQUIRED_POSITIVE = (
     "engine_rpm",
     "sfoc_g_kwh",
 )
-_VESSEL_OPTIONAL_POSITIVE = ("gm_m", "roll_period_s")
+_VESSEL_OPTIONAL_POSITIVE = ("gm_m", "roll_period_s", "displacement_m3")
 _VESSEL_FRACTIONS = ("engine_load_frac", "sulphur_frac", "carbon_frac")
 _VESSEL_TEXT = ("name", "vessel_class", "fuel", "description")
 
@@ -177,6 +177,15 @@ def parse_vessel(data: dict, path: Path):
         if not 0.0 <= value < kwargs["speed_kn"]:
             raise VesselProfileError(f"{path}: field 'min_speed_kn' must be in [0, speed_kn), got {value:g}")
         kwargs["min_speed_kn"] = value
+    if "block_coefficient" in data:
+        value = _number(path, "block_coefficient", data["block_coefficient"])
+        if not 0.3 <= value <= 1.0:
+            raise VesselProfileError(f"{path}: field 'block_coefficient' is Cb, in [0.3, 1.0], got {value:g}")
+        kwargs["block_coefficient"] = value
+    if "loading" in data:
+        if data["loading"] not in ("loaded", "ballast"):
+            raise VesselProfileError(f"{path}: field 'loading' must be \"loaded\" or \"ballast\", got {data['loading']!r}")
+        kwargs["loading"] = data["loading"]
     if "extra" in data:
         if not isinstance(data["extra"], dict):
             raise VesselProfileError(f"{path}: 'extra' must be a table")

@@ -27,3 +27,8 @@ class WeatherCoverageError(RoutingError):
 
 class MeshSizeError(RoutingError):
     """The requested mesh is empty or too large for memory; choose a coarser spacing or a smaller bbox."""
+
+
+class WeatherVariableError(WeatherCoverageError):
+    """The speed-loss model needs a weather variable the files lack (the message names the model,
+    the variable and the files)."""

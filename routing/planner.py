@@ -325,7 +325,7 @@ def plan_routes(
         ignore_land=req.ignore_land,
         land_check=req.land_check,
     )
-    wx = WeatherArrays.build(mesh, mw, step_time=req.weather_time == "simroute")
+    wx = WeatherArrays.build(mesh, mw, step_time=req.weather_time == "simroute", ship=req.ship)
     calm_wx = WeatherArrays.build(mesh, None) if mw is not None else wx
     timings["mesh_s"] = _time.perf_counter() - t
     timings["mesh_cpu_s"] = _time.process_time() - c

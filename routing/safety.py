@@ -270,7 +270,7 @@ def unsafe_flags(spec: SafetySpec, ship, weather: Mapping[str, np.ndarray], *, m
     skipped : tuple of str
         Rules not evaluated, as :func:`thresholds.safety.assess` lists them.
     """
-    from routing.speed_loss import SpeedLossValidityWarning, attained_speed_kn
+    from routing.speed_loss import SpeedLossValidityWarning
     from thresholds.safety import assess
 
     hs = np.asarray(weather["hs_m"], dtype=float)
@@ -324,12 +324,14 @@ def unsafe_flags(spec: SafetySpec, ship, weather: Mapping[str, np.ndarray], *, m
         hs_c = hs_f[sel][None, :]
         wf_c = wf_f[sel][None, :]
         enc = np.mod(wf_c - heading, 360.0)  # 0 = head seas
+        wind_kw = {}
+        if ship.wind_driven:
+            u, v = free_kw["wind_u_ms"][sel][None, :], free_kw["wind_v_ms"][sel][None, :]
+            wind_kw = {"wind_ms": np.broadcast_to(np.hypot(u, v), enc.shape),
+                       "wind_encounter_deg": np.mod(np.degrees(np.arctan2(-u, -v)) - heading, 360.0)}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SpeedLossValidityWarning)
-            speed = attained_speed_kn(
-                ship.speed_kn, np.broadcast_to(hs_c, enc.shape), enc, ship.model, lpp_m=ship.lpp_m, dwt_t=ship.dwt_t,
-                floor_kn=ship.floor_kn, bowditch_sectors=ship.bowditch_sectors,
-            )  # fmt: skip
+            speed = ship.attained_kn(np.broadcast_to(hs_c, enc.shape), enc, **wind_kw)
         kw = {k: v[sel][None, :] for k, v in free_kw.items()}
         a1 = assess(spec.vessel, lim_h, hs_m=hs_c, wave_from_deg=wf_c, heading_deg=heading, speed_kn=speed, imo_settings=imo,
                     missing="skip", **kw)  # fmt: skip
@@ -358,9 +360,14 @@ def _heading_flags_compiled(spec, ship, lim_h, imo, hs, wf, free_kw, headings, m
     use_surf = bool(imo.enabled and v_max > surf_num)  # V > 1.8 sqrt(L) / cos(.) >= 1.8 sqrt(L) is then impossible
     if imo_rules.SURF_RIDING_SECTOR_DEG != (135.0, 225.0):  # the compiled twin hard-codes the circular's sector
         raise RuntimeError("thresholds.imo_msc1228.SURF_RIDING_SECTOR_DEG changed; update routing._kernels.heading_flags")
+    spd_mag, spd_from = hs, wf  # the sea state the speed model reads: waves, or the wind for Kwon
+    if ship.wind_driven:
+        u, v = free_kw["wind_u_ms"], free_kw["wind_v_ms"]
+        spd_mag, spd_from = np.hypot(u, v), np.mod(np.degrees(np.arctan2(-u, -v)), 360.0)
     return _kernels.heading_flags(
         np.ascontiguousarray(hs, dtype=float), np.ascontiguousarray(wf, dtype=float),
         np.ascontiguousarray(period if period is not None else np.zeros(hs.size), dtype=float),
+        np.ascontiguousarray(spd_mag, dtype=float), np.ascontiguousarray(spd_from, dtype=float),
         np.ascontiguousarray(headings, dtype=float), np.ascontiguousarray(members, dtype=np.int64), ship.params(),
         np.ascontiguousarray(ranges[:, 0]), np.ascontiguousarray(ranges[:, 1]), float(lim_h.gate_hs_m if use_beam else 0.0), use_beam,
         float(imo.gate_hs_m), bool(imo.enabled), float(surf_num), use_surf, float(tr or 1.0), float(imo.roll_tolerance_frac), use_roll,

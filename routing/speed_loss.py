@@ -1,13 +1,22 @@
-"""Involuntary speed loss in waves: Bowditch/Mannarini, Aertssen, Khokhlov, or none.
+"""Involuntary speed loss in waves and wind: Bowditch/Mannarini, Aertssen, Khokhlov, Kwon, or none.
 
-Every model takes the calm-water speed, the significant wave height and the project's one
-encounter angle ``encounter_deg`` (0 = head seas, 180 = following seas, IMO MSC.1/Circ.1228
-convention; see :func:`encounter_angle_deg`) and returns the **speed loss** in knots (positive =
-slower). Each formula converts to its own convention at its boundary:
+Every model takes the calm-water speed, the sea state (the significant wave height, or for Kwon
+the 10 m wind speed) and the project's one encounter angle ``encounter_deg`` (0 = head seas /
+wind from dead ahead, 180 = following, IMO MSC.1/Circ.1228 convention; see
+:func:`encounter_angle_deg`) and returns the **speed loss** in knots (positive = slower). Each
+formula converts to its own convention at its boundary:
 
 * Bowditch/Mannarini and Aertssen are tabulated with theta = 0 for *following* seas:
   ``theta = (encounter_deg + 180) mod 360``.
 * Khokhlov uses theta in radians with 0 = head seas, folded to [0, pi].
+* Kwon tabulates head (0-30 deg), bow (30-60), beam (60-150) and following (150-180) weather,
+  0 = head, folded to [0, 180].
+
+Validity. Khokhlov's formula is published for 4 000-20 000 dwt and 9-20 kn
+(:func:`khokhlov_check`): beyond D·v0 = 7.4e5 t·kn its last factor turns negative and head seas
+would *speed the ship up*; the router refuses it outside the published range. Kwon's table holds
+for block coefficients 0.55-0.85 and where its speed-reduction coefficient C_U is positive
+(:func:`routing.speed_loss_kwon.kwon_check`).
 
 :func:`speed_loss` dispatches on the model name and applies the speed floor;
 :func:`attained_speed_kn` returns the speed through the water after the loss;
@@ -36,6 +45,17 @@ References
        (Beaufort scale: probable maximum wave heights 1.5, 2.5, 4, 5.5, 7.5 m for Beaufort 4-8).
 .. [6] SIMROUTE Technical Manual, Universitat Politècnica de Catalunya, section 2 (Table 2:
        Aertssen sector edges).
+.. [7] Y. J. Kwon, "Speed loss due to added resistance in wind and waves," The Naval Architect,
+       RINA, pp. 14-16, Mar. 2008 (Tables 1-3: direction reduction coefficient, speed reduction
+       coefficient, ship form coefficient); the tables as reproduced by R. Lu, O. Turan,
+       E. Boulougouris, C. Banks and A. Incecik, "A semi-empirical ship operational performance
+       prediction model for voyage optimization towards energy efficient shipping," Ocean Eng.,
+       vol. 110, pp. 18-28, 2015, doi:10.1016/j.oceaneng.2015.07.042.
+.. [8] WMO, *Manual on Marine Meteorological Services*, WMO-No. 558, Annex (Beaufort scale of
+       wind force: equivalent 10 m wind speeds, lower limits 0.3, 1.6, 3.4, 5.5, 8.0, 10.8,
+       13.9, 17.2, 20.8, 24.5, 28.5, 32.7 m/s for forces 1-12).
+.. [9] stormlane ``/work/shared/ANCHORS.md`` (SIMROUTE's code as run on R6): Aertssen's Hs bands
+       as SIMROUTE codes them, < 2.5 / 2.5-4 / 4-5.5 / 5.5-7.5 / >= 7.5 m.
 """
 
 from __future__ import annotations
@@ -44,10 +64,18 @@ import warnings
 
 import numpy as np
 
+from thresholds.errors import StormlaneError
 from thresholds.units import METRES_PER_FOOT
 
 #: Names accepted by :func:`speed_loss`.
-MODELS = ("bowditch", "aertssen", "khokhlov", "none")
+MODELS = ("bowditch", "aertssen", "khokhlov", "kwon", "none")
+#: Models driven by the waves (``hs_m``) and by the wind (``wind_u_ms``/``wind_v_ms``).
+WAVE_MODELS = ("bowditch", "aertssen", "khokhlov")
+WIND_MODELS = ("kwon",)
+
+
+class SpeedLossRangeError(StormlaneError, ValueError):
+    """A speed-loss formula is asked outside the range it was published for (the router refuses)."""
 
 # --- Bowditch / Mannarini: [1] Table A1.1, [2] -------------------------------------------------
 #: f(theta) coefficients [kn/ft^2] for following, beam and head seas ([1], Table A1.1).
@@ -58,8 +86,13 @@ BOWDITCH_F_HEAD_KN_FT2 = 0.0248
 # --- Aertssen: [1] Table A1.2, [3], sector edges of [6] -----------------------------------------
 #: Upper Hs bound of each Beaufort class 4..8 [m]: the WMO probable maximum wave heights [5],
 #: which are the Hs column of [1] Table A1.2 for Beaufort 5..8. Hs <= 1.5 m (Beaufort <= 4) is
-#: below the table: no loss.
+#: below the table: no loss. (Convention ``"wmo"``, ours.)
 AERTSSEN_HS_UPPER_M = (1.5, 2.5, 4.0, 5.5, 7.5)
+#: SIMROUTE's coded convention ``"simroute"`` [9]: the tabulated Hs of Beaufort 5..8 is the
+#: *lower* edge of the class, Hs < 2.5 m gives no loss, Hs >= 7.5 m Beaufort 8. [m]
+AERTSSEN_SIMROUTE_HS_LOWER_M = (2.5, 4.0, 5.5, 7.5)
+#: Hs -> Beaufort conventions offered by :func:`aertssen_beaufort`.
+AERTSSEN_BANDS = ("wmo", "simroute")
 #: Encounter sector lower edges [deg, 0 = head seas]: head [0, 30), bow [30, 60), beam
 #: [60, 150), following [150, 180] ([6] Table 2 converted with encounter = 180 - theta).
 AERTSSEN_SECTOR_EDGES_DEG = (30.0, 60.0, 150.0)
@@ -86,9 +119,14 @@ AERTSSEN_N = np.array(
 KHOKHLOV_A = 0.745  # [kn/m]
 KHOKHLOV_B = 0.245  # [kn/(m rad)]
 KHOKHLOV_C = 1.35e-6  # [1/(t kn)]
-#: Validity of Khokhlov's formula ([1] Appendix I): deadweight [t] and calm-water speed [kn].
+#: Validity of Khokhlov's formula ([1] Appendix I, SIMROUTE manual section 2): deadweight [t] and
+#: calm-water (design) speed [kn].
 KHOKHLOV_DWT_RANGE_T = (4000.0, 20000.0)
 KHOKHLOV_SPEED_RANGE_KN = (9.0, 20.0)
+#: Largest D·v0 inside that range (20 000 t x 20 kn): the factor 1 - 1.35e-6 D v0 stays >= 0.46.
+#: It reaches 0 at D·v0 = 1 / 1.35e-6 = 7.41e5 t·kn and is negative beyond (head seas would speed
+#: the ship up). [t·kn]
+KHOKHLOV_DV_MAX = KHOKHLOV_DWT_RANGE_T[1] * KHOKHLOV_SPEED_RANGE_KN[1]
 
 #: Default speed floor when neither ``floor_kn`` nor a vessel is given. [kn]
 DEFAULT_FLOOR_KN = 2.0
@@ -200,20 +238,36 @@ def speed_loss_bowditch(speed_kn, hs_m, encounter_deg, sectors: str = "symmetric
     return _wrap(loss + 0.0 * _as_float(speed_kn), hs_m)
 
 
-def aertssen_beaufort(hs_m):
+def aertssen_beaufort(hs_m, bands: str = "wmo"):
     """Beaufort class used to pick Aertssen's coefficients from the significant wave height.
 
-    Beaufort b (5..8) is the smallest class whose WMO probable maximum wave height [5] is at
-    least Hs: Hs <= 1.5 m -> 4 (below the table), (1.5, 2.5] -> 5, (2.5, 4.0] -> 6,
-    (4.0, 5.5] -> 7, (5.5, 7.5] -> 8, above 7.5 m -> 9 (outside the table). NaN -> 0.
+    [1] Table A1.2 lists one Hs per Beaufort class (5: 2.5 m, 6: 4.0, 7: 5.5, 8: 7.5); which
+    heights fall in a class is a convention:
+
+    * ``"wmo"`` (ours): b is the smallest class whose WMO probable maximum wave height [5] is at
+      least Hs: Hs <= 1.5 m -> 4 (below the table, no loss), (1.5, 2.5] -> 5, (2.5, 4.0] -> 6,
+      (4.0, 5.5] -> 7, (5.5, 7.5] -> 8, above 7.5 m -> 9 (outside the table, Beaufort 8 used).
+    * ``"simroute"`` (SIMROUTE's code [9]): the tabulated Hs is the class's lower edge:
+      Hs < 2.5 m -> 4 (no loss), [2.5, 4) -> 5, [4, 5.5) -> 6, [5.5, 7.5) -> 7, >= 7.5 -> 8.
+
+    The two agree on no band: SIMROUTE's code gives one class less for every Hs in (1.5, 7.5)
+    outside the tabulated values. NaN -> 0.
 
     Examples
     --------
     >>> aertssen_beaufort(np.array([1.5, 2.5, 2.6, 7.5, 8.0])).tolist()
     [4, 5, 6, 8, 9]
+    >>> aertssen_beaufort(np.array([1.5, 2.5, 2.6, 7.5, 8.0]), "simroute").tolist()
+    [4, 5, 5, 8, 8]
     """
     hs = _as_float(hs_m)
-    bn = 4 + np.searchsorted(np.asarray(AERTSSEN_HS_UPPER_M), np.where(np.isnan(hs), 0.0, hs), side="left")
+    h = np.where(np.isnan(hs), 0.0, hs)
+    if bands == "wmo":
+        bn = 4 + np.searchsorted(np.asarray(AERTSSEN_HS_UPPER_M), h, side="left")
+    elif bands == "simroute":
+        bn = 4 + np.searchsorted(np.asarray(AERTSSEN_SIMROUTE_HS_LOWER_M), h, side="right")
+    else:
+        raise ValueError(f"unknown Aertssen Hs -> Beaufort convention {bands!r}; use one of {', '.join(AERTSSEN_BANDS)}")
     return np.where(np.isnan(hs), 0, bn).astype(int)
 
 
@@ -229,11 +283,12 @@ def aertssen_sector(encounter_deg):
     return np.searchsorted(np.asarray(AERTSSEN_SECTOR_EDGES_DEG), a, side="right").astype(int)
 
 
-def speed_loss_aertssen(speed_kn, hs_m, encounter_deg, lpp_m):
+def speed_loss_aertssen(speed_kn, hs_m, encounter_deg, lpp_m, bands: str = "wmo"):
     """Speed loss in waves after Aertssen (1975).
 
     ``v = v0 - (m / Lpp + n) * v0 / 100`` ([1] Eq. A1.2) with m, n from [1] Table A1.2 by
-    Beaufort class (:func:`aertssen_beaufort`) and heading sector (:func:`aertssen_sector`).
+    Beaufort class (:func:`aertssen_beaufort`, convention ``bands``) and heading sector
+    (:func:`aertssen_sector`).
 
     Parameters
     ----------
@@ -245,6 +300,8 @@ def speed_loss_aertssen(speed_kn, hs_m, encounter_deg, lpp_m):
         Encounter angle, 0 = head seas. [deg]
     lpp_m : float
         Length between perpendiculars. [m]
+    bands : {"wmo", "simroute"}
+        Hs -> Beaufort convention, see :func:`aertssen_beaufort`.
 
     Returns
     -------
@@ -253,7 +310,7 @@ def speed_loss_aertssen(speed_kn, hs_m, encounter_deg, lpp_m):
 
     Notes
     -----
-    Below Beaufort 5 (Hs <= 1.5 m) the table gives no loss. Above Hs = 7.5 m (Beaufort 9+)
+    Below Beaufort 5 (Hs <= 1.5 m; ``"simroute"``: Hs < 2.5 m) the table gives no loss. Above Hs = 7.5 m (Beaufort 9+)
     the Beaufort 8 coefficients are used and a :class:`SpeedLossValidityWarning` is issued.
 
     Examples
@@ -266,7 +323,7 @@ def speed_loss_aertssen(speed_kn, hs_m, encounter_deg, lpp_m):
         raise ValueError(f"Aertssen needs a positive length between perpendiculars, got lpp_m={lpp_m!r}")
     hs = _hs_valid(_as_float(hs_m))
     v0 = _as_float(speed_kn)
-    bn = aertssen_beaufort(hs)
+    bn = aertssen_beaufort(hs, bands)
     if np.any(bn > 8):
         warnings.warn(
             f"Aertssen: Hs above 7.5 m (max {np.nanmax(hs):.2f} m) is beyond Beaufort 8, the end of the "
@@ -302,6 +359,37 @@ def _warn_khokhlov_range(v0, dwt):
         )
 
 
+def khokhlov_check(dwt_t: float, speed_kn: float, vessel_name: str = "") -> None:
+    """Refuse Khokhlov's formula outside its published range (4 000-20 000 dwt, 9-20 kn, [1]).
+
+    Raises
+    ------
+    SpeedLossRangeError
+        Naming the vessel, its deadweight, speed and D·v0 against the limits, e.g. container-large
+        (100 000 dwt, 19 kn: D·v0 = 1.9e6 t·kn, factor -1.57: 5 m head seas would raise its
+        speed from 19 to 24.8 kn).
+
+    Examples
+    --------
+    >>> khokhlov_check(8000.0, 16.1)  # SIMROUTE R6's ship: inside
+    """
+    dwt, v0 = float(dwt_t), float(speed_kn)
+    lo_d, hi_d = KHOKHLOV_DWT_RANGE_T
+    lo_v, hi_v = KHOKHLOV_SPEED_RANGE_KN
+    if lo_d <= dwt <= hi_d and lo_v <= v0 <= hi_v:
+        return
+    dv = dwt * v0
+    factor = 1.0 - KHOKHLOV_C * dv
+    who = f"vessel {vessel_name}" if vessel_name else "the vessel"
+    raise SpeedLossRangeError(
+        f"Khokhlov's speed loss is published for {lo_d:,.0f}-{hi_d:,.0f} dwt and {lo_v:g}-{hi_v:g} kn "
+        f"(D·v0 <= {KHOKHLOV_DV_MAX:.2e} t·kn; Grifoll et al. 2022, Appendix I): {who} has {dwt:,.0f} dwt at {v0:g} kn, "
+        f"D·v0 = {dv:.3g} t·kn (factor 1 - 1.35e-6·D·v0 = {factor:.2f}"
+        + ("; head seas would speed it up" if factor < 0 else "")
+        + "); choose another --speed-loss model (bowditch, aertssen, kwon)"
+    )
+
+
 def speed_loss_khokhlov(speed_kn, hs_m, encounter_deg, dwt_t):
     """Speed loss in waves after Khokhlov (Lubkovsky 2009).
 
@@ -328,7 +416,9 @@ def speed_loss_khokhlov(speed_kn, hs_m, encounter_deg, dwt_t):
     Notes
     -----
     Valid for 4 000-20 000 dwt and 9-20 kn ([1] Appendix I); outside it a
-    :class:`SpeedLossValidityWarning` is issued. Standard error about 0.5 kn [3].
+    :class:`SpeedLossValidityWarning` is issued, and where D·v0 >= 1/1.35e-6 = 7.41e5 t·kn (the
+    last factor <= 0: head seas would speed the ship up) the loss is NaN. The router refuses the
+    formula outside the published range (:func:`khokhlov_check`). Standard error about 0.5 kn [3].
 
     Examples
     --------
@@ -340,7 +430,16 @@ def speed_loss_khokhlov(speed_kn, hs_m, encounter_deg, dwt_t):
     v0 = _as_float(speed_kn)
     _warn_khokhlov_range(np.atleast_1d(v0), dwt)
     theta = np.deg2rad(_fold_deg(encounter_deg))  # [1]: radians, 0 = head seas
-    loss = (KHOKHLOV_A * hs - KHOKHLOV_B * theta * hs) * (1.0 - KHOKHLOV_C * dwt * v0)  # [1], Eq. A1.3
+    factor = 1.0 - KHOKHLOV_C * dwt * v0
+    if np.any(factor <= 0.0):
+        warnings.warn(
+            f"Khokhlov: D·v0 = {dwt * np.nanmax(v0):.3g} t·kn makes the factor 1 - 1.35e-6 D v0 non-positive "
+            "(head seas would speed the ship up): loss is NaN there",
+            SpeedLossValidityWarning,
+            stacklevel=2,
+        )
+    loss = (KHOKHLOV_A * hs - KHOKHLOV_B * theta * hs) * factor  # [1], Eq. A1.3
+    loss = np.where(factor > 0.0, loss, np.nan)
     return _wrap(loss, hs_m)
 
 
@@ -352,6 +451,7 @@ def speed_loss_none(speed_kn, hs_m, encounter_deg):
 
 
 def _model_params(model, vessel, lpp_m, dwt_t, floor_kn):
+    """The ship parameters a model needs (explicit values first, then the vessel's)."""
     if model not in MODELS:
         raise ValueError(f"unknown speed-loss model {model!r}; choose one of {', '.join(MODELS)}")
     if vessel is not None:
@@ -376,19 +476,30 @@ def speed_loss(
     dwt_t: float | None = None,
     floor_kn: float | None = None,
     bowditch_sectors: str = "symmetric",
+    aertssen_bands: str = "wmo",
+    wind_ms=None,
+    kwon=None,
 ):
     """Speed loss by the named model, limited so the speed never drops below a floor.
 
     Parameters
     ----------
     speed_kn, hs_m, encounter_deg : numeric
-        Calm-water speed [kn], significant wave height [m], encounter angle (0 = head) [deg].
-    model : {"bowditch", "aertssen", "khokhlov", "none"}
+        Calm-water speed [kn], significant wave height [m], encounter angle (0 = head) [deg];
+        for Kwon the encounter angle of the wind.
+    model : {"bowditch", "aertssen", "khokhlov", "kwon", "none"}
         Formula; unknown names raise ``ValueError``.
     vessel : thresholds.vessel.Vessel, optional
-        Supplies ``lpp_m``, ``dwt_t`` and the floor ``min_speed_kn`` unless given explicitly.
+        Supplies ``lpp_m``, ``dwt_t``, the floor ``min_speed_kn`` and (Kwon) the hull form unless
+        given explicitly.
     lpp_m, dwt_t : float, optional
         Length between perpendiculars [m] (Aertssen) and deadweight [t] (Khokhlov).
+    aertssen_bands : {"wmo", "simroute"}
+        Aertssen's Hs -> Beaufort convention (:func:`aertssen_beaufort`).
+    wind_ms : numeric, optional
+        10 m wind speed (Kwon; required there). [m/s]
+    kwon : routing.speed_loss_kwon.KwonHull, optional
+        Kwon's hull parameters; default from ``vessel``.
     floor_kn : float, optional
         Lowest speed through the water; default the vessel's ``min_speed_kn`` or 2 kn. SIMROUTE
         aborts ("Negative Ship speed") where Bowditch's loss exceeds v0; we keep steaming at
@@ -410,9 +521,19 @@ def speed_loss(
     if model == "bowditch":
         loss = speed_loss_bowditch(speed_kn, hs_m, encounter_deg, sectors=bowditch_sectors)
     elif model == "aertssen":
-        loss = speed_loss_aertssen(speed_kn, hs_m, encounter_deg, lpp_m)
+        loss = speed_loss_aertssen(speed_kn, hs_m, encounter_deg, lpp_m, bands=aertssen_bands)
     elif model == "khokhlov":
         loss = speed_loss_khokhlov(speed_kn, hs_m, encounter_deg, dwt_t)
+    elif model == "kwon":
+        from routing.speed_loss_kwon import KwonHull, speed_loss_kwon
+
+        if wind_ms is None:
+            raise ValueError("the Kwon model needs the wind speed (wind_ms)")
+        hull = kwon if kwon is not None else KwonHull.from_vessel(vessel) if vessel is not None else None
+        if hull is None:
+            raise ValueError("the Kwon model needs the hull (kwon=KwonHull(...) or a vessel)")
+        loss = speed_loss_kwon(speed_kn, wind_ms, encounter_deg, hull)
+        loss = np.where(np.isnan(_as_float(hs_m)) & np.isnan(_as_float(wind_ms)), np.nan, _as_float(loss))
     else:
         loss = speed_loss_none(speed_kn, hs_m, encounter_deg)
     v0 = _as_float(speed_kn)
@@ -436,9 +557,12 @@ def attained_speed_kn(speed_kn, hs_m, encounter_deg, model: str = "bowditch", **
 def max_attainable_speed_kn(speed_kn: float, model: str, *, hs_max_m: float, dwt_t: float | None = None) -> float:
     """Highest speed through the water any wave state up to ``hs_max_m`` can give. [kn]
 
-    v0 for Bowditch, Aertssen and none (they only slow the ship); for Khokhlov, following seas
-    (theta = pi) add ``(0.245 pi - 0.745) H (1 - 1.35e-6 D v0)`` ([1] Eq. A1.3), maximal at
-    the largest H. Used as the A* heuristic's speed, so the heuristic never overestimates.
+    v0 for Bowditch, Aertssen, Kwon and none (they only slow the ship); for Khokhlov the loss
+    ``(0.745 - 0.245 theta) H F`` with ``F = 1 - 1.35e-6 D v0`` ([1] Eq. A1.3) is most negative in
+    following seas (theta = pi, a gain of ``(0.245 pi - 0.745) H F``) while F > 0, and in head
+    seas (theta = 0, a gain of ``-0.745 H F``) when F < 0 (outside the formula's range, where
+    the router refuses it); maximal at the largest H. Used as the A* heuristic's speed, so the
+    heuristic never overestimates, for every input.
 
     Examples
     --------
@@ -452,5 +576,6 @@ def max_attainable_speed_kn(speed_kn: float, model: str, *, hs_max_m: float, dwt
         return v0
     if dwt_t is None:
         raise ValueError("the Khokhlov model needs dwt_t")
-    gain = (KHOKHLOV_B * np.pi - KHOKHLOV_A) * max(float(hs_max_m), 0.0) * (1.0 - KHOKHLOV_C * float(dwt_t) * v0)
-    return v0 + max(gain, 0.0)
+    factor = 1.0 - KHOKHLOV_C * float(dwt_t) * v0
+    per_m = max((KHOKHLOV_B * np.pi - KHOKHLOV_A) * factor, -KHOKHLOV_A * factor)  # theta = pi or 0
+    return v0 + max(per_m * max(float(hs_max_m), 0.0), 0.0)

@@ -55,7 +55,8 @@ def test_edge_time_by_hand_beam_seas_on_the_equator():
 
 def test_weather_interpolated_at_the_time_the_edge_starts():
     grid = MeshGrid(0.0, 0.0, 0.25, 0.25, 3, 2)
-    # Hs 0 m at 00:00, 6 m at 01:00; departure 00:30 -> Hs 3 m, head seas
+    # Hs 0 m at 00:00, 6 m at 01:00; departure 00:30 (a quarter-hour sub-slice of the edge model,
+    # routing._kernels.edge) -> Hs 3 m, head seas
     field = uniform_field(grid, [0.0, 6.0], 0.0, hours=(0.0, 1.0))
     mesh, wx, _ = setup(grid, field, depart=T0 + pd.Timedelta("30min"))
     ship = ShipModel(16.0, "bowditch")
@@ -64,6 +65,9 @@ def test_weather_interpolated_at_the_time_the_edge_starts():
     res = search(mesh, wx, ship, mesh.node_id(0, 0), mesh.node_id(1, 0), t_start_h=t0_h)
     expected_h = 0.25 * NMI_PER_DEG / (16.0 - 0.0248 * (3.0 / 0.3048) ** 2)  # north into waves from north: head
     assert res.cost == pytest.approx(expected_h, rel=1e-9)
+    # 00:40 reads the nearest sub-slice, 00:45 (Hs 4.5 m)
+    res = search(mesh, wx, ship, mesh.node_id(0, 0), mesh.node_id(1, 0), t_start_h=t0_h + 1.0 / 6.0)
+    assert res.cost == pytest.approx(0.25 * NMI_PER_DEG / (16.0 - 0.0248 * (4.5 / 0.3048) ** 2), rel=1e-9)
     # after the last weather time the last field is held: 6 m head seas
     late = search(mesh, wx, ship, mesh.node_id(0, 0), mesh.node_id(1, 0), t_start_h=5.0)
     assert late.cost == pytest.approx(0.25 * NMI_PER_DEG / (16.0 - 0.0248 * (6.0 / 0.3048) ** 2), rel=1e-9)
@@ -99,9 +103,7 @@ def test_compiled_speed_model_matches_the_numpy_models():
             p = ship.params()
             compiled = np.array(
                 [
-                    _kernels.speed_through_water(
-                        int(p[0]), p[1], p[2], p[3], p[4], p[5] > 0.5, h, math.cos(a), math.sin(a)
-                    )
+                    _kernels.speed_through_water(_kernels.ship_of(p), h, math.cos(a), math.sin(a))
                     for h, a in zip(hs, rad)
                 ]
             )

@@ -146,9 +146,11 @@ NARROW_BEAM = OperatorLimits(name="narrow beam, no gate", beam_sectors_deg=((80.
 CASES = [
     (FEEDER, PROFILE, "bowditch"),
     (FEEDER, OperatorProfile("literal", (dataclasses.replace(SMALL, gate_hs_m=0.0),), imo=ImoSettings(True, 0.10, 0.0)), "aertssen"),
-    (dataclasses.replace(FEEDER, lpp_m=60.0, speed_kn=18.0), OperatorProfile("short ship, surf-riding", (NARROW_BEAM,)), "khokhlov"),
+    (dataclasses.replace(FEEDER, lpp_m=60.0, speed_kn=18.0, dwt_t=12000.0), OperatorProfile("short ship, surf-riding", (NARROW_BEAM,)),
+     "khokhlov"),  # within Khokhlov's 4 000-20 000 dwt
     (FEEDER, None, "none"),  # IMO rules only
     (FEEDER_NO_GM, PROFILE, "bowditch"),  # roll rules skipped
+    (dataclasses.replace(FEEDER, block_coefficient=0.65), PROFILE, "kwon"),  # the wind sets the speed on each heading
 ]
 
 
@@ -174,10 +176,11 @@ def test_compiled_flags_equal_the_threshold_functions(case):
         for s in range(16):
             for h in headings[members[s]]:
                 enc = (we["wave_from_deg"] - h) % 360.0
+                wind_from = math.degrees(math.atan2(-we["wind_u_ms"], -we["wind_v_ms"]))
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", SpeedLossValidityWarning)
-                    v = float(attained_speed_kn(ship.speed_kn, we["hs_m"], enc, model, lpp_m=vessel.lpp_m, dwt_t=vessel.dwt_t,
-                                                floor_kn=vessel.min_speed_kn))
+                    v = float(ship.attained_kn(we["hs_m"], enc, wind_ms=math.hypot(we["wind_u_ms"], we["wind_v_ms"]),
+                                               wind_encounter_deg=(wind_from - h) % 360.0))
                 if assess(vessel, limits, heading_deg=h, speed_kn=v, missing="skip", **we).reason_code != 0:
                     bits |= 1 << s
                     break

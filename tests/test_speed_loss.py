@@ -16,6 +16,7 @@ import pytest
 import xarray as xr
 
 import routing.speed_loss as sl
+from routing.speed_loss_kwon import KwonHull
 from routing.speed_loss import (
     SpeedLossValidityWarning,
     attained_speed_kn,
@@ -242,8 +243,13 @@ def test_max_attainable_speed_bounds_every_model():
         warnings.simplefilter("ignore", SpeedLossValidityWarning)
         for model in sl.MODELS:
             vmax = max_attainable_speed_kn(16.1, model, hs_max_m=8.0, dwt_t=8000.0)
-            v = attained_speed_kn(16.1, hs, enc, model, lpp_m=225.0, dwt_t=8000.0)
+            wind = {"wind_ms": hs * 5.0, "kwon": KwonHull(0.6, 225.0, 30000.0, "loaded")} if model == "kwon" else {}
+            v = attained_speed_kn(16.1, hs, enc, model, lpp_m=225.0, dwt_t=8000.0, **wind)
             assert np.nanmax(v) <= vmax + 1e-12
+        # outside Khokhlov's range (factor < 0) the bound is the head-sea gain, not the following-sea one
+        assert max_attainable_speed_kn(19.0, "khokhlov", hs_max_m=5.0, dwt_t=100000.0) == approx(
+            19.0 + 0.745 * 5.0 * (1.35e-6 * 100000.0 * 19.0 - 1.0)
+        )
     # Khokhlov's following-sea gain: 16.1 + (0.245 pi - 0.745) * 8 * 0.82612.
     assert max_attainable_speed_kn(16.1, "khokhlov", hs_max_m=8.0, dwt_t=8000.0) == approx(
         16.1 + (0.245 * np.pi - 0.745) * 8.0 * K8000

@@ -15,6 +15,8 @@ class Vessel:
 
     Attributes carry their units. ``gm_m`` or ``roll_period_s`` gives the natural roll period
     (IS Code 2008, Part A, 2.3.4); ``vessel_class`` selects the operator limits.
+    ``block_coefficient`` (Cb), ``loading`` ("loaded" or "ballast") and ``displacement_m3``
+    (default Cb·Lpp·B·T) are what Kwon's wind speed-loss method needs.
     """
 
     name: str
@@ -35,6 +37,9 @@ class Vessel:
     sulphur_frac: float = 0.027
     carbon_frac: float = 0.85
     min_speed_kn: float = 2.0  # speed floor for the speed-loss models
+    block_coefficient: float | None = None  # Cb, Kwon's method
+    loading: str = "loaded"  # "loaded" or "ballast", Kwon's method
+    displacement_m3: float | None = None  # displacement volume; default Cb * Lpp * B * T
     description: str = ""
     extra: dict = field(default_factory=dict)
 

@@ -1,8 +1,10 @@
 """Compiled (numba) cores of the router: flat arrays in, flat arrays out, no Python objects.
 
-* :mod:`.core` — parameter vector, great-circle geometry, the speed model
-  (:func:`speed_through_water`), weather at a node and in time, the heap,
-  :func:`gather_bilinear_time` (weather grid -> mesh nodes).
+* :mod:`.core` — the parameter vector's layout, great-circle geometry, the heap, the goal
+  heuristic's tables, :func:`gather_bilinear_time` (weather grid -> mesh nodes).
+* :mod:`.speed` — the speed model (:func:`speed_through_water`, pace over ground).
+* :mod:`.edge` — the edge model: weather of a node at a slice, travel time interpolated between
+  slices, the FIFO arrival (waiting allowed).
 * :mod:`.search` — :func:`astar`, time-dependent A* / Dijkstra on a regular lat/lon mesh.
 * :mod:`.search_safe` — :func:`astar_safe`, the same under the vessel's limits (per-cell,
   per-slice, per-heading-sector flags precomputed by :mod:`routing.safety`).
@@ -29,7 +31,8 @@ def _drop_stale_cache() -> None:
     """Delete this package's numba cache files when a kernel source (or a module whose constants the
     kernels freeze) differs from the one the cache was built from."""
     here = Path(__file__).resolve().parent
-    deps = sorted(here.glob("*.py")) + [here.parent / "speed_loss.py", here.parent / "_land.py", here.parent.parent / "thresholds" / "units.py"]
+    deps = sorted(here.glob("*.py")) + [here.parent / "speed_loss.py", here.parent / "speed_loss_kwon.py", here.parent / "_land.py",
+                                        here.parent.parent / "thresholds" / "units.py"]
     h = hashlib.blake2b(digest_size=16)
     for f in deps:
         if f.exists():
@@ -61,36 +64,49 @@ from routing._kernels.cells import (  # noqa: E402
     segment_cells_sea,
 )
 from routing._kernels.core import (  # noqa: E402
-    MODEL_CODES,
     N_PARAMS,
+    P_AERTSSEN_BANDS,
     P_DWT,
     P_FLOOR,
+    P_KWON_CU,
+    P_KWON_FORM_A,
+    P_KWON_FORM_B,
     P_LPP,
     P_MIN_SOG,
     P_MODEL,
+    P_PACE_MIN,
     P_PRINTED,
     P_TIME_STEP,
     P_V0,
+    P_WAIT,
+    SUBSTEP_MAX_H,
     gather_bilinear_time,
-    speed_through_water,
 )
 from routing._kernels.flags import heading_flags  # noqa: E402
 from routing._kernels.search import astar  # noqa: E402
 from routing._kernels.search_safe import astar_safe  # noqa: E402
 from routing._kernels.smooth import smooth_path, smooth_path_safe  # noqa: E402
+from routing._kernels.speed import MODEL_CODES, ship_of, speed_through_water  # noqa: E402
 from routing._kernels.walk import eval_path, walk_path_safety  # noqa: E402
 
 __all__ = [
     "MODEL_CODES",
     "N_PARAMS",
+    "P_AERTSSEN_BANDS",
     "P_DWT",
     "P_FLOOR",
+    "P_KWON_CU",
+    "P_KWON_FORM_A",
+    "P_KWON_FORM_B",
     "P_LPP",
     "P_MIN_SOG",
     "P_MODEL",
+    "P_PACE_MIN",
     "P_PRINTED",
     "P_TIME_STEP",
     "P_V0",
+    "P_WAIT",
+    "SUBSTEP_MAX_H",
     "allowed_edges",
     "astar",
     "astar_safe",
@@ -101,6 +117,7 @@ __all__ = [
     "heading_flags",
     "land_summed_area",
     "segment_cells_sea",
+    "ship_of",
     "smooth_path",
     "smooth_path_safe",
     "speed_through_water",

@@ -1,10 +1,5 @@
-"""Shared pieces of the compiled router: parameter vector, great-circle geometry, the speed model,
-weather at a node and in time, the 4-ary heap, and the weather-grid -> mesh gather.
-
-The speed model here is the scalar twin of :mod:`routing.speed_loss` (same module constants,
-cross-checked by tests). Encounter sectors are tested through cosines of the encounter angle
-(``cos a = cos(wave_from) cos(heading) + sin(wave_from) sin(heading)``), which avoids an
-``atan2`` per edge.
+"""Shared pieces of the compiled router: the parameter vector's layout, great-circle geometry,
+the 4-ary heap, and the weather-grid -> mesh gather.
 
 Units: lengths in nmi, times in hours relative to the weather's slice 0, speeds in kn.
 """
@@ -16,29 +11,27 @@ import math
 import numpy as np
 from numba import njit
 
-from routing import speed_loss as sl
-from thresholds.units import METRES_PER_FOOT
 
-MODEL_CODES = {"none": 0, "bowditch": 1, "aertssen": 2, "khokhlov": 3}
-
-_COS30 = math.cos(math.radians(30.0))
-_COS45 = math.cos(math.radians(45.0))
-_COS60 = math.cos(math.radians(60.0))
-_COS150 = math.cos(math.radians(150.0))
-
-# Per-run parameter vector (float64), unpacked into scalars at the top of each kernel; the
-# published coefficients are module globals, which numba freezes into the compiled code.
+# Per-run parameter vector (float64, built by routing.astar.ShipModel.params), unpacked into
+# scalars at the top of each kernel; the published coefficients are module globals of
+# routing._kernels.speed, which numba freezes into the compiled code.
 P_MODEL, P_V0, P_FLOOR, P_LPP, P_DWT, P_PRINTED, P_MIN_SOG, P_TIME_STEP = 0, 1, 2, 3, 4, 5, 6, 7
-N_PARAMS = 8
+#: 1: the ship may postpone the start of an edge (wait, or sail it slower) -- the FIFO arrival of
+#: routing._kernels.edge; 0: it leaves at once (SIMROUTE emulation).
+P_WAIT = 8
+#: Aertssen Hs -> Beaufort convention: 0 ours (WMO probable maximum heights as upper edges), 1 SIMROUTE's code.
+P_AERTSSEN_BANDS = 9
+#: Kwon's speed-reduction coefficient C_U (for the ship's Cb, loading and Froude number) and the two
+#: terms of its ship-form coefficient C_Form = a BN + b BN^6.5 (b = 1 / (k V^(2/3))).
+P_KWON_CU, P_KWON_FORM_A, P_KWON_FORM_B = 10, 11, 12
+#: Least pace over ground any edge can have (1 / the heuristic's speed) [h/nmi]: prunes the
+#: departures worth trying (0: none pruned). Set by routing.astar for each weather.
+P_PACE_MIN = 13
+N_PARAMS = 14
 
-_FT = METRES_PER_FOOT
-_BF_FOL = sl.BOWDITCH_F_FOLLOWING_KN_FT2
-_BF_BEAM = sl.BOWDITCH_F_BEAM_KN_FT2
-_BF_HEAD = sl.BOWDITCH_F_HEAD_KN_FT2
-_KA, _KB, _KC = sl.KHOKHLOV_A, sl.KHOKHLOV_B, sl.KHOKHLOV_C
-_HS_UP = np.array(sl.AERTSSEN_HS_UPPER_M, dtype=np.float64)
-_AM = np.ascontiguousarray(sl.AERTSSEN_M, dtype=np.float64)
-_AN = np.ascontiguousarray(sl.AERTSSEN_N, dtype=np.float64)
+#: Longest step between the times at which the edge model computes travel times (sub-slices of
+#: the weather step; the weather itself is interpolated linearly in time there). [h]
+SUBSTEP_MAX_H = 0.25
 
 
 @njit
@@ -82,121 +75,6 @@ def _intermediate(lat1, lon1, lat2, lon2, f):
     y = A * math.cos(lat1) * math.sin(lon1) + B * math.cos(lat2) * math.sin(lon2)
     z = A * math.sin(lat1) + B * math.sin(lat2)
     return math.atan2(z, math.sqrt(x * x + y * y)), math.atan2(y, x)
-
-
-@njit(inline="always")
-def speed_through_water(model, v0, floor, lpp, dwt, printed, hs, cosa, sina):
-    """Attained speed [kn] for wave height hs [m] and encounter (cos a, sin a), 0 = head seas."""
-    loss = 0.0
-    if hs > 0.0:
-        if model == 1:  # Bowditch: [1] Eq. A1.1, Table A1.1 of routing.speed_loss
-            if printed:
-                alpha = math.degrees(math.atan2(sina, cosa)) % 360.0
-                theta = (alpha + 180.0) % 360.0
-                if theta <= 45.0 or theta >= 270.0:
-                    f = _BF_FOL
-                elif theta >= 135.0 and theta <= 225.0:
-                    f = _BF_HEAD
-                else:
-                    f = _BF_BEAM
-            else:
-                if cosa >= _COS45:
-                    f = _BF_HEAD
-                elif cosa <= -_COS45:
-                    f = _BF_FOL
-                else:
-                    f = _BF_BEAM
-            h_ft = hs / _FT
-            loss = f * h_ft * h_ft
-        elif model == 2:  # Aertssen: Eq. A1.2, Table A1.2
-            if hs > _HS_UP[0]:
-                if hs <= _HS_UP[1]:
-                    col = 0
-                elif hs <= _HS_UP[2]:
-                    col = 1
-                elif hs <= _HS_UP[3]:
-                    col = 2
-                else:
-                    col = 3
-                if cosa > _COS30:
-                    sec = 0
-                elif cosa > _COS60:
-                    sec = 1
-                elif cosa > _COS150:
-                    sec = 2
-                else:
-                    sec = 3
-                loss = (_AM[sec, col] / lpp + _AN[sec, col]) * v0 / 100.0
-        elif model == 3:  # Khokhlov: Eq. A1.3
-            c = cosa
-            if c > 1.0:
-                c = 1.0
-            elif c < -1.0:
-                c = -1.0
-            theta = math.acos(c)
-            loss = (_KA * hs - _KB * theta * hs) * (1.0 - _KC * dwt * v0)
-    v = v0 - loss
-    if floor > v0:
-        floor = v0
-    if v < floor:
-        v = floor
-    return v
-
-
-@njit(inline="always")
-def _pace(model, v0, floor, lpp, dwt, printed, min_sog, hs, wc, ws, cu, cv, has_cur, ch, sh):
-    """Hours per nmi over ground for heading (cos, sin) in the given interpolated weather."""
-    # Direction unknown (absent, or components cancelling out): head seas, the conservative case.
-    n = math.sqrt(wc * wc + ws * ws)
-    cosa = 1.0
-    sina = 0.0
-    if n > 1e-6:
-        cosa = (wc * ch + ws * sh) / n
-        sina = (ws * ch - wc * sh) / n
-    v = speed_through_water(model, v0, floor, lpp, dwt, printed, hs, cosa, sina)
-    if has_cur:
-        along = cu * sh + cv * ch
-        cross = cu * ch - cv * sh
-        v2 = v * v - cross * cross
-        sog = (math.sqrt(v2) if v2 > 0.0 else 0.0) + along
-        if sog < min_sog:
-            sog = min_sog
-        return 1.0 / sog
-    return 1.0 / v
-
-
-@njit(inline="always")
-def _time_slot(t_h, dt_h, n_times, step):
-    """Slice index i0, next index i1 and weight for time t_h (hours since slice 0); held at the ends.
-
-    ``step`` (SIMROUTE emulation only) uses the slice at or before t_h without interpolating.
-    """
-    x = t_h / dt_h
-    if x <= 0.0 or n_times == 1:
-        return 0, 0, 0.0
-    i0 = int(math.floor(x))
-    if i0 >= n_times - 1:
-        return n_times - 1, n_times - 1, 0.0
-    if step:
-        return i0, i0, 0.0
-    return i0, i0 + 1, x - i0
-
-
-@njit(inline="always")
-def _node_weather(s, i0, i1, wt, wave, cur, has_cur):
-    """Hs, wave-direction components and current at sea node row s, interpolated in time.
-
-    ``wave`` is (T, n_sea, 3) = (Hs, cos, sin of the direction waves come from), ``cur`` is
-    (T, n_sea, 2) or a (1, 1, 2) array of zeros read at [0, 0] when there is no current (an
-    unconditional load compiles to much faster code than a load under a runtime flag).
-    """
-    fc = 1 if has_cur else 0
-    hs = wave[i0, s, 0] * (1.0 - wt) + wave[i1, s, 0] * wt
-    wc = wave[i0, s, 1] * (1.0 - wt) + wave[i1, s, 1] * wt
-    ws = wave[i0, s, 2] * (1.0 - wt) + wave[i1, s, 2] * wt
-    cu = cur[i0 * fc, s * fc, 0] * (1.0 - wt) + cur[i1 * fc, s * fc, 0] * wt
-    cv = cur[i0 * fc, s * fc, 1] * (1.0 - wt) + cur[i1 * fc, s * fc, 1] * wt
-    return hs, wc, ws, cu, cv
 
 
 @njit
@@ -280,3 +158,32 @@ def gather_bilinear_time(flat, idx, w, t_idx0, t_w, out):
                         acc2 = w0 * flat[b, g0, c] + w1 * flat[b, g1, c] + w2 * flat[b, g2, c] + w3 * flat[b, g3, c]
                         acc = (1.0 - wt) * acc + wt * acc2
                     out[k, s, c] = acc
+
+
+@njit
+def goal_tables(lat_rad, lon_rad, goal, nx):
+    """Per-row and per-column factors of the haversine to the goal: one asin and sqrt per node
+    (:func:`heuristic_at`)."""
+    ny = lat_rad.size
+    glat = lat_rad[goal // nx]
+    glon = lon_rad[goal % nx]
+    srow = np.empty(ny)
+    crow = np.empty(ny)
+    for j in range(ny):
+        srow[j] = math.sin(0.5 * (lat_rad[j] - glat)) ** 2
+        crow[j] = math.cos(lat_rad[j]) * math.cos(glat)
+    scol = np.empty(nx)
+    for i in range(nx):
+        scol[i] = math.sin(0.5 * (lon_rad[i] - glon)) ** 2
+    return srow, crow, scol
+
+
+@njit(inline="always")
+def heuristic_at(node, nx, srow, crow, scol, h_scale, hcache):
+    """Great-circle distance to the goal times ``h_scale`` (= 2 R / speed), cached per node."""
+    hv = hcache[node]
+    if hv < 0.0:
+        j = node // nx
+        hv = h_scale * math.asin(math.sqrt(min(1.0, srow[j] + crow[j] * scol[node - j * nx])))
+        hcache[node] = hv
+    return hv

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-from routing._kernels.core import P_DWT, P_FLOOR, P_LPP, P_MODEL, P_PRINTED, P_V0, speed_through_water
+from routing._kernels.speed import ship_of, speed_through_water
 
 # --------------------------------------------------------------------------- safety-constrained search
 #
@@ -20,7 +20,7 @@ from routing._kernels.core import P_DWT, P_FLOOR, P_LPP, P_MODEL, P_PRINTED, P_V
 # time it leaves it, so a linear-in-time value between two passing slices passes too (Hs, wind).
 
 
-@njit(inline="always")
+@njit
 def _sector_bit(ch, sh, sectors):
     """Bit of the heading sector of the course with cosine ``ch`` and sine ``sh``."""
     w = 360.0 / sectors
@@ -33,7 +33,7 @@ def _sector_bit(ch, sh, sectors):
     return np.uint16(1 << s)
 
 
-@njit(inline="always")
+@njit
 def _slice_range(ta, tb, dt_h, n_times):
     """Weather slices bracketing the time interval [ta, tb] (hours since slice 0), clamped."""
     if n_times == 1:
@@ -51,7 +51,7 @@ def _slice_range(ta, tb, dt_h, n_times):
     return lo, hi
 
 
-@njit(inline="always")
+@njit
 def _row_unsafe(s, unsafe, k_lo, k_hi, bit):
     for kk in range(k_lo, k_hi + 1):
         if unsafe[kk, s] & bit:
@@ -59,7 +59,7 @@ def _row_unsafe(s, unsafe, k_lo, k_hi, bit):
     return False
 
 
-@njit(inline="always")
+@njit
 def _stencil_cells_unsafe(iu, ju, k, cells, counts, ny, nx, sea_index, unsafe, k_lo, k_hi, bit, exempt_a, exempt_b):
     """True when a cell touched by stencil edge k from node (ju, iu) is unsafe (exempt nodes and
     cells without a weather row are skipped)."""
@@ -116,8 +116,8 @@ def _segment_cells_unsafe(x0, y0, x1, y1, ny, nx, sea_index, unsafe, k_lo, k_hi,
 
 
 @njit(cache=True)
-def heading_flags(hs, wf_deg, period_s, headings_deg, members, p, beam_lo, beam_hi, beam_gate, use_beam, imo_gate, use_imo,
-                  surf_num, use_surf, tr_s, roll_tol, use_roll):  # fmt: skip
+def heading_flags(hs, wf_deg, period_s, spd_mag, spd_from_deg, headings_deg, members, p, beam_lo, beam_hi, beam_gate, use_beam,
+                  imo_gate, use_imo, surf_num, use_surf, tr_s, roll_tol, use_roll):  # fmt: skip
     """Heading-sector bits of the heading-dependent rules, the compiled twin of
     :func:`thresholds.safety.assess` restricted to them (cross-checked by tests).
 
@@ -126,16 +126,13 @@ def heading_flags(hs, wf_deg, period_s, headings_deg, members, p, beam_lo, beam_
     that is > 0); IMO MSC.1/Circ.1228 (where Hs ≥ imo_gate when > 0): surf-riding
     135° < α < 225° and V > surf_num / cos(180° − α) (surf_num = 1.8·√L), synchronous and
     parametric roll |k·T_E − T_R| ≤ ε·T_R for k = 1, 2 with T_E = 3T² / |3T + V cos α|; V is the
-    speed through the water on that heading (:func:`speed_through_water`, parameters ``p``).
+    speed through the water on that heading (:func:`routing._kernels.speed.speed_through_water`,
+    parameters ``p``) in the sea state the speed model reads: ``spd_mag`` (Hs, or the wind speed
+    for Kwon) coming from ``spd_from_deg``.
     Bit s of the result is set when a rule fires at one of the headings ``members[s]``; the
     samples of a sector are judged until one fires.
     """
-    model = int(p[P_MODEL])
-    v0 = p[P_V0]
-    floor = p[P_FLOOR]
-    lpp = p[P_LPP]
-    dwt = p[P_DWT]
-    printed = p[P_PRINTED] > 0.5
+    ship = ship_of(p)
     m = hs.size
     H = headings_deg.size
     S = members.shape[0]
@@ -158,6 +155,9 @@ def heading_flags(hs, wf_deg, period_s, headings_deg, members, p, beam_lo, beam_
         wf = wf_deg[e]
         cw = math.cos(math.radians(wf))
         sw = math.sin(math.radians(wf))
+        sm = spd_mag[e]
+        cws = math.cos(math.radians(spd_from_deg[e]))
+        sws = math.sin(math.radians(spd_from_deg[e]))
         t = period_s[e]
         t3 = 3.0 * t
         tt3 = 3.0 * t * t
@@ -177,9 +177,9 @@ def heading_flags(hs, wf_deg, period_s, headings_deg, members, p, beam_lo, beam_
                                 f = True
                                 break
                     if not f and imo_ok:
-                        ca = cw * ch[j] + sw * sh[j]  # cos and sin of the encounter angle wf - h
-                        sa = sw * ch[j] - cw * sh[j]
-                        v = speed_through_water(model, v0, floor, lpp, dwt, printed, h, ca, sa)
+                        ca = cw * ch[j] + sw * sh[j]  # cos of the waves' encounter angle wf - h
+                        # speed through the water on heading j in the speed model's sea state
+                        v = speed_through_water(ship, sm, cws * ch[j] + sws * sh[j], sws * ch[j] - cws * sh[j])
                         if use_surf and a > 135.0 and a < 225.0 and v * -ca > surf_num:  # cos(180 - a) = -cos a > 0
                             f = True
                         if not f and use_roll:

@@ -2,26 +2,12 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
-from routing._kernels.core import (
-    P_DWT,
-    P_FLOOR,
-    P_LPP,
-    P_MIN_SOG,
-    P_MODEL,
-    P_PRINTED,
-    P_TIME_STEP,
-    P_V0,
-    _heap_pop,
-    _heap_push,
-    _node_weather,
-    _pace,
-    _time_slot,
-)
+from routing._kernels.core import P_MIN_SOG, P_PACE_MIN, P_TIME_STEP, P_WAIT, _heap_pop, _heap_push, goal_tables, heuristic_at
+from routing._kernels.edge import _lerp, mean_pace, node_at, node_slice, node_wait, sub_index, sub_slices, substeps
+from routing._kernels.speed import ship_of
 
 
 @njit(cache=True)
@@ -54,19 +40,20 @@ def astar(
     ``scanned`` counts the allowed edges looked at from expanded nodes; ``computed`` those of
     them whose cost was computed (the edges to closed nodes are skipped before that).
 
-    Edge cost: distance (``distance_mode``) or sailing time
-    ``L * (pace(u) + pace(v)) / 2`` with both paces taken in the weather interpolated at the
-    time the ship reaches u (the edge's start). ``heuristic_speed`` > 0 gives the admissible
-    heuristic great-circle distance / speed; 0 gives Dijkstra.
+    Edge cost: its length (``distance_mode``), or the time from reaching u to reaching v,
+    ``A(t) - t``, by :func:`routing._kernels.edge.arrival` (travel times at sub-slices of the
+    weather step, linear in between; with ``p[P_WAIT]`` the FIFO arrival, min over later
+    departures). The labels are arrival times; under FIFO edges the first time the goal leaves
+    the heap its label is the earliest arrival. ``heuristic_speed`` > 0 gives the admissible
+    heuristic great-circle distance / speed (the speed is at least any speed over ground an
+    edge can reach, so no edge is faster, waiting included); 0 gives Dijkstra.
     """
-    model = int(p[P_MODEL])
-    v0 = p[P_V0]
-    floor = p[P_FLOOR]
-    lpp = p[P_LPP]
-    dwt = p[P_DWT]
-    printed = p[P_PRINTED] > 0.5
+    ship = ship_of(p)
     min_sog = p[P_MIN_SOG]
     step = p[P_TIME_STEP] > 0.5
+    wait = p[P_WAIT] > 0.5
+    pace_min = p[P_PACE_MIN]
+    m_sub, tau, n_sub, phase = substeps(dt_h, n_times, step)
     n = allowed.size
     K = di.size
     g = np.full(n, np.inf)
@@ -76,25 +63,11 @@ def astar(
     keys = np.empty(1024, dtype=np.float64)
     vals = np.empty(1024, dtype=np.int64)
     size = 0
-    glat = lat_rad[goal // nx]
-    glon = lon_rad[goal % nx]
     use_h = heuristic_speed > 0.0
-    # haversine to the goal from per-row and per-column factors: one asin and sqrt per node
-    ny = n // nx
-    srow = np.empty(ny)
-    crow = np.empty(ny)
-    for j in range(ny):
-        srow[j] = math.sin(0.5 * (lat_rad[j] - glat)) ** 2
-        crow[j] = math.cos(lat_rad[j]) * math.cos(glat)
-    scol = np.empty(nx)
-    for i in range(nx):
-        scol[i] = math.sin(0.5 * (lon_rad[i] - glon)) ** 2
+    srow, crow, scol = goal_tables(lat_rad, lon_rad, goal, nx)
     h_scale = 2.0 * radius / heuristic_speed if use_h else 0.0
     g[start] = t_start_h if not distance_mode else 0.0
-    h0 = 0.0
-    if use_h:
-        h0 = h_scale * math.asin(math.sqrt(min(1.0, srow[start // nx] + crow[start // nx] * scol[start % nx])))
-        hcache[start] = h0
+    h0 = heuristic_at(start, nx, srow, crow, scol, h_scale, hcache) if use_h else 0.0
     keys, vals, size = _heap_push(keys, vals, size, g[start] + h0, start)
     expanded = 0
     scanned = 0
@@ -113,8 +86,9 @@ def astar(
         ju = u // nx
         mask = allowed[u]
         su = sea_index[u]
-        i0, i1, wt = _time_slot(gu, dt_h, n_times, step)
-        hs_u, wc_u, ws_u, cu_u, cv_u = _node_weather(su, i0, i1, wt, wave, cur, has_cur)
+        j_u = sub_index(gu, tau, n_sub, phase)
+        k0, k1, f = sub_slices(j_u, m_sub, n_times)
+        u_j = node_at(su, j_u, m_sub, n_times, wave, cur, has_cur)
         for k in range(K):
             if (mask >> np.uint64(k)) & np.uint64(1) == 0:
                 continue
@@ -125,23 +99,22 @@ def astar(
             computed += 1
             L = elen[ju, k]
             if distance_mode:
-                c = L
+                ng = gu + L
             else:
-                hs_v, wc_v, ws_v, cu_v, cv_v = _node_weather(sea_index[v], i0, i1, wt, wave, cur, has_cur)
-                c = L * _pace(
-                    model, v0, floor, lpp, dwt, printed, min_sog, 0.5 * (hs_u + hs_v), 0.5 * (wc_u + wc_v),
-                    0.5 * (ws_u + ws_v), 0.5 * (cu_u + cu_v), 0.5 * (cv_u + cv_v), has_cur, ecos[ju, k], esin[ju, k],
-                )  # fmt: skip
-            ng = gu + c
+                # the edge model of routing._kernels.edge, written out here: an inlined helper doubled the loop's time
+                sv = sea_index[v]
+                v_j = node_slice(sv, k0, wave, cur, has_cur)
+                if f != 0.0:
+                    v_j = _lerp(v_j, node_slice(sv, k1, wave, cur, has_cur), f)
+                ng = gu + L * mean_pace(ship, min_sog, u_j, v_j, has_cur, ecos[ju, k], esin[ju, k])
+                if wait and j_u + 1 < n_sub:
+                    lower = L * pace_min  # no departure arrives sooner than this after it
+                    if (j_u + 1 - phase) * tau + lower < ng:
+                        ng = node_wait(ship, min_sog, lower, L, ng, j_u, su, sv, wave, cur, has_cur, ecos[ju, k], esin[ju, k], m_sub, tau,
+                                       n_sub, phase, n_times)  # fmt: skip  # fmt: skip
             if ng < g[v]:
                 g[v] = ng
                 parent[v] = u
-                hv = 0.0
-                if use_h:
-                    hv = hcache[v]
-                    if hv < 0.0:
-                        jv = v // nx
-                        hv = h_scale * math.asin(math.sqrt(min(1.0, srow[jv] + crow[jv] * scol[v - jv * nx])))
-                        hcache[v] = hv
+                hv = heuristic_at(v, nx, srow, crow, scol, h_scale, hcache) if use_h else 0.0
                 keys, vals, size = _heap_push(keys, vals, size, ng + hv, v)
     return g, parent, expanded, scanned, computed, reached

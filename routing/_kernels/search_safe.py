@@ -2,27 +2,13 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
-from routing._kernels.core import (
-    P_DWT,
-    P_FLOOR,
-    P_LPP,
-    P_MIN_SOG,
-    P_MODEL,
-    P_PRINTED,
-    P_TIME_STEP,
-    P_V0,
-    _heap_pop,
-    _heap_push,
-    _node_weather,
-    _pace,
-    _time_slot,
-)
+from routing._kernels.core import P_MIN_SOG, P_PACE_MIN, P_TIME_STEP, P_WAIT, _heap_pop, _heap_push, goal_tables, heuristic_at
+from routing._kernels.edge import _lerp, mean_pace, node_at, node_slice, node_wait, sub_index, sub_slices, substeps
 from routing._kernels.flags import _slice_range, _stencil_cells_unsafe
+from routing._kernels.speed import ship_of
 
 
 @njit(cache=True)
@@ -58,25 +44,28 @@ def astar_safe(
     """Time-dependent A* that respects the vessel's limits; returns
     ``(g, t, exposure, parent, expanded, scanned, reached, horizon_hit)``.
 
-    Edge time as in :func:`astar`. An edge is *unsafe* when a cell it touches (``cells[k]``,
-    ``counts[k]``: the stencil's closed-square cells, both end nodes included; the start and goal
-    nodes are exempt, the ship must leave and reach them) is flagged in ``unsafe`` for the edge's
-    heading sector (``ebit[row, k]``) in a weather slice bracketing the edge's time interval.
-    ``hard``: unsafe edges are not taken. Otherwise (soft) an unsafe edge costs its time times
-    ``1 + penalty``. The label of a node is its cost ``g`` (hours plus penalties); the weather is
-    read at the node's arrival time ``t``, kept apart. Penalties only add cost, so the heuristic
+    Edge time as in :func:`routing._kernels.search.astar`: an edge entered at t (the arrival at
+    u) is left by A(t), its FIFO arrival. An edge is *unsafe* when a cell it touches
+    (``cells[k]``, ``counts[k]``: the stencil's closed-square cells, both end nodes included; the
+    start and goal nodes are exempt, the ship must leave and reach them) is flagged in
+    ``unsafe`` for the edge's heading sector (``ebit[row, k]``) in a weather slice bracketing
+    [t, A(t)] (a wait at u counts: the ship is in u's cell meanwhile). ``hard``: unsafe edges
+    are not taken. Otherwise (soft) an unsafe edge costs its time ``A(t) - t`` times
+    ``1 + penalty``. The label of a node is its cost ``g`` (hours plus penalties); its arrival
+    time ``t`` is kept apart. A node keeps one label (the least cost) and edges are taken at
+    their earliest arrival: the search does not wait for unsafe weather to pass, so under
+    limits it returns the least-cost path among those whose every prefix is least-cost (not a
+    proven optimum of the constrained problem). Penalties only add cost, so the heuristic
     (great-circle distance / highest speed) stays admissible and consistent; with ``penalty`` 0
-    the search is exactly :func:`astar`. ``horizon_hit``: an edge needed a slice beyond
-    ``unsafe.shape[0]`` (the caller extends the flags and searches again).
+    the search is exactly :func:`routing._kernels.search.astar`. ``horizon_hit``: an edge needed
+    a slice beyond ``unsafe.shape[0]`` (the caller extends the flags and searches again).
     """
-    model = int(p[P_MODEL])
-    v0 = p[P_V0]
-    floor = p[P_FLOOR]
-    lpp = p[P_LPP]
-    dwt = p[P_DWT]
-    printed = p[P_PRINTED] > 0.5
+    ship = ship_of(p)
     min_sog = p[P_MIN_SOG]
     step = p[P_TIME_STEP] > 0.5
+    wait = p[P_WAIT] > 0.5
+    pace_min = p[P_PACE_MIN]
+    m_sub, tau, n_sub, phase = substeps(dt_h, n_times, step)
     n = allowed.size
     K = di.size
     ny = n // nx
@@ -90,24 +79,12 @@ def astar_safe(
     keys = np.empty(1024, dtype=np.float64)
     vals = np.empty(1024, dtype=np.int64)
     size = 0
-    glat = lat_rad[goal // nx]
-    glon = lon_rad[goal % nx]
     use_h = heuristic_speed > 0.0
-    srow = np.empty(ny)
-    crow = np.empty(ny)
-    for j in range(ny):
-        srow[j] = math.sin(0.5 * (lat_rad[j] - glat)) ** 2
-        crow[j] = math.cos(lat_rad[j]) * math.cos(glat)
-    scol = np.empty(nx)
-    for i in range(nx):
-        scol[i] = math.sin(0.5 * (lon_rad[i] - glon)) ** 2
+    srow, crow, scol = goal_tables(lat_rad, lon_rad, goal, nx)
     h_scale = 2.0 * radius / heuristic_speed if use_h else 0.0
     g[start] = t_start_h
     tarr[start] = t_start_h
-    h0 = 0.0
-    if use_h:
-        h0 = h_scale * math.asin(math.sqrt(min(1.0, srow[start // nx] + crow[start // nx] * scol[start % nx])))
-        hcache[start] = h0
+    h0 = heuristic_at(start, nx, srow, crow, scol, h_scale, hcache) if use_h else 0.0
     keys, vals, size = _heap_push(keys, vals, size, g[start] + h0, start)
     expanded = 0
     scanned = 0
@@ -128,8 +105,9 @@ def astar_safe(
         iu = u - ju * nx
         mask = allowed[u]
         su = sea_index[u]
-        i0, i1, wt = _time_slot(tu, dt_h, n_times, step)
-        hs_u, wc_u, ws_u, cu_u, cv_u = _node_weather(su, i0, i1, wt, wave, cur, has_cur)
+        j_u = sub_index(tu, tau, n_sub, phase)
+        k0, k1, f = sub_slices(j_u, m_sub, n_times)
+        u_j = node_at(su, j_u, m_sub, n_times, wave, cur, has_cur)
         for k in range(K):
             if (mask >> np.uint64(k)) & np.uint64(1) == 0:
                 continue
@@ -137,12 +115,19 @@ def astar_safe(
             scanned += 1
             if closed[v]:
                 continue
-            hs_v, wc_v, ws_v, cu_v, cv_v = _node_weather(sea_index[v], i0, i1, wt, wave, cur, has_cur)
-            c = elen[ju, k] * _pace(
-                model, v0, floor, lpp, dwt, printed, min_sog, 0.5 * (hs_u + hs_v), 0.5 * (wc_u + wc_v),
-                0.5 * (ws_u + ws_v), 0.5 * (cu_u + cu_v), 0.5 * (cv_u + cv_v), has_cur, ecos[ju, k], esin[ju, k],
-            )  # fmt: skip
-            tv = tu + c
+            # the edge model of routing._kernels.edge, written out as in routing._kernels.search.astar
+            L = elen[ju, k]
+            sv = sea_index[v]
+            v_j = node_slice(sv, k0, wave, cur, has_cur)
+            if f != 0.0:
+                v_j = _lerp(v_j, node_slice(sv, k1, wave, cur, has_cur), f)
+            tv = tu + L * mean_pace(ship, min_sog, u_j, v_j, has_cur, ecos[ju, k], esin[ju, k])
+            if wait and j_u + 1 < n_sub:
+                lower = L * pace_min
+                if (j_u + 1 - phase) * tau + lower < tv:
+                    tv = node_wait(ship, min_sog, lower, L, tv, j_u, su, sv, wave, cur, has_cur, ecos[ju, k], esin[ju, k], m_sub, tau, n_sub,
+                                   phase, n_times)  # fmt: skip  # fmt: skip
+            c = tv - tu
             k_lo, k_hi = _slice_range(tu, tv, dt_h, n_times)
             if k_hi >= n_safe:
                 hit = True
@@ -158,12 +143,6 @@ def astar_safe(
                 tarr[v] = tv
                 expo[v] = expo[u] + ex
                 parent[v] = u
-                hv = 0.0
-                if use_h:
-                    hv = hcache[v]
-                    if hv < 0.0:
-                        jv = v // nx
-                        hv = h_scale * math.asin(math.sqrt(min(1.0, srow[jv] + crow[jv] * scol[v - jv * nx])))
-                        hcache[v] = hv
+                hv = heuristic_at(v, nx, srow, crow, scol, h_scale, hcache) if use_h else 0.0
                 keys, vals, size = _heap_push(keys, vals, size, ng + hv, v)
     return g, tarr, expo, parent, expanded, scanned, reached, hit

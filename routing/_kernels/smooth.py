@@ -32,6 +32,7 @@ def _smooth(
     sea_step_nmi,
     sea_index,
     wave,
+    hs,
     cur,
     has_cur,
     dt_h,
@@ -83,7 +84,7 @@ def _smooth(
             two_lon[1] = lon_deg[j]
             tt, _, ex, _ = _walk_path(
                 two_lat, two_lon, t_i, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
-                wave, cur, has_cur, dt_h, n_times, p, radius, use_safety, unsafe, sectors, exempt_a, exempt_b,
+                wave, hs, cur, has_cur, dt_h, n_times, p, radius, use_safety, unsafe, sectors, exempt_a, exempt_b,
             )  # fmt: skip
             if tt[1] <= raw_times[j] + 1e-9 and e_i + ex[1] <= raw_exposure[j] + 1e-9:
                 best = j
@@ -99,7 +100,7 @@ def _smooth(
             two_lon[1] = lon_deg[best]
             tt, _, ex, _ = _walk_path(
                 two_lat, two_lon, t_i, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, sea_index,
-                wave, cur, has_cur, dt_h, n_times, p, radius, use_safety, unsafe, sectors, exempt_a, exempt_b,
+                wave, hs, cur, has_cur, dt_h, n_times, p, radius, use_safety, unsafe, sectors, exempt_a, exempt_b,
             )  # fmt: skip
             best_t = tt[1]
             best_e = e_i + ex[1]
@@ -114,12 +115,12 @@ def _smooth(
 @njit(cache=True)
 def smooth_path(
     lat_deg, lon_deg, raw_times, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, cell_ok, cell_clean, ocean, px_r0, px_c0,
-    ppd, has_px, sea_step_nmi, sea_index, wave, cur, has_cur, dt_h, n_times, p, radius,
+    ppd, has_px, sea_step_nmi, sea_index, wave, hs, cur, has_cur, dt_h, n_times, p, radius,
 ):  # fmt: skip
     """Indices of the waypoints kept by greedy any-angle smoothing (see :func:`_smooth`)."""
     return _smooth(
         lat_deg, lon_deg, raw_times, np.zeros(lat_deg.size), max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, cell_ok, cell_clean,
-        ocean, px_r0, px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, cur, has_cur, dt_h, n_times, p, radius,
+        ocean, px_r0, px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, hs, cur, has_cur, dt_h, n_times, p, radius,
         False, np.zeros((1, 1), dtype=np.uint16), 1, -1, -1,
     )  # fmt: skip
 
@@ -127,11 +128,11 @@ def smooth_path(
 @njit(cache=True)
 def smooth_path_safe(
     lat_deg, lon_deg, raw_times, raw_exposure, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, cell_ok, cell_clean, ocean, px_r0,
-    px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, cur, has_cur, dt_h, n_times, p, radius, unsafe, sectors, exempt_a, exempt_b,
+    px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, hs, cur, has_cur, dt_h, n_times, p, radius, unsafe, sectors, exempt_a, exempt_b,
 ):  # fmt: skip
     """:func:`smooth_path` whose direct legs are no more exposed to unsafe cells than the raw route (see :func:`_smooth`)."""
     return _smooth(
         lat_deg, lon_deg, raw_times, raw_exposure, max_piece_nmi, lat0, lon0, dlat, dlon, ny, nx, cell_ok, cell_clean, ocean,
-        px_r0, px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, cur, has_cur, dt_h, n_times, p, radius,
+        px_r0, px_c0, ppd, has_px, sea_step_nmi, sea_index, wave, hs, cur, has_cur, dt_h, n_times, p, radius,
         True, unsafe, sectors, exempt_a, exempt_b,
     )  # fmt: skip
