@@ -8,8 +8,11 @@ mesh and weather, and the benchmark measures only what the implementation costs:
   (label setting);
 * the edge from ``u`` (reached at time ``t``) to ``v`` costs ``L / v_kn`` hours, ``L`` the
   edge's great-circle length [nmi]; ``v_kn`` is the attained speed in the mean of the two end
-  nodes' weather (Hs and the direction's unit vector), both taken at time ``t``, linearly
-  interpolated between the weather's slices and held after the last one;
+  nodes' weather (Hs and the direction's unit vector) at the sub-slice nearest to ``t`` (the
+  weather step cut into ceil(dt / 0.25 h) sub-steps, the weather linear between its slices and
+  held after the last one); the ship may leave later when that arrives earlier (the FIFO edge
+  model of :mod:`routing._kernels.edge`: the later sub-slices whose piece starts before the
+  arrival minus ``L / v0`` are tried);
 * the speed is Bowditch's: ``v = v0 - f * (Hs / 0.3048)^2`` [kn, Hs in feet], ``f`` by the
   encounter sector (head within 45 deg of the bow, following within 45 deg of the stern, beam
   otherwise; the coefficients are :mod:`routing.speed_loss`'s, American Practical Navigator,
@@ -45,18 +48,29 @@ def td_dijkstra(mesh, wx, v0_kn: float, floor_kn: float, start: int, goal: int, 
     floor = min(floor_kn, v0_kn)
     K = len(steps)
 
-    def slot(t_h):
-        x = t_h / dt_h
-        if x <= 0.0 or n_times == 1:
-            return 0, 0, 0.0
-        i0 = int(math.floor(x))
-        if i0 >= n_times - 1:
-            return n_times - 1, n_times - 1, 0.0
-        return i0, i0 + 1, x - i0
+    m = max(1, int(math.ceil(dt_h / 0.25 - 1e-9)))
+    tau, n_sub = dt_h / m, (n_times - 1) * m + 1
 
-    def node(s, i0, i1, w):
-        a, b = wave[i0][s], wave[i1][s]
-        return a[0] * (1 - w) + b[0] * w, a[1] * (1 - w) + b[1] * w, a[2] * (1 - w) + b[2] * w
+    def sub(t_h):
+        return min(max(int(math.floor(t_h / tau + 0.5)), 0), n_sub - 1)
+
+    def node(s, j):
+        k0 = min(j // m, n_times - 1)
+        k1 = min(k0 + 1, n_times - 1)
+        f = (j - k0 * m) / m if k1 > k0 else 0.0
+        a, b = wave[k0][s], wave[k1][s]
+        if f == 0.0:
+            return a[0], a[1], a[2]
+        return a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2])
+
+    def pace(a, b, row, k):
+        hs, wc, ws = 0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])
+        n = math.sqrt(wc * wc + ws * ws)
+        cosa = (wc * ecos[row][k] + ws * esin[row][k]) / n if n > 1e-6 else 1.0
+        f = f_head if cosa >= _COS45 else (f_fol if cosa <= -_COS45 else f_beam)
+        h_ft = hs / METRES_PER_FOOT
+        speed = v0_kn - f * h_ft * h_ft if hs > 0.0 else v0_kn
+        return 1.0 / max(speed, floor)
 
     best = {start: t_start_h}
     closed = set()
@@ -70,8 +84,8 @@ def td_dijkstra(mesh, wx, v0_kn: float, floor_kn: float, start: int, goal: int, 
         expanded += 1
         if u == goal:
             return {"time_h": gu - t_start_h, "expanded": expanded, "computed": computed}
-        i0, i1, w = slot(gu)
-        hs_u, wc_u, ws_u = node(sea_index[u], i0, i1, w)
+        j = sub(gu)
+        node_u = node(sea_index[u], j)
         row = u // nx
         mask = allowed[u]
         for k in range(K):
@@ -81,14 +95,14 @@ def td_dijkstra(mesh, wx, v0_kn: float, floor_kn: float, start: int, goal: int, 
             if v in closed:
                 continue
             computed += 1
-            hs_v, wc_v, ws_v = node(sea_index[v], i0, i1, w)
-            hs, wc, ws = 0.5 * (hs_u + hs_v), 0.5 * (wc_u + wc_v), 0.5 * (ws_u + ws_v)
-            n = math.sqrt(wc * wc + ws * ws)
-            cosa = (wc * ecos[row][k] + ws * esin[row][k]) / n if n > 1e-6 else 1.0
-            f = f_head if cosa >= _COS45 else (f_fol if cosa <= -_COS45 else f_beam)
-            h_ft = hs / METRES_PER_FOOT
-            speed = v0_kn - f * h_ft * h_ft if hs > 0.0 else v0_kn
-            ng = gu + elen[row][k] * (1.0 / max(speed, floor))  # the kernel's order of operations
+            L = elen[row][k]
+            ng = gu + L * pace(node_u, node(sea_index[v], j), row, k)  # the kernel's order of operations
+            lower = L * (1.0 / v0_kn)  # no departure arrives sooner than this after it
+            for jj in range(j + 1, n_sub):  # later departures (waiting), as long as one could arrive earlier
+                tj = (jj - 0.5) * tau
+                if tj + lower >= ng:
+                    break
+                ng = min(ng, tj + L * pace(node(sea_index[u], jj), node(sea_index[v], jj), row, k))
             if ng < best.get(v, math.inf):
                 best[v] = ng
                 heapq.heappush(heap, (ng, v))
