@@ -150,10 +150,15 @@ class ShipModel:
 
     def describe(self) -> str:
         """One line naming the model and its convention, for route properties and notes."""
-        extra = {"aertssen": f" (Hs -> Beaufort: {self.aertssen_bands})", "bowditch": f" ({self.bowditch_sectors} sectors)",
-                 "khokhlov": f" ({self.dwt_t:,.0f} dwt at {self.speed_kn:g} kn, D·v0 = {(self.dwt_t or 0) * self.speed_kn:.3g} t·kn; "
-                             f"published range 4 000-20 000 dwt, 9-20 kn)"}.get(self.model, "")
-        if self.model == "kwon" and self.kwon is not None:
+        extra = ""
+        if self.model == "aertssen":
+            extra = f" (Lpp {self.lpp_m:g} m, Hs -> Beaufort: {self.aertssen_bands})"
+        elif self.model == "bowditch":
+            extra = f" ({self.bowditch_sectors} sectors)"
+        elif self.model == "khokhlov":
+            extra = (f" ({self.dwt_t:,.0f} dwt at {self.speed_kn:g} kn, D·v0 = {self.dwt_t * self.speed_kn:.3g} t·kn; "
+                     "published range 4,000-20,000 dwt, 9-20 kn)")
+        elif self.model == "kwon" and self.kwon is not None:
             extra = f" (Cb {self.kwon.cb:g}, {self.kwon.form}, Fn {self.kwon.froude(self.speed_kn):.3f})"
         return f"{self.model}{extra}"
 

@@ -87,12 +87,30 @@ class WeatherField:
     def shape(self) -> tuple:
         return (self.time_ns.size, self.lat_deg.size, self.lon_deg.size)
 
+    def lon_cover(self) -> tuple[float, float, bool]:
+        """The longitudes the grid covers, as one interval ``(lo, hi)`` of a continuous frame
+        (``hi`` past 180 deg for a regional product across the antimeridian), and whether it is
+        global (no gap wider than 1.5 grid steps, the wrap from the last longitude to the first
+        included; then ``hi = lo + 360``)."""
+        lon = self.lon_deg
+        gaps = np.diff(np.r_[lon, lon[0] + 360.0])
+        k = int(np.argmax(gaps))
+        if gaps[k] <= 1.5 * float(np.median(np.diff(lon))):
+            return float(lon[0]), float(lon[0]) + 360.0, True
+        if k == lon.size - 1:
+            return float(lon[0]), float(lon[-1]), False
+        return float(lon[k + 1]), float(lon[k]) + 360.0, False
+
+    def covers(self, lat: float, lon: float) -> bool:
+        """The point lies inside the grid (any longitude frame)."""
+        lo, hi, _ = self.lon_cover()
+        x = lo + (float(lon) - lo) % 360.0
+        in_lon = x <= hi + 1e-9 or abs(x - 360.0 - lo) <= 1e-9
+        return bool(self.lat_deg[0] - 1e-9 <= lat <= self.lat_deg[-1] + 1e-9 and in_lon)
+
     def land_mask(self) -> np.ndarray:
         """Grid points without data at every time (NaN in the first wave/current/wind variable). (ny, nx)"""
-        for name in ("hs_m", "current_u_ms", "wind_u_ms", *KNOWN_VARIABLES):
-            if name in self.variables:
-                return np.all(np.isnan(self.variables[name]), axis=0)
-        return np.zeros(self.shape[1:], dtype=bool)
+        return _no_data(self.variables, self.shape[1:])
 
     def on_mesh(self, mesh_lat_deg, mesh_lon_deg, depart_ns: int, node_sea=None, fill_missing: bool = False) -> "MeshWeather":
         """Interpolate onto a regular mesh (nodes ``mesh_lat_deg`` x ``mesh_lon_deg``).
@@ -131,16 +149,15 @@ class WeatherField:
         ny, nx = mlat.size, mlon.size
         if node_sea is None:
             node_sea = np.ones((ny, nx), dtype=bool)
-        # the part of the weather grid around the mesh (views, no copy)
+        # the part of the weather grid around the mesh (views, no copy, unless it crosses 180 deg)
         ja = max(int(np.searchsorted(self.lat_deg, mlat[0], side="right")) - 2, 0)
         jb = min(int(np.searchsorted(self.lat_deg, mlat[-1], side="left")) + 2, self.lat_deg.size)
-        ia = max(int(np.searchsorted(self.lon_deg, mlon[0], side="right")) - 2, 0)
-        ib = min(int(np.searchsorted(self.lon_deg, mlon[-1], side="left")) + 2, self.lon_deg.size)
-        if jb - ja < 2 or ib - ia < 2:  # the mesh lies outside the weather grid
-            ja, jb, ia, ib = 0, self.lat_deg.size, 0, self.lon_deg.size
-        glat, glon = self.lat_deg[ja:jb], self.lon_deg[ia:ib]
-        v = {name: arr[first:, ja:jb, ia:ib] for name, arr in self.variables.items()}
-        valid = ~WeatherField(self.time_ns[first:], glat, glon, v).land_mask()
+        if jb - ja < 2:  # the mesh lies outside the weather grid
+            ja, jb = 0, self.lat_deg.size
+        cols, glon = lon_window(self.lon_deg, mlon[0], mlon[-1])
+        glat = self.lat_deg[ja:jb]
+        v = {name: arr[first:, ja:jb][:, :, cols] for name, arr in self.variables.items()}
+        valid = ~_no_data(v, (glat.size, glon.size))
         jj, wy = _axis_weights(glat, mlat)
         ii, wx = _axis_weights(glon, mlon)
         # four neighbours (j0,i0), (j0,i1), (j1,i0), (j1,i1) of every node: shape (ny, nx, 4)
@@ -203,6 +220,14 @@ class WeatherField:
         )
 
 
+def _no_data(variables: dict, shape) -> np.ndarray:
+    """Grid points without data at every time (NaN in the first wave/current/wind variable)."""
+    for name in ("hs_m", "current_u_ms", "wind_u_ms", *KNOWN_VARIABLES):
+        if name in variables:
+            return np.all(np.isnan(variables[name]), axis=0)
+    return np.zeros(shape, dtype=bool)
+
+
 def _iso(ns) -> str:
     return str(np.datetime64(int(ns), "ns"))[:19] + "Z"
 
@@ -219,14 +244,43 @@ def _regular_times(t: np.ndarray):
     return times, idx.astype(np.int64), w
 
 
+def lon_window(lon_deg: np.ndarray, lo: float, hi: float):
+    """Columns of a weather grid (ascending lon in [-180, 180)) covering the mesh longitudes
+    ``lo .. hi`` of any continuous frame (past +-180 deg too), and their longitudes in that frame.
+
+    The grid is continued periodically (lon + 360 k), so a mesh across the antimeridian reads
+    both ends of a -180..180 product (a 0..360 product is wrapped to -180..180 by the readers
+    first). Returns ``(cols, lon)``: a slice when the window is one block of the grid, else an
+    index array; ``lon`` ascending (gaps, e.g. between the two ends of a regional product, are
+    left to :func:`_axis_weights`).
+    """
+    n = lon_deg.size
+    if lon_deg[0] - 1e-9 <= lo and hi <= lon_deg[-1] + 1e-9:  # the usual case: inside, no wrap
+        ia = max(int(np.searchsorted(lon_deg, lo, side="right")) - 2, 0)
+        ib = min(int(np.searchsorted(lon_deg, hi, side="left")) + 2, n)
+        return slice(ia, ib), lon_deg[ia:ib]
+    ks = np.arange(int(np.floor((lo + 180.0) / 360.0)) - 1, int(np.floor((hi + 180.0) / 360.0)) + 2)
+    ext_lon = (lon_deg[None, :] + 360.0 * ks[:, None]).ravel()
+    ext_col = np.tile(np.arange(n), ks.size)
+    a = max(int(np.searchsorted(ext_lon, lo, side="right")) - 2, 0)
+    b = min(int(np.searchsorted(ext_lon, hi, side="left")) + 2, ext_lon.size)
+    if b - a < 2:  # the mesh lies outside the weather grid: everything (all nodes will be outside)
+        return slice(0, n), lon_deg
+    return ext_col[a:b], ext_lon[a:b]
+
+
 def _axis_weights(grid: np.ndarray, points: np.ndarray):
     """Bracketing indices (n, 2) and linear weights (n, 2) of ``points`` in ascending ``grid``.
 
     Points beyond the grid by more than half a step get index -1 (no data); within half a step
-    they take the edge value.
+    they take the edge value. The same holds inside a gap of the grid (a step over 1.5 times the
+    typical one, e.g. between the two ends of a regional product continued across 180 deg): no
+    interpolation across it.
     """
     n = grid.size
     pos = np.interp(points, grid, np.arange(n, dtype=float))
+    steps = np.diff(grid)
+    step = float(np.median(steps))
     step_lo = grid[1] - grid[0]
     step_hi = grid[-1] - grid[-2]
     outside = (points < grid[0] - 0.5 * step_lo - 1e-9) | (points > grid[-1] + 0.5 * step_hi + 1e-9)
@@ -234,6 +288,15 @@ def _axis_weights(grid: np.ndarray, points: np.ndarray):
     frac = np.clip(pos - i0, 0.0, 1.0)
     idx = np.stack([i0, i0 + 1], axis=-1)
     weights = np.stack([1.0 - frac, frac], axis=-1)
+    gap = steps[i0] > 1.5 * step
+    if np.any(gap):
+        near_lo = gap & (points - grid[i0] <= 0.5 * step + 1e-9)
+        near_hi = gap & (grid[i0 + 1] - points <= 0.5 * step + 1e-9)
+        idx[near_lo] = i0[near_lo, None]
+        weights[near_lo] = (1.0, 0.0)
+        idx[near_hi & ~near_lo] = (i0 + 1)[near_hi & ~near_lo, None]
+        weights[near_hi & ~near_lo] = (1.0, 0.0)
+        outside |= gap & ~near_lo & ~near_hi
     idx[outside] = -1
     weights[outside] = 0.0
     return idx, weights

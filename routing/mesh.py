@@ -118,8 +118,9 @@ class MeshGrid:
             raise MeshSizeError(f"mesh spacing must be positive, got {spacing_deg!r} deg")
         if not (lon_min < lon_max and lat_min < lat_max):
             raise MeshSizeError(f"empty bbox {bbox!r}: need lon_min < lon_max and lat_min < lat_max")
-        if lat_min < -89.0 or lat_max > 89.0 or lon_min < -180.0 or lon_max > 180.0:
-            raise MeshSizeError(f"bbox {bbox!r} must lie within lat -89..89 and lon -180..180 (no antimeridian crossing)")
+        if lat_min < -89.0 or lat_max > 89.0 or lon_min < -540.0 or lon_max > 540.0 or lon_max - lon_min >= 360.0:
+            raise MeshSizeError(f"bbox {bbox!r} must lie within lat -89..89 and span less than 360 deg of longitude "
+                                "(a continuous frame: past 180 deg to cross the antimeridian, e.g. 170..200)")
         lat0, lon0 = lat_min, lon_min
         if anchor is not None:
             a_lat, a_lon = float(anchor[0]), float(anchor[1])
@@ -156,7 +157,19 @@ class MeshGrid:
         node = np.asarray(node)
         return self.lat_deg[node // self.nx], self.lon_deg[node % self.nx]
 
+    @property
+    def lon_mid_deg(self) -> float:
+        """Middle longitude of the mesh's continuous frame."""
+        return self.lon0_deg + 0.5 * (self.nx - 1) * self.dlon_deg
+
+    def to_frame(self, lon_deg):
+        """Longitudes in the mesh's continuous frame (within 180 deg of its middle): a mesh across
+        the antimeridian runs e.g. from 170 to 200 deg, and -175 deg is 185 there."""
+        mid = self.lon_mid_deg
+        return mid + np.mod(np.asarray(lon_deg, dtype=float) - mid + 180.0, 360.0) - 180.0
+
     def contains(self, lat: float, lon: float) -> bool:
+        lon = float(self.to_frame(lon))
         tol = 1e-9
         return (
             self.lat0_deg - 0.5 * self.dlat_deg - tol <= lat <= self.lat_deg[-1] + 0.5 * self.dlat_deg + tol
@@ -313,6 +326,7 @@ class Mesh:
     def leg_is_sea(self, lat1: float, lon1: float, lat2: float, lon2: float) -> bool:
         """True when the great-circle leg crosses only passable cells and no land pixel."""
         g = self.grid
+        lon1, lon2 = float(g.to_frame(lon1)), float(g.to_frame(lon2))
         px = self._px()
         return bool(
             _kernels.gc_leg_is_sea(
@@ -323,6 +337,7 @@ class Mesh:
 
     def nearest_node(self, lat: float, lon: float) -> int:
         g = self.grid
+        lon = float(g.to_frame(lon))
         if not g.contains(lat, lon):
             raise OutsideMeshError(
                 f"point ({lat:.4f}, {lon:.4f}) is outside the mesh bbox lon {g.bbox[0]:.4f}..{g.bbox[2]:.4f}, "

@@ -28,10 +28,12 @@ def test_cli_json_contract_calm_sea(capsys, tmp_path):
     )  # fmt: skip
     assert code == 0, err
     data = json.loads(out)  # exactly one JSON object on stdout
-    assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm", "notes"]
-    assert data["notes"] == []
+    assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm", "speed_loss",
+                          "notes"]
+    assert data["speed_loss"] == "bowditch (symmetric sectors)"
+    assert data["notes"] == ["speed loss: bowditch (symmetric sectors)"]  # the model, said in every output
     assert data["great_circle_nmi"] == pytest.approx(haversine_nmi(10, 0, 12, 6), rel=1e-6)
-    for name in list(data)[1:-1]:
+    for name in list(data)[1:-2]:
         route = data[name]
         assert set(route) == {"time_h", "dist_nmi", "max_hs_m", "waypoints"}
         assert route["waypoints"][0][:2] == [10.0, 0.0] and route["waypoints"][-1][:2] == [12.0, 6.0]
@@ -40,8 +42,8 @@ def test_cli_json_contract_calm_sea(capsys, tmp_path):
     assert len(data["optimal_smoothed"]["waypoints"]) == 2
     geo = json.loads(out_file.read_text())
     lines = [f["properties"] for f in geo["features"] if f["properties"]["feature"] == "route"]
-    assert [p["route"] for p in lines] == list(data)[1:-1]
-    assert [p["time_h"] for p in lines] == pytest.approx([data[k]["time_h"] for k in list(data)[1:-1]], rel=1e-6)
+    assert [p["route"] for p in lines] == list(data)[1:-2]
+    assert [p["time_h"] for p in lines] == pytest.approx([data[k]["time_h"] for k in list(data)[1:-2]], rel=1e-6)
 
 
 def test_cli_table_output(capsys):
@@ -133,9 +135,10 @@ def test_cli_says_when_the_weather_ends_before_arrival(capsys, tmp_path, monkeyp
     code, out, err = run(capsys, *args, "--json")
     assert code == 0, err
     data = json.loads(out)
-    assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm", "notes"]
+    assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm", "speed_loss",
+                          "notes"]
     snapped = [line.removeprefix("note: ") for line in err.splitlines() if line.startswith("note: ")]  # e.g. goal moved to a node
-    assert data["notes"] == [*snapped, note[0].removeprefix("note: ")]
+    assert data["notes"] == ["speed loss: bowditch (symmetric sectors)", *snapped, note[0].removeprefix("note: ")]
     for name in ("optimal", "optimal_smoothed", "min_distance"):
         assert set(data[name]) == {"time_h", "dist_nmi", "max_hs_m", "waypoints", "weather_held_after_h"}
         assert 0 < data[name]["weather_held_after_h"] < data[name]["time_h"] - 0.9  # the weather lasts 1 h

@@ -81,8 +81,8 @@ def test_r6_safety_through_the_cli(gloria, capsys, caplog):
     out = capsys.readouterr()
     data = json.loads(out.out)
     assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm", "safe_optimal",
-                          "safe_optimal_smoothed", "safety", "notes"]
-    assert data["notes"] == []  # the routes arrive before the weather ends
+                          "safe_optimal_smoothed", "safety", "speed_loss", "notes"]
+    assert data["notes"] == ["speed loss: bowditch (symmetric sectors)"]  # the model; the routes arrive before the weather ends
     assert data["safety"]["mode"] == "soft" and data["safe_optimal"]["safety_requested"] == "hard"
     assert data["safe_optimal_smoothed"]["hours_over_limits"] < data["optimal_smoothed"]["hours_over_limits"]
     assert data["safe_optimal_smoothed"]["max_hs_m"] < data["min_distance"]["max_hs_m"]

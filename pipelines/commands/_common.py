@@ -21,7 +21,7 @@ from thresholds.errors import StormlaneError
 #: The workspace used when --db is not given (same as ``pipelines.storage.DEFAULT_DB``).
 DEFAULT_DB = "stormlane.duckdb"
 #: Speed-loss models (same as ``routing.speed_loss.MODELS``; checked by the convention test).
-SPEED_LOSS_MODELS = ("bowditch", "aertssen", "khokhlov", "none")
+SPEED_LOSS_MODELS = ("bowditch", "aertssen", "khokhlov", "kwon", "none")
 
 
 class PathOptionError(StormlaneError):
@@ -99,7 +99,7 @@ ProfileOption = typer.Option(
     None, "--profile", metavar="NAME|FILE",
     help="Operator-limits profile: a name in data/operator_limits.toml or a TOML file (default: that file's default).")
 SpeedLossOption = typer.Option("bowditch", "--speed-loss", metavar="|".join(SPEED_LOSS_MODELS),
-                               help="Speed-loss model in waves.", show_default=True)
+                               help="Speed-loss model: in waves (bowditch, aertssen, khokhlov) or in the wind (kwon).", show_default=True)
 TaskRunnerOption = typer.Option(
     "sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]", show_default=True,
     help="Where the parallel part runs: in this process, on a local Dask cluster, or on the Dask scheduler at ADDRESS.")

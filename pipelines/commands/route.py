@@ -43,6 +43,11 @@ def register(app: typer.Typer) -> None:
         vessel: str = vessel_option(VESSEL_WITHOUT_AIS),
         speed_kn: float = typer.Option(None, "--speed-kn", min=0.1, metavar="KN", help="Calm-water speed in knots; default the vessel's service speed."),
         speed_loss: str = SpeedLossOption,
+        aertssen_bands: str = typer.Option(
+            "wmo", "--aertssen-bands", metavar="wmo|simroute", show_default=True,
+            help="Aertssen's Hs -> Beaufort convention: wmo (WMO probable maximum heights as class upper edges) or simroute "
+                 "(SIMROUTE's code: the tabulated Hs as lower edges).",
+        ),
         mesh_nmi: float = typer.Option(None, "--mesh-nmi", min=0.01, metavar="NMI", help="Mesh step in nmi, taken as X/60 deg on both axes (SIMROUTE's convention)."),
         mesh_deg: float = typer.Option(None, "--mesh-deg", min=0.0001, metavar="DEG", help="Mesh step in degrees on both axes."),
         bbox: str = typer.Option(None, "--bbox", metavar="LONMIN,LATMIN,LONMAX,LATMAX", help="Mesh extent; default the great circle's box plus a margin."),
@@ -65,7 +70,9 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Compute the time-optimal route (raw grid and smoothed) and the minimum-distance route.
 
-        The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time); a route that arrives after the last weather time (whose last field is then held) also has weather_held_after_h; "notes" lists what the table prints as note: lines (empty when there is nothing to say).
+        The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time); a route that arrives after the last weather time (whose last field is then held) also has weather_held_after_h; "speed_loss" names the model with its convention or range; "notes" lists what the table prints as note: lines, first the speed-loss model and what it rests on (a wave direction the weather lacks is taken as head seas; Kwon reads the wind; an antimeridian crossing), then points moved to sea and weather held.
+
+A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 000 dwt and 9-20 kn; Kwon: Cb 0.55-0.85, a positive speed-reduction coefficient), and a model whose variable the weather lacks is refused naming it and the files (waves for bowditch, aertssen, khokhlov; the 10 m wind for kwon). The ship may wait or slow down where that arrives earlier (the optimum under weather whose sailing times jump with time). Routes may cross the antimeridian (--bbox 170,30,-160,50 or 170,30,200,50).
 
         With --safety soft|hard two more routes respect the vessel's limits (safe_optimal, safe_optimal_smoothed), every route reports hours_over_limits (operator + IMO rules at its own ETAs), hours_by_rule and unsafe_cell_h, and a "safety" object says which mode ran (hard falls back to soft when no route keeps within the limits).
 
@@ -83,7 +90,7 @@ def register(app: typer.Typer) -> None:
         from pipelines.vessels import DEFAULT_VESSEL
         from routing.astar import ShipModel
         from routing.planner import RouteRequest, plan_routes
-        from routing.speed_loss import MODELS
+        from routing.speed_loss import AERTSSEN_BANDS, MODELS
 
         if mesh_nmi is not None and mesh_deg is not None:
             raise typer.BadParameter("give either --mesh-nmi or --mesh-deg, not both", param_hint="--mesh-nmi/--mesh-deg")
@@ -91,6 +98,8 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"{edges} is not one of 8, 16, 24, 48", param_hint="--edges")
         if speed_loss not in MODELS:
             raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}", param_hint="--speed-loss")
+        if aertssen_bands not in AERTSSEN_BANDS:
+            raise typer.BadParameter(f"{aertssen_bands!r} is not one of {', '.join(AERTSSEN_BANDS)}", param_hint="--aertssen-bands")
         if safety not in SAFETY_MODES:
             raise typer.BadParameter(f"{safety!r} is not one of {', '.join(SAFETY_MODES)}", param_hint="--safety")
         if operator is not None:
@@ -108,7 +117,7 @@ def register(app: typer.Typer) -> None:
 
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
         ship_vessel = load_vessel(vessel or DEFAULT_VESSEL)
-        ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn)
+        ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn, aertssen_bands=aertssen_bands)
         limits = None
         if safety != "none":
             from pipelines.config import load_operator_profile
@@ -134,7 +143,7 @@ def register(app: typer.Typer) -> None:
         )  # fmt: skip
         plan = plan_routes(req, field, safety=safety, vessel=ship_vessel, limits=limits, penalty_per_h=safety_penalty)
         names = ROUTE_NAMES + (SAFE_ROUTE_NAMES if safety != "none" else ())
-        notes = []
+        notes = list(plan.notes)  # the model and what it rests on, said in every output
         for what, key in (("start", "start_snap_nmi"), ("goal", "goal_snap_nmi")):
             moved = plan.routes["optimal"].properties.get(key, 0.0)
             if moved > 0.5 * plan.mesh.grid.dlat_deg * 60.0:
@@ -160,6 +169,8 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"great circle {plan.great_circle_nmi:.2f} nmi; mesh {plan.mesh.grid.ny} x {plan.mesh.grid.nx} "
                    f"({plan.mesh.grid.dlat_deg * 60:.3g} nmi, {plan.mesh.edges} edges), vessel {ship_vessel.name}, "
                    f"{ship.speed_kn:g} kn, {ship.model}")  # fmt: skip
+        for note in plan.notes:
+            typer.echo(f"note: {note}")
         over = safety != "none"
         if over:
             sf = plan.stats["safety"]

@@ -65,9 +65,13 @@ def _gc_leg_is_sea(lat1, lon1, lat2, lon2, lat0, lon0, dlat, dlon, cell_ok, cell
     Cells are checked in great-circle pieces of at most ``step_nmi``; when any piece touches a
     cell holding land (within the clean-cell margin) the whole leg goes through the one land
     check's pixel test (``gc_leg_ocean``, as ``routing.land.legs_at_sea`` runs it), so smoothing
-    and every later check of the same leg agree.
+    and every later check of the same leg agree. Longitudes are taken in the mesh's continuous
+    frame (within 180 deg of its middle), so a leg across the antimeridian stays on the mesh.
     """
     deg = math.pi / 180.0
+    lon_mid = lon0 + 0.5 * (cell_ok.shape[1] - 1) * dlon
+    lon1 = lon_mid + (lon1 - lon_mid + 180.0) % 360.0 - 180.0
+    lon2 = lon_mid + (lon2 - lon_mid + 180.0) % 360.0 - 180.0
     la1 = lat1 * deg
     lo1 = lon1 * deg
     la2 = lat2 * deg
@@ -83,7 +87,7 @@ def _gc_leg_is_sea(lat1, lon1, lat2, lon2, lat0, lon0, dlat, dlon, cell_ok, cell
             blat, blon = lat2, lon2
         else:
             pl, po = _intermediate(la1, lo1, la2, lo2, (q + 1.0) / n)
-            blat, blon = pl / deg, po / deg
+            blat, blon = pl / deg, lon_mid + (po / deg - lon_mid + 180.0) % 360.0 - 180.0
         ok, clean = _cells_ok(
             (alon - lon0) / dlon, (alat - lat0) / dlat, (blon - lon0) / dlon, (blat - lat0) / dlat, cell_ok, cell_clean
         )
