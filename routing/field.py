@@ -102,11 +102,11 @@ class WeatherField:
         return float(lon[k + 1]), float(lon[k]) + 360.0, False
 
     def covers(self, lat: float, lon: float) -> bool:
-        """The point lies inside the grid (any longitude frame)."""
-        lo, hi, _ = self.lon_cover()
-        x = lo + (float(lon) - lo) % 360.0
-        in_lon = x <= hi + 1e-9 or abs(x - 360.0 - lo) <= 1e-9
-        return bool(self.lat_deg[0] - 1e-9 <= lat <= self.lat_deg[-1] + 1e-9 and in_lon)
+        """The point lies inside the grid (any longitude frame): within its latitudes, and within half
+        a grid step of one of its longitudes (so not in a gap of a regional product across 180 deg)."""
+        step = float(np.median(np.diff(self.lon_deg)))
+        d = np.abs((float(lon) - self.lon_deg + 180.0) % 360.0 - 180.0)
+        return bool(self.lat_deg[0] - 1e-9 <= lat <= self.lat_deg[-1] + 1e-9 and d.min() <= 0.5 * step + 1e-9)
 
     def land_mask(self) -> np.ndarray:
         """Grid points without data at every time (NaN in the first wave/current/wind variable). (ny, nx)"""

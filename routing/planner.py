@@ -359,7 +359,7 @@ def _props_maker(st: _Stage):
         p = dict(base, cost=kind, **extra)
         if res is not None:
             p.update(search_expanded=res.expanded, search_scanned=res.scanned, search_s=round(res.seconds, 6))
-        p["max_hs_m_along"] = round(hs_along, 4)
+        p["max_hs_m_along"] = round(hs_along, 4) if mw is None or mw.has_waves else float("nan")  # no waves in the data: unknown
         if end_h is not None and times[-1] > end_h + 1e-9:
             p["weather_held_after_h"] = round(float(times[-1] - end_h), 4)
             # INFO, not WARNING: the property carries it to the route CLI and the nightly report.
