@@ -12,9 +12,10 @@ compiled search reads (:func:`routing._kernels.astar_safe`):
     ``w = 360°/sectors`` (16 sectors: 22.5° each, sector 0 centred on north).
 
 The flags are computed **vectorised, once per weather slice**, never per edge: the heading-free
-rules (Hs, wind, period, successive high waves) on every node of the slice at once; the
-heading-dependent rules (beam seas, surf-riding, synchronous and parametric roll) only where the
-heading-free ones pass and the rules' Hs gate is reached, for ``samples_per_sector`` headings
+rules (Hs, wind, period) on every node of the slice at once; the heading-dependent rules (beam
+seas, surf-riding, successive high waves -- its encounter-period band depends on the heading --,
+synchronous and parametric roll) only where the heading-free ones pass and the rules' Hs gate
+is reached (for high waves: its wave conditions hold), for ``samples_per_sector`` headings
 across each sector (both edges included, every 5.6° by default), a sector being unsafe when a rule
 fires at any of them. The speed entering the IMO rules is the speed through the water the ship
 makes on that heading in that weather (the router's speed-loss model), as the search sails it.
@@ -122,7 +123,7 @@ class SafetySpec:
             return None
         if isinstance(self.limits, OperatorProfile):
             return self.limits.limits_for(self.vessel.vessel_class, self.vessel.lpp_m)
-        return self.limits
+        return self.limits.for_lpp(self.vessel.lpp_m)
 
     @property
     def imo(self):
@@ -239,7 +240,8 @@ def _heading_limits(lim):
     """The heading-dependent part of an operator-limits variant (beam seas and its gate)."""
     if lim is None or not lim.beam_sectors_deg:
         return None
-    return dataclasses.replace(lim, hs_max_m=None, wind_max_ms=None, period_min_s=None, period_max_s=None, period_forbidden_s=())
+    return dataclasses.replace(lim, hs_max_m=None, wind_max_ms=None, hs_period_range_s=None, period_min_s=None, period_max_s=None,
+                               period_forbidden_s=())
 
 
 def unsafe_flags(spec: SafetySpec, ship, weather: Mapping[str, np.ndarray], *, method: str = "compiled") -> tuple[np.ndarray, tuple]:
@@ -302,8 +304,10 @@ def unsafe_flags(spec: SafetySpec, ship, weather: Mapping[str, np.ndarray], *, m
     if imo.enabled:
         gates.append(imo.gate_hs_m)
     gate = min(gates)
+    hw_pre = _high_wave_conditions(spec, hs_f, free_kw)
     with np.errstate(invalid="ignore"):
         cand = ~free_unsafe & (hs_f >= gate) if gate > 0 else ~free_unsafe & np.isfinite(hs_f)
+        cand |= ~free_unsafe & hw_pre
     idx = np.flatnonzero(cand)
     if idx.size == 0:
         return flags.reshape(shape), skipped
@@ -312,7 +316,7 @@ def unsafe_flags(spec: SafetySpec, ship, weather: Mapping[str, np.ndarray], *, m
     wf_f = np.asarray(wf, dtype=float).reshape(-1)
     if method == "compiled":
         flags[idx] |= _heading_flags_compiled(spec, ship, lim_h, imo, hs_f[idx], wf_f[idx], {k: v[idx] for k, v in free_kw.items()},
-                                              headings, members)  # fmt: skip
+                                              headings, members, hw_pre[idx])  # fmt: skip
         return flags.reshape(shape), skipped
     if method != "numpy":
         raise ValueError(f"method must be 'compiled' or 'numpy', got {method!r}")
@@ -342,7 +346,20 @@ def unsafe_flags(spec: SafetySpec, ship, weather: Mapping[str, np.ndarray], *, m
     return flags.reshape(shape), skipped
 
 
-def _heading_flags_compiled(spec, ship, lim_h, imo, hs, wf, free_kw, headings, members) -> np.ndarray:
+def _high_wave_conditions(spec, hs, free_kw) -> np.ndarray:
+    """Where the wave conditions of successive high-wave attack hold (MSC.1/Circ.1228 4.2.2.1:
+    λ(T_W) > 0.8 L and Hs > 0.04 L, T_W the mean period, else the peak): the heading decides the rest."""
+    from thresholds import imo_msc1228 as imo_rules
+
+    tw = free_kw.get("tm_s", free_kw.get("tp_s"))
+    if not spec.imo.enabled or tw is None:
+        return np.zeros(hs.shape, dtype=bool)
+    length = float(spec.vessel.lpp_m)
+    with np.errstate(invalid="ignore"):
+        return (imo_rules.wave_length_m(tw) > imo_rules.HIGH_WAVE_LENGTH_FRAC * length) & (hs > imo_rules.HIGH_WAVE_HEIGHT_FRAC * length)
+
+
+def _heading_flags_compiled(spec, ship, lim_h, imo, hs, wf, free_kw, headings, members, hw_pre) -> np.ndarray:
     """Sector bits of the heading-dependent rules by :func:`routing._kernels.heading_flags`."""
     from routing import _kernels
     from thresholds import imo_msc1228 as imo_rules
@@ -371,6 +388,8 @@ def _heading_flags_compiled(spec, ship, lim_h, imo, hs, wf, free_kw, headings, m
         np.ascontiguousarray(headings, dtype=float), np.ascontiguousarray(members, dtype=np.int64), ship.params(),
         np.ascontiguousarray(ranges[:, 0]), np.ascontiguousarray(ranges[:, 1]), float(lim_h.gate_hs_m if use_beam else 0.0), use_beam,
         float(imo.gate_hs_m), bool(imo.enabled), float(surf_num), use_surf, float(tr or 1.0), float(imo.roll_tolerance_frac), use_roll,
+        np.ascontiguousarray(free_kw.get("tm_s", free_kw.get("tp_s", np.zeros(hs.size))), dtype=float),
+        np.ascontiguousarray(hw_pre, dtype=np.bool_), float(imo_rules.HIGH_WAVE_TE_RANGE[0]), float(imo_rules.HIGH_WAVE_TE_RANGE[1]),
     )  # fmt: skip
 
 

@@ -139,8 +139,8 @@ def kwon_form_coefficient(bn, displacement_m3: float, form: str):
 
     Examples
     --------
-    >>> round(float(kwon_form_coefficient(6, 20000.0, "container")), 3)  # 4.2 + 6^6.5 / (22 * 20000^(2/3))
-    6.044
+    >>> round(float(kwon_form_coefficient(6, 20000.0, "container")), 2)  # 4.2 + 6^6.5 / (22 * 20000^(2/3))
+    11.25
     """
     if form not in KWON_FORM:
         raise ValueError(f"Kwon hull form must be one of {', '.join(KWON_FORM)}, got {form!r}")
@@ -236,9 +236,9 @@ def speed_loss_kwon(speed_kn, wind_ms, encounter_deg, hull: KwonHull):
 
     Examples
     --------
-    >>> hull = KwonHull(0.60, 225.0, 30000.0, "loaded")
-    >>> round(speed_loss_kwon(16.1, 14.0, 0.0, hull), 3)   # Beaufort 7, head wind
-    3.218
+    >>> hull = KwonHull(0.60, 225.0, 30000.0, "container")
+    >>> round(speed_loss_kwon(16.1, 14.0, 0.0, hull), 3)   # Beaufort 7, head wind: 16.1 * 1.458 * 19.55 %
+    4.589
     """
     v0 = _as_float(speed_kn)
     w = _as_float(wind_ms)

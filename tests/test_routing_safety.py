@@ -166,7 +166,8 @@ def test_compiled_flags_equal_the_threshold_functions(case):
         numpy_, skipped2 = unsafe_flags(spec, ship, w, method="numpy")
     np.testing.assert_array_equal(compiled, numpy_)
     assert skipped == skipped2
-    assert (compiled == 0xFFFF).any() and (compiled != 0xFFFF).any()  # a real mix of unsafe and (partly) safe cells
+    if limits is not None:  # heading-free operator rules flag every sector; the IMO rules all depend on the heading
+        assert (compiled == 0xFFFF).any() and (compiled != 0xFFFF).any()  # a real mix of unsafe and (partly) safe cells
     assert np.count_nonzero((compiled != 0) & (compiled != 0xFFFF)) > 50  # heading-dependent flags
     # brute force on a sample: full assess() per element and per sample heading
     headings, members = sample_headings(16, 5)
@@ -221,7 +222,8 @@ def test_hard_route_avoids_every_failing_cell_and_is_slower(storm):
     short = search(mesh, wx, ship, start, goal, cost="distance")
     slat, slon = (np.asarray(a, dtype=float) for a in grid.node_latlon(short.nodes))
     bad = independent_violations(grid, field, FEEDER_NO_GM, PROFILE, slat, slon, evaluate_path(mesh, wx, ship, slat, slon)[0], {start, goal})
-    assert {r for *_, rules in bad for r in rules} >= {"hs", "wind", "period", "high_waves"}
+    # (no successive high waves: in beam seas T_E = T_W, outside the 1.8-3.0 T_W band of MSC.1/Circ.1228 4.2.2.2)
+    assert {r for *_, rules in bad for r in rules} >= {"hs", "wind", "period"} and "high_waves" not in {r for *_, rules in bad for r in rules}
     # the grid exposure of the raw route, re-walked, is what the search counted
     assert path_exposure(mesh, wx, ship, lat, lon, fl, exempt=(start, goal))[1][-1] == 0.0
     assert path_exposure(mesh, wx, ship, plat, plon, fl, exempt=(start, goal))[1][-1] > 0.5
@@ -364,7 +366,7 @@ def test_planner_safe_routes_and_reports(storm):
     # passing cell and a failing neighbour could still touch a limit for minutes: reported, not hidden)
     md = plan.routes["min_distance"]
     assert opt.properties["hours_over_limits"] > 1.5 and set(opt.properties["hours_by_rule"]) == {"hs", "beam_seas"}
-    assert {"hs", "wind", "period", "beam_seas", "high_waves"} == set(md.properties["hours_by_rule"])
+    assert {"hs", "wind", "period", "beam_seas"} == set(md.properties["hours_by_rule"])  # beam seas: no high-wave band
     assert raw.properties["hours_over_limits"] == 0.0 and sm.properties["hours_over_limits"] == 0.0
     assert sm.properties["hours_by_rule"] == {}
     assert sm.max_hs_m < 2.5 < opt.max_hs_m < 4.5 < md.max_hs_m

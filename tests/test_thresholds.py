@@ -173,19 +173,23 @@ def test_synchronous_roll_boundaries():
     assert synchronous_roll(18.5, 20.0, tolerance_frac=0.02).fired.item() is False
 
 
-def test_parametric_roll_both_branches():
-    # T_E ~ T_R (18..22 s) or T_E ~ T_R/2 (9..11 s)
-    r = parametric_roll([8.99, 9.0, 10.0, 11.0, 11.01, 14.0, 20.0], 20.0)
-    assert r.fired.tolist() == [False, True, True, True, False, False, True]
-    assert r.limit[2] == pytest.approx(10.0)  # the half-period branch is the closer one
-    assert r.limit[6] == pytest.approx(20.0)
+def test_parametric_roll_is_the_half_period_band_not_counted_twice():
+    # MSC.1/Circ.1228 4.2.3.2 lists T_E ~ T_R and T_E ~ T_R/2; the first is synchronous rolling
+    # (4.2.3.1), reported there only. Bands of +-10 % of T_R: 9..11 s and 18..22 s.
+    te = [8.99, 9.0, 10.0, 11.0, 11.01, 14.0, 20.0]
+    r = parametric_roll(te, 20.0)
+    assert r.fired.tolist() == [False, True, True, True, False, False, False]
+    assert r.limit[2] == pytest.approx(10.0)
+    s = synchronous_roll(te, 20.0)
+    assert s.fired.tolist() == [False, False, False, False, False, False, True]
+    assert not (r.fired & s.fired).any()
 
 
 def test_roll_from_wave_and_ship():
-    # Following seas at alpha 180, T 10 s, V 15 kn: T_E = 300 / 15 = 20 s = T_R -> synchronous + parametric.
+    # Following seas at alpha 180, T 10 s, V 15 kn: T_E = 300 / 15 = 20 s = T_R -> synchronous, once.
     v = make_vessel(lpp_m=250.0, speed_kn=15.0, roll_period_s=20.0)
     a = assess(v, None, hs_m=3.0, tp_s=10.0, wave_from_deg=180.0, heading_deg=0.0)
-    assert a.fired("synchronous_roll") and a.fired("parametric_roll")
+    assert a.fired("synchronous_roll") and not a.fired("parametric_roll")
     # Beam seas: T_E = 10 s = T_R / 2 -> parametric only.
     a = assess(v, None, hs_m=3.0, tp_s=10.0, wave_from_deg=90.0, heading_deg=0.0)
     assert not a.fired("synchronous_roll") and a.fired("parametric_roll")
@@ -317,11 +321,15 @@ def test_profile_variant_selection():
 def test_assess_combines_operator_and_imo():
     prof = OperatorProfile("p", (TABLE1,), imo=ImoSettings())
     v = make_vessel(lpp_m=100.0, speed_kn=25.0, roll_period_s=30.0)
-    # following seas, L 100 m: surf-riding limit 18 kn < 25 kn; Hs 5 m > 4 m and T 9 s -> high waves
+    # following seas, L 100 m: surf-riding limit 18 kn < 25 kn; Hs 5 m > 4 m and T 9 s (lambda 126 m > 80 m),
+    # but at 25 kn the ship overtakes the waves: T_E / T_W = 27 / |27 - 25| = 13.5, outside 1.8-3.0 (4.2.2.2)
     a = assess(v, prof, hs_m=5.0, tp_s=9.0, wind_ms=5.0, wave_from_deg=180.0, heading_deg=0.0)
     fired = sorted(k for k, r in a.rules.items() if r.fired)
-    assert fired == ["high_waves", "period", "surf_riding"]
-    assert a.reason_code == REASON_BITS["high_waves"] | REASON_BITS["period"] | REASON_BITS["surf_riding"]
+    assert fired == ["period", "surf_riding"]
+    assert a.reason_code == REASON_BITS["period"] | REASON_BITS["surf_riding"]
+    # at 13 kn: T_E / T_W = 27 / 14 = 1.93, in the dangerous zone of figure 3 -> successive high waves
+    a = assess(v, prof, hs_m=5.0, tp_s=9.0, wind_ms=5.0, wave_from_deg=180.0, heading_deg=0.0, speed_kn=13.0)
+    assert sorted(k for k, r in a.rules.items() if r.fired) == ["high_waves", "period"]
 
 
 def test_safe_cell_mask_shapes_and_headings():
@@ -370,3 +378,22 @@ def test_reason_code_zero_iff_no_rule_fired(hs, tp, wind, heading, wave_from):
     assert reason_names(a.reason_code) == [n for n in REASON_BITS if n in fired]
     for name in fired:
         assert a.rules[name].margin >= 0
+
+
+@pytest.mark.parametrize("speed_kn,wave_from,fires", [
+    (13.0, 180.0, True),    # following: T_E / T_W = 27 / 14 = 1.93
+    (12.1, 180.0, True),    # 27 / 14.9 = 1.81, just inside
+    (11.0, 180.0, False),   # 27 / 16 = 1.69
+    (18.0, 180.0, True),    # 27 / 9 = 3.0
+    (19.0, 180.0, False),   # 27 / 8 = 3.375
+    (13.0, 0.0, False),     # head seas: T_E < T_W at any speed
+    (0.0, 180.0, False),    # stopped: T_E = T_W
+])  # fmt: skip
+def test_successive_high_waves_needs_the_encounter_period_band(speed_kn, wave_from, fires):
+    # MSC.1/Circ.1228 4.2.2.1-4.2.2.2: lambda > 0.8 L, Hs > 0.04 L and T_E about 1.8-3.0 T_W; T_W = 9 s, L = 100 m
+    v = make_vessel(lpp_m=100.0, speed_kn=speed_kn)
+    a = assess(v, None, hs_m=5.0, tm_s=9.0, wave_from_deg=wave_from, heading_deg=0.0, speed_kn=speed_kn)
+    assert bool(a.fired("high_waves")) is fires
+    # without a heading the band cannot be judged: the rule is listed as not evaluated, never fired
+    b = assess(v, None, hs_m=5.0, tm_s=9.0)
+    assert "high_waves" not in b.rules and any(s.startswith("high_waves: no heading") for s in b.skipped)

@@ -8,14 +8,24 @@ from pipelines.config import load_operator_profile, operator_profile_names
 from thresholds.operator import OperatorProfileError
 
 
-def test_default_profile_carries_seed_table1():
+def test_default_profile_reads_the_mepc_table_as_a_table():
     prof = load_operator_profile()
     assert prof.name == "default"
     big = prof.limits_for("container", 250.0)
-    # seed ais_weather_routing_cargo_loss, Table 1: Hs <= 6.0 m, Tp 7.0-15.0 s, wind <= 22.6 m/s, 60-120 / 240-300
-    assert (big.hs_max_m, big.wind_max_ms, big.period_kind) == (6.0, 22.6, "peak")
-    assert big.period_forbidden_s == ((7.0, 15.0),)
+    # MEPC.1/Circ.850/Rev.2 (seed Table 1 copies its Lpp > 250 m row): Hs 6.0 m with Tp 7.0-15.0 s, wind 22.6 m/s;
+    # seed Table 1: beam seas 60-120 / 240-300
+    assert (big.hs_max_m, big.wind_max_ms, big.period_kind, big.hs_period_range_s) == (6.0, 22.6, "peak", (7.0, 15.0))
+    assert big.period_forbidden_s == () and not big.uses_period  # no forbidden period on its own
     assert big.beam_sectors_deg == ((60.0, 120.0), (240.0, 300.0))
+    # 200 <= Lpp <= 250: "parameters linearly interpolated depending on ship's length"
+    mid = prof.limits_for("container", 225.0)
+    assert (mid.hs_max_m, mid.wind_max_ms) == pytest.approx((4.5 + 1.5 * 25 / 50, 19.0 + 3.6 * 25 / 50))
+    assert prof.limits_for("container", 320.0).hs_max_m == 6.0
+    # the Hs limit is the row's: it fires with a 7-15 s peak period, not with a 16 s swell
+    from thresholds.operator import evaluate_operator
+
+    a = evaluate_operator(big, hs_m=[6.5, 6.5, 5.0], tp_s=[10.0, 16.0, 10.0], wind_ms=[5.0, 5.0, 5.0])
+    assert a.fired("hs").tolist() == [True, False, False]
     small = prof.limits_for("container", 180.0)
     # Section 3.2, Lpp < 200 m: Hs 4.5 m, mean period must not exceed 8 s, wind 19 m/s
     assert (small.hs_max_m, small.wind_max_ms, small.period_kind, small.period_max_s) == (4.5, 19.0, "mean", 8.0)

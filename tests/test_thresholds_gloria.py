@@ -33,24 +33,25 @@ def test_gloria_share_of_unsafe_sea_cells_per_hour(shared_data):
     table, skipped = exceedance_by_time(ds, vessel, load_operator_profile("default"))
     assert any(s.startswith("wind:") for s in skipped)  # the MEDSEA wave product has no wind: said, not hidden
 
-    # Independent computation (seed Table 1 for Lpp >= 200 m as configured in data/operator_limits.toml):
-    # unsafe = Hs > 6.0 m, or (7 <= Tp <= 15 s and Hs >= 2.5 m gate). IMO successive high waves needs
-    # Hs > 0.04 L = 10 m: never in this data (max 8.94 m).
+    # Independent computation (MEPC.1/Circ.850/Rev.2 as configured in data/operator_limits.toml, Lpp 250 m):
+    # unsafe = Hs > 6.0 m with a peak period of 7-15 s (the period goes with the wave height). Without a
+    # heading the beam-seas and IMO rules (successive high waves needs its encounter-period band) are not
+    # evaluated, and said.
     hs = np.concatenate([raw_decoded(p, "VHM0") for p in paths])
     tp = np.concatenate([raw_decoded(p, "VTPK") for p in paths])
     sea = np.isfinite(hs)
-    unsafe = sea & ((hs > 6.0) | ((tp >= 7.0) & (tp <= 15.0) & (hs >= 2.5)))
+    unsafe = sea & (hs > 6.0) & (tp >= 7.0) & (tp <= 15.0)
     n_sea = sea.sum(axis=(1, 2))
     n_unsafe = unsafe.sum(axis=(1, 2))
     np.testing.assert_array_equal(table["n_sea"].to_numpy(), n_sea)
     np.testing.assert_array_equal(table["n_unsafe"].to_numpy(), n_unsafe)
     np.testing.assert_allclose(table["unsafe_frac"].to_numpy(), n_unsafe / n_sea, rtol=1e-12)
-    np.testing.assert_array_equal(table["n_hs"].to_numpy(), (sea & (hs > 6.0)).sum(axis=(1, 2)))
-    assert table["n_high_waves"].sum() == 0
+    np.testing.assert_array_equal(table["n_hs"].to_numpy(), n_unsafe)
+    assert "n_high_waves" not in table and any(s.startswith("high_waves: no heading") for s in skipped)
     # the numbers docs/methods.md reports
     assert n_sea[0] == 7914
     assert table["unsafe_frac"].min() == pytest.approx(n_unsafe.min() / 7914)
-    assert table["unsafe_frac"].max() > 0.95 and table.index.tz is not None
+    assert table.index.tz is not None
 
 
 def test_gloria_lpp_below_200_needs_mean_period(shared_data):

@@ -1,11 +1,23 @@
 """IMO MSC.1/Circ.1228 dangerous-situation criteria, vectorised over any array shape.
 
 The circular ("Revised guidance to the master for avoiding dangerous situations in adverse
-weather and sea conditions", IMO, 11 January 2007) gives four situations a master should avoid:
-surf-riding and broaching-to, successive high-wave attack, synchronous rolling and parametric
-rolling (Annex, the sections of those titles; cited below by title, as the paragraph numbers
-could not be checked against the original here). SIMROUTE implements the first and the last
-(paper Appendix II); stormlane implements all four.
+weather and sea conditions", IMO, 11 January 2007) gives four situations a master should avoid
+(Annex, section 4.2): surf-riding and broaching-to (4.2.1), successive high-wave attack (4.2.2.1
+and 4.2.2.2), synchronous rolling (4.2.3.1) and parametric rolling (4.2.3.2). SIMROUTE
+implements the first and the last (paper Appendix II); stormlane implements all four, as
+written:
+
+* successive high-wave attack needs, besides an average wave length over 0.8 L and a
+  significant wave height over 0.04 L (4.2.2.1), the ship in the dangerous zone of the
+  circular's figure 3: an encounter period about 1.8 to 3.0 times the wave period (4.2.2.2) --
+  following and quartering seas; it never fires in head seas, where T_E < T_W;
+* synchronous rolling is T_E close to the natural roll period T_R (4.2.3.1); parametric rolling
+  is listed for T_E close to T_R or to T_R / 2 (4.2.3.2): the first condition is the synchronous
+  one, reported once, as synchronous; parametric is the T_E close to T_R / 2 band, so a cell is
+  never counted twice;
+* "close to" has no number in the circular: each resonance band is ``|k T_E - T_R| <= eps T_R``
+  with eps = 0.10, the tolerance of SIMROUTE's safety script (``/work/shared/ANCHORS.md``; the
+  paper's Eq. A2.3-A2.4 leave eps open), configurable per profile (``roll_tolerance_frac``).
 
 Conventions (DESIGN.md): ``encounter_deg`` α is the direction the waves come from relative to
 the bow, 0 = head seas, 180 = following seas, in [0, 360). Speeds in knots, lengths in metres,
@@ -23,6 +35,8 @@ References
 .. [3] M. Grifoll et al., "A comprehensive ship weather routing system using CMEMS products and
        A* algorithm," Ocean Eng., vol. 255, 111427, 2022, doi:10.1016/j.oceaneng.2022.111427,
        Appendix II (seed ``simroute_paper_grifoll_2022``).
+.. [4] SIMROUTE's safety script as run on R6 (``/work/shared/ANCHORS.md``): parametric roll within
+       +-10 % of the resonance.
 """
 
 from __future__ import annotations
@@ -38,12 +52,15 @@ from thresholds.units import GRAVITY_MS2, wrap_deg
 SURF_RIDING_COEFF = 1.8
 #: Sector of following/quartering seas where surf-riding can occur, [1] (surf-riding; open). [deg]
 SURF_RIDING_SECTOR_DEG = (135.0, 225.0)
-#: Successive high-wave attack, [1] (successive high-wave attack): average wave length > 0.8·L ...
+#: Successive high-wave attack, [1] 4.2.2.1: average wave length > 0.8·L ...
 HIGH_WAVE_LENGTH_FRAC = 0.8
 #: ... and significant wave height > 0.04·L.
 HIGH_WAVE_HEIGHT_FRAC = 0.04
-#: Default relative tolerance ε of the resonance tests |T_E − T_R| ≤ ε·T_R ([3] Eq. A2.3–A2.4).
-#: The circular says "approximately equal"; SIMROUTE's safety script uses ±10 %, kept here.
+#: ... with the ship in the dangerous zone: T_E "nearly equal to double (i.e. about 1.8-3.0 times)"
+#: the wave period T_W, [1] 4.2.2.2 and figure 3 (closed band).
+HIGH_WAVE_TE_RANGE = (1.8, 3.0)
+#: Default relative tolerance ε of the resonance bands |k·T_E − T_R| ≤ ε·T_R ([1] 4.2.3.1-4.2.3.2
+#: say "close to" with no number; [3] Eq. A2.3–A2.4 leave ε open): SIMROUTE's ±10 % [4].
 ROLL_TOLERANCE_FRAC = 0.10
 
 
@@ -199,30 +216,41 @@ def surf_riding(speed_kn, encounter_deg, length_m) -> RuleResult:
     return RuleResult("surf_riding", fired, margin, "kn", v + 0.0 * alpha, limit)
 
 
-def successive_high_waves(hs_m, period_s, length_m) -> RuleResult:
-    """Successive high-wave attack, [1] (successive high-wave attack): λ > 0.8·L and Hs > 0.04·L.
+def successive_high_waves(hs_m, period_s, length_m, speed_kn=None, encounter_deg=None) -> RuleResult:
+    """Successive high-wave attack, [1] 4.2.2.1-4.2.2.2: λ > 0.8·L, Hs > 0.04·L and 1.8 T_W ≤ T_E ≤ 3.0 T_W.
 
     Parameters
     ----------
     hs_m : numeric
         Significant wave height. [m]
     period_s : numeric
-        Average (mean) wave period, turned into the average wave length by :func:`wave_length_m`. [s]
+        Average (mean) wave period T_W, turned into the average wave length by
+        :func:`wave_length_m` and into the encounter period by :func:`encounter_period_s`. [s]
     length_m : numeric
         Ship length L. [m]
+    speed_kn, encounter_deg : numeric, optional
+        Speed through the water [kn] and encounter angle (0 = head seas) [deg]: the dangerous
+        zone of the circular's figure 3, T_E / T_W in [1.8, 3.0] (following and quartering
+        seas). Without them only the wave conditions of 4.2.2.1 are judged (the circular's
+        preconditions; callers that have a heading must give it).
 
     Returns
     -------
     RuleResult
-        ``value`` = Hs, ``limit`` = 0.04·L (NaN where λ ≤ 0.8·L, the height test then does not
-        apply). ``margin`` = min((λ − 0.8L)/(0.8L), (Hs − 0.04L)/(0.04L)) as a fraction: positive
-        only when both conditions hold; its size is the smaller relative excess.
+        ``value`` = Hs, ``limit`` = 0.04·L (NaN where λ ≤ 0.8·L). ``margin`` (fraction) = the
+        smallest relative excess over the conditions: (λ − 0.8L)/0.8L, (Hs − 0.04L)/0.04L and,
+        with a heading, the depth of T_E/T_W inside [1.8, 3.0] relative to 1.8; positive only
+        when all hold.
 
     Examples
     --------
     >>> r = successive_high_waves(5.0, 9.0, 100.0)   # λ = 126.5 m > 80 m, Hs 5 m > 4 m
     >>> bool(r.fired), round(float(r.margin), 3)
     (True, 0.25)
+    >>> bool(successive_high_waves(5.0, 9.0, 100.0, 10.0, 0.0).fired)  # head seas: T_E < T_W
+    False
+    >>> bool(successive_high_waves(5.0, 9.0, 100.0, 15.0, 180.0).fired)  # T_E / T_W = 27 / 12 = 2.25
+    True
     """
     hs = _arr(hs_m)
     length = _arr(length_m)
@@ -232,6 +260,13 @@ def successive_high_waves(hs_m, period_s, length_m) -> RuleResult:
     long_waves = lam > lam_lim
     fired = long_waves & (hs > hs_lim)
     margin = np.minimum((lam - lam_lim) / lam_lim, (hs - hs_lim) / hs_lim)
+    if speed_kn is not None and encounter_deg is not None:
+        lo, hi = HIGH_WAVE_TE_RANGE
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = encounter_period_s(period_s, speed_kn, encounter_deg) / _arr(period_s)  # [1] 4.2.2.2
+            zone = (ratio >= lo) & (ratio <= hi)
+            fired = fired & zone
+            margin = np.minimum(margin, np.minimum(ratio - lo, hi - ratio) / lo)
     return RuleResult("high_waves", fired, margin, "frac", hs + 0.0 * lam, np.where(long_waves, hs_lim, np.nan))
 
 
@@ -247,9 +282,9 @@ def _resonance(name, te_multiple, te_s, tr_s, tolerance_frac):
 
 
 def synchronous_roll(te_s, tr_s, tolerance_frac=ROLL_TOLERANCE_FRAC) -> RuleResult:
-    """Synchronous rolling, [1] (synchronous rolling): encounter period close to the natural roll period.
+    """Synchronous rolling, [1] 4.2.3.1: encounter period close to the natural roll period.
 
-    Fires when |T_E − T_R| ≤ ε·T_R ([3] Eq. A2.3).
+    Fires when |T_E − T_R| ≤ ε·T_R ([3] Eq. A2.3; ε of [4], see :data:`ROLL_TOLERANCE_FRAC`).
 
     Parameters
     ----------
@@ -274,28 +309,23 @@ def synchronous_roll(te_s, tr_s, tolerance_frac=ROLL_TOLERANCE_FRAC) -> RuleResu
 
 
 def parametric_roll(te_s, tr_s, tolerance_frac=ROLL_TOLERANCE_FRAC) -> RuleResult:
-    """Parametric rolling, [1] (parametric rolling) and [3] Eq. A2.3–A2.4.
+    """Parametric rolling, [1] 4.2.3.2 and [3] Eq. A2.4: encounter period close to half the roll period.
 
-    Fires when |T_E − T_R| ≤ ε·T_R or |2·T_E − T_R| ≤ ε·T_R (T_E ≈ T_R or T_E ≈ T_R/2). The first
-    branch coincides with :func:`synchronous_roll`, as in the circular.
+    Fires when |2·T_E − T_R| ≤ ε·T_R (T_E ≈ T_R / 2). The circular lists T_E ≈ T_R for
+    parametric rolling too; that band is :func:`synchronous_roll`'s (4.2.3.1), reported there
+    only, so no cell counts twice.
 
     Returns
     -------
     RuleResult
-        ``margin`` is the larger of the two branch margins (fraction of T_R); ``limit`` is the
-        resonant period of the closer branch (T_R or T_R/2), ``value`` = T_E.
+        ``value`` = T_E, ``limit`` = T_R / 2, ``margin`` = ε − |2·T_E − T_R|/T_R (fraction of T_R).
 
     Examples
     --------
-    >>> bool(parametric_roll(10.0, 20.0).fired), bool(parametric_roll(14.0, 20.0).fired)
+    >>> bool(parametric_roll(10.0, 20.0).fired), bool(parametric_roll(20.0, 20.0).fired)
     (True, False)
     """
-    one = _resonance("parametric_roll", 1.0, te_s, tr_s, tolerance_frac)
-    half = _resonance("parametric_roll", 2.0, te_s, tr_s, tolerance_frac)
-    use_half = np.nan_to_num(half.margin, nan=-np.inf) > np.nan_to_num(one.margin, nan=-np.inf)
-    margin = np.where(use_half, half.margin, one.margin)
-    limit = np.where(use_half, half.limit, one.limit)
-    return RuleResult("parametric_roll", one.fired | half.fired, margin, "frac", one.value, limit)
+    return _resonance("parametric_roll", 2.0, te_s, tr_s, tolerance_frac)
 
 
 @dataclass(frozen=True)

@@ -6,13 +6,17 @@ file (loaded by ``pipelines.config.load_operator_profile``). This module holds t
 (:class:`OperatorLimits`, one variant for a vessel class and length range; :class:`OperatorProfile`,
 a named set of variants) and the evaluation :func:`evaluate_operator`.
 
-Reading of [1] Table 1 (documented because the table mixes limits and forbidden ranges):
-Hs and mean wind are upper limits (Hs ≤ 6.0 m, wind ≤ 22.6 m/s); the wave-direction column is a
-*forbidden* range of the ship-to-wave relative direction (60–120° and 240–300°, beam seas); the
-period column 7.0 ≤ Tp ≤ 15.0 s is read as the *critical* (forbidden) range, because §3.2 derives
-the period limit from the critical wave lengths 0.6–2.3 L of IMO MSC.1/Circ.1228 (T = 0.8·√λ)
-and states the Lpp < 200 m variant as "the mean wave period must not exceed 8 s". Both readings
-can be configured (``period_allowed_s`` or ``period_forbidden_s``).
+Reading of the tables (documented because [1] Table 1 mixes limits and forbidden ranges): [1]
+Table 1's first three columns are the adverse-condition row of IMO MEPC.1/Circ.850/Rev.2 [2]
+for ships over 250 m (Hs 6.0 m, peak period 7.0-15.0 s, mean wind 22.6 m/s; 4.5 m, 7.0-15.0 s,
+19.0 m/s under 200 m; interpolated in Lpp between), and a row of that table is one sea state:
+the period range goes with the wave height. So the default profile limits Hs where the peak
+period lies in 7-15 s (``hs_period_range_s``) and interpolates Hs and wind in Lpp (tables
+``[[lpp, value], ...]``), instead of forbidding any 7-15 s period on its own. The wave-direction
+column is a *forbidden* range of the ship-to-wave relative direction (60–120° and 240–300°, beam
+seas); the Lpp < 200 m variant's "mean wave period must not exceed 8 s" is [1] §3.2's own rule,
+kept. The column-by-column reading stays available (``period_forbidden_s``, profile
+``seed-literal``).
 
 A period or direction rule on its own flags harmless swell (a 0.5 m beam swell is not a cargo
 risk); a profile may therefore gate those rules with ``gate_hs_m`` (they only fire where
@@ -23,12 +27,15 @@ References
 .. [1] Seed paper ``ais_weather_routing_cargo_loss`` (AIS-based weather-routing decision support
        against cargo loss in container ships, limits from Danaos Shipping), §3.2 and Table 1
        "Weather thresholds of adverse conditions" (title and DOI not in the seed text).
+.. [2] IMO, "2013 Interim guidelines for determining minimum propulsion power to maintain the
+       manoeuvrability of ships in adverse conditions," MEPC.1/Circ.850/Rev.2, adverse-condition
+       table (the seed's footnote 6).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -61,6 +68,18 @@ def _interval_list(value, what: str) -> tuple:
     return tuple(out)
 
 
+def _lpp_table(value, what: str) -> tuple:
+    """``[[lpp, value], ...]`` -> a tuple of (lpp, value) pairs, lpp strictly increasing, values >= 0."""
+    rows = []
+    for item in value:
+        if not isinstance(item, (list, tuple)) or len(item) != 2:
+            raise OperatorProfileError(f"{what}: a table of [lpp_m, value] pairs, got {item!r}")
+        rows.append((float(item[0]), float(item[1])))
+    if not rows or any(b[0] <= a[0] for a, b in zip(rows, rows[1:])) or any(v < 0 or not math.isfinite(v) for _, v in rows):
+        raise OperatorProfileError(f"{what}: Lpp must increase and values be non-negative numbers, got {value!r}")
+    return tuple(rows)
+
+
 @dataclass(frozen=True)
 class OperatorLimits:
     """One set of operator limits, applying to a vessel class and a range of Lpp.
@@ -73,10 +92,17 @@ class OperatorLimits:
         Class it applies to (``Vessel.vessel_class``), ``"*"`` for any.
     lpp_min_m, lpp_max_m : float
         Applies when lpp_min_m ≤ Lpp < lpp_max_m. [m]
-    hs_max_m : float or None
-        Significant wave height limit (fires when Hs > limit). [m]
-    wind_max_ms : float or None
-        Mean wind speed limit at 10 m (fires when wind > limit). [m/s]
+    hs_max_m : float, table or None
+        Significant wave height limit (fires when Hs > limit). A table ``((lpp, value), ...)`` is
+        interpolated linearly in the vessel's Lpp (held beyond its ends), as MEPC.1/Circ.850/Rev.2
+        does between 200 and 250 m (:meth:`for_lpp`). [m]
+    hs_period_range_s : (low, high) or None
+        The Hs limit applies to sea states whose period (``period_kind``) lies in this closed
+        range: the adverse-condition table of MEPC.1/Circ.850/Rev.2 (and [1] Table 1, its copy)
+        gives each wave height with a peak-period range, 7.0-15.0 s; without the period in the
+        data the limit applies at every period and the assessment says so. [s]
+    wind_max_ms : float, table or None
+        Mean wind speed limit at 10 m (fires when wind > limit); a table as for ``hs_max_m``. [m/s]
     period_kind : {"peak", "mean"}
         Which period the period rules use: ``tp_s`` or ``tm_s``.
     period_min_s, period_max_s : float or None
@@ -96,8 +122,9 @@ class OperatorLimits:
     vessel_class: str = "*"
     lpp_min_m: float = 0.0
     lpp_max_m: float = math.inf
-    hs_max_m: float | None = None
-    wind_max_ms: float | None = None
+    hs_max_m: float | tuple | None = None
+    wind_max_ms: float | tuple | None = None
+    hs_period_range_s: tuple | None = None
     period_kind: str = "peak"
     period_min_s: float | None = None
     period_max_s: float | None = None
@@ -111,9 +138,16 @@ class OperatorLimits:
             raise OperatorProfileError(f"limits {self.name!r}: period_kind must be one of {sorted(PERIOD_KINDS)}, got {self.period_kind!r}")
         object.__setattr__(self, "period_forbidden_s", _interval_list(self.period_forbidden_s, f"limits {self.name!r} period_forbidden_s"))
         object.__setattr__(self, "beam_sectors_deg", _interval_list(self.beam_sectors_deg, f"limits {self.name!r} beam_sectors_deg"))
+        for key in ("hs_max_m", "wind_max_ms"):
+            v = getattr(self, key)
+            if isinstance(v, (list, tuple)):
+                object.__setattr__(self, key, _lpp_table(v, f"limits {self.name!r} {key}"))
+        if self.hs_period_range_s is not None:
+            rng = _interval_list([self.hs_period_range_s], f"limits {self.name!r} hs_period_range_s")
+            object.__setattr__(self, "hs_period_range_s", rng[0])
         for key in ("hs_max_m", "wind_max_ms", "period_min_s", "period_max_s"):
             v = getattr(self, key)
-            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            if v is not None and not isinstance(v, tuple) and not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise OperatorProfileError(f"limits {self.name!r}: {key} must be a non-negative number, got {v!r}")
         if not self.lpp_min_m < self.lpp_max_m:
             raise OperatorProfileError(f"limits {self.name!r}: lpp_min_m must be below lpp_max_m")
@@ -126,11 +160,26 @@ class OperatorLimits:
     def period_var(self) -> str:
         return PERIOD_KINDS[self.period_kind]
 
+    def for_lpp(self, lpp_m: float) -> "OperatorLimits":
+        """The limits with Lpp tables resolved for a vessel of length ``lpp_m`` (linear between the
+        table's points, held beyond them)."""
+        out = {}
+        for key in ("hs_max_m", "wind_max_ms"):
+            v = getattr(self, key)
+            if isinstance(v, tuple):
+                out[key] = float(np.interp(float(lpp_m), [a for a, _ in v], [b for _, b in v]))
+        return replace(self, **out) if out else self
+
     def applies_to(self, vessel_class: str, lpp_m: float) -> bool:
         return self.vessel_class in ("*", vessel_class) and self.lpp_min_m <= lpp_m < self.lpp_max_m
 
     def to_dict(self) -> dict:
         d = asdict(self)
+        for key in ("hs_max_m", "wind_max_ms"):
+            if isinstance(d[key], tuple):
+                d[key] = [list(x) for x in d[key]]
+        if d["hs_period_range_s"] is not None:
+            d["hs_period_range_s"] = list(d["hs_period_range_s"])
         d["period_forbidden_s"] = [list(x) for x in self.period_forbidden_s]
         d["beam_sectors_deg"] = [list(x) for x in self.beam_sectors_deg]
         return d
@@ -170,7 +219,7 @@ class OperatorProfile:
         for wanted in (vessel_class, "*"):
             for lim in self.limits:
                 if lim.vessel_class == wanted and lim.applies_to(vessel_class, lpp_m):
-                    return lim
+                    return lim.for_lpp(lpp_m)
         raise OperatorProfileError(
             f"operator profile {self.name!r} has no limits for vessel class {vessel_class!r} with Lpp {lpp_m} m "
             f"(variants: {', '.join(l.name for l in self.limits) or 'none'})"
@@ -279,9 +328,23 @@ def evaluate_operator(
     if hs is not None:
         with np.errstate(invalid="ignore"):
             gate = hs >= limits.gate_hs_m if limits.gate_hs_m > 0 else ~np.isnan(hs)
+    if isinstance(limits.hs_max_m, tuple) or isinstance(limits.wind_max_ms, tuple):
+        raise OperatorProfileError(f"operator limits {limits.name!r} hold Lpp tables: resolve them with .for_lpp(lpp_m) first")
+    p = _arr(tp_s if limits.period_kind == "peak" else tm_s)
     if limits.hs_max_m is not None:
         with np.errstate(invalid="ignore"):
-            rules["hs"] = RuleResult("hs", hs > limits.hs_max_m, hs - limits.hs_max_m, "m", hs, limits.hs_max_m)
+            fired = hs > limits.hs_max_m
+            margin = hs - limits.hs_max_m
+            if limits.hs_period_range_s is not None and p is not None:
+                # the adverse-condition row: this Hs with a period in the row's range (MEPC.1/Circ.850/Rev.2)
+                lo, hi = limits.hs_period_range_s
+                in_range = (p >= lo) & (p <= hi)
+                fired = fired & in_range
+                margin = np.where(in_range, margin, np.nan)
+        if limits.hs_period_range_s is not None and p is None:
+            skipped.append(f"hs: no {limits.period_var} in the data: the Hs limit applied at every period "
+                           f"(the table gives it for {limits.hs_period_range_s[0]:g}-{limits.hs_period_range_s[1]:g} s)")
+        rules["hs"] = RuleResult("hs", fired, margin, "m", hs, limits.hs_max_m)
         nan_masks.append(np.isnan(hs))
     w = None
     if wind_ms is not None:
@@ -294,7 +357,6 @@ def evaluate_operator(
         with np.errstate(invalid="ignore"):
             rules["wind"] = RuleResult("wind", w > limits.wind_max_ms, w - limits.wind_max_ms, "ms", w, limits.wind_max_ms)
         nan_masks.append(np.isnan(w))
-    p = _arr(tp_s if limits.period_kind == "peak" else tm_s)
     if limits.uses_period and p is None:
         lacking("period", f"needs {limits.period_var} ({limits.period_kind} wave period), not in the data")
     elif limits.uses_period:

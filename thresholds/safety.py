@@ -7,8 +7,8 @@ once and returns a boolean mask plus the reason codes (:data:`thresholds.assessm
 
 Which period feeds which rule (documented choice): the encounter period T_E of the roll rules
 uses the peak period ``tp_s`` (the period SIMROUTE uses; the dominant wave train sets the
-encounter rhythm), falling back to ``tm_s``; the "average wave length" of the successive
-high-wave rule uses the mean period ``tm_s``, falling back to ``tp_s``.
+encounter rhythm), falling back to ``tm_s``; the successive high-wave rule uses the mean period
+``tm_s`` (falling back to ``tp_s``) for both its "average wave length" and its T_E / T_W band.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def _limits_for(vessel, limits):
     if isinstance(limits, OperatorProfile):
         return limits.limits_for(vessel.vessel_class, vessel.lpp_m)
     if isinstance(limits, OperatorLimits):
-        return limits
+        return limits.for_lpp(vessel.lpp_m)
     raise TypeError(f"limits must be OperatorProfile, OperatorLimits or None, not {type(limits).__name__}")
 
 
@@ -68,8 +68,8 @@ def assess(
     hs_m, wave_from_deg, tp_s, tm_s, wind_u_ms, wind_v_ms, wind_ms : numeric
         Weather in canonical names, broadcastable to one shape.
     heading_deg : numeric, optional
-        Course. Without it only heading-free rules run (Hs, wind, period, high waves) and the
-        others are listed in ``Assessment.skipped``.
+        Course. Without it only heading-free rules run (Hs, wind, period) and the others
+        (beam seas, surf-riding, successive high waves, roll) are listed in ``Assessment.skipped``.
     speed_kn : numeric, optional
         Speed through the water (default: the vessel's service speed). [kn]
     imo_settings : ImoSettings, optional
@@ -87,9 +87,11 @@ def assess(
     --------
     >>> from thresholds.vessel import Vessel
     >>> v = Vessel("demo", "container", 18.0, 180.0, 30.0, 10.0, 20000, 14400, 20.0, 500, 200, roll_period_s=20.0)
-    >>> a = assess(v, hs_m=8.0, tp_s=12.0, tm_s=10.0, wave_from_deg=0.0, heading_deg=0.0)
+    >>> a = assess(v, hs_m=8.0, tp_s=12.0, tm_s=10.0, wave_from_deg=180.0, heading_deg=0.0)  # following seas
     >>> sorted(k for k, r in a.rules.items() if r.fired)
     ['high_waves']
+    >>> sorted(k for k, r in assess(v, hs_m=8.0, tp_s=12.0, tm_s=10.0, wave_from_deg=0.0, heading_deg=0.0).rules.items() if r.fired)
+    []
     """
     lim = _limits_for(vessel, limits)
     if imo_settings is None:
@@ -112,18 +114,18 @@ def assess(
     missing = [np.isnan(hs)]
     mean_period = tm_s if tm_s is not None else tp_s
     enc_period = tp_s if tp_s is not None else tm_s
-    if mean_period is None:
-        skipped.append("high_waves: no wave period")
-    else:
-        rules["high_waves"] = imo.successive_high_waves(hs, mean_period, length)
-        missing.append(np.isnan(np.asarray(mean_period, dtype=float)))
     if heading_deg is None or wave_from_deg is None:
         why = "no heading given" if heading_deg is None else "no wave direction"
-        skipped += [f"surf_riding: {why}", f"synchronous_roll: {why}", f"parametric_roll: {why}"]
+        skipped += [f"high_waves: {why}", f"surf_riding: {why}", f"synchronous_roll: {why}", f"parametric_roll: {why}"]
     else:
         alpha = imo.encounter_angle_deg(heading_deg, wave_from_deg)
         missing.append(np.isnan(alpha))
         v = vessel.speed_kn if speed_kn is None else speed_kn
+        if mean_period is None:
+            skipped.append("high_waves: no wave period")
+        else:  # 4.2.2: the wave conditions and the dangerous zone of T_E / T_W, at this heading and speed
+            rules["high_waves"] = imo.successive_high_waves(hs, mean_period, length, v, alpha)
+            missing.append(np.isnan(np.asarray(mean_period, dtype=float)))
         with np.errstate(invalid="ignore"):
             gate = hs >= imo_settings.gate_hs_m
         surf = imo.surf_riding(v, alpha, length)

@@ -3,9 +3,9 @@
 :func:`exceedance_by_time` applies a vessel's operator profile and the IMO rules
 (:func:`thresholds.safety.assess`) to every sea cell of a canonical grid and counts, per time step,
 the sea cells that break any rule and each rule separately. Without headings only the
-heading-free rules run (Hs, wind, period, successive high waves) — the answer to "where is the sea
-too rough whatever the course"; with headings a cell counts as unsafe when **no** heading of the
-set is safe there.
+heading-free rules run (Hs, wind, period; successive high waves needs the encounter period, so a
+heading, MSC.1/Circ.1228 4.2.2.2) — the answer to "where is the sea too rough whatever the
+course"; with headings a cell counts as unsafe when **no** heading of the set is safe there.
 """
 
 from __future__ import annotations

@@ -117,7 +117,7 @@ def _segment_cells_unsafe(x0, y0, x1, y1, ny, nx, sea_index, unsafe, k_lo, k_hi,
 
 @njit(cache=True)
 def heading_flags(hs, wf_deg, period_s, spd_mag, spd_from_deg, headings_deg, members, p, beam_lo, beam_hi, beam_gate, use_beam,
-                  imo_gate, use_imo, surf_num, use_surf, tr_s, roll_tol, use_roll):  # fmt: skip
+                  imo_gate, use_imo, surf_num, use_surf, tr_s, roll_tol, use_roll, tw_s, hw_pre, hw_lo, hw_hi):  # fmt: skip
     """Heading-sector bits of the heading-dependent rules, the compiled twin of
     :func:`thresholds.safety.assess` restricted to them (cross-checked by tests).
 
@@ -125,7 +125,9 @@ def heading_flags(hs, wf_deg, period_s, spd_mag, spd_from_deg, headings_deg, mem
     beam seas: α in a closed range [beam_lo, beam_hi] (operator limits, where Hs ≥ beam_gate when
     that is > 0); IMO MSC.1/Circ.1228 (where Hs ≥ imo_gate when > 0): surf-riding
     135° < α < 225° and V > surf_num / cos(180° − α) (surf_num = 1.8·√L), synchronous and
-    parametric roll |k·T_E − T_R| ≤ ε·T_R for k = 1, 2 with T_E = 3T² / |3T + V cos α|; V is the
+    parametric roll |k·T_E − T_R| ≤ ε·T_R for k = 1, 2 with T_E = 3T² / |3T + V cos α|;
+    successive high waves (where ``hw_pre``: λ > 0.8 L and Hs > 0.04 L, judged by the caller, no
+    gate) ``hw_lo <= T_E / T_W <= hw_hi`` with T_W = ``tw_s`` (MSC.1/Circ.1228 4.2.2.2); V is the
     speed through the water on that heading (:func:`routing._kernels.speed.speed_through_water`,
     parameters ``p``) in the sea state the speed model reads: ``spd_mag`` (Hs, or the wind speed
     for Kwon) coming from ``spd_from_deg``.
@@ -150,8 +152,10 @@ def heading_flags(hs, wf_deg, period_s, spd_mag, spd_from_deg, headings_deg, mem
         h = hs[e]
         beam_ok = use_beam and (beam_gate <= 0.0 or h >= beam_gate)
         imo_ok = use_imo and (imo_gate <= 0.0 or h >= imo_gate)
-        if not (beam_ok or imo_ok):
+        hw_ok = use_imo and hw_pre[e]
+        if not (beam_ok or imo_ok or hw_ok):
             continue
+        tw3 = 3.0 * tw_s[e]
         wf = wf_deg[e]
         cw = math.cos(math.radians(wf))
         sw = math.sin(math.radians(wf))
@@ -171,15 +175,22 @@ def heading_flags(hs, wf_deg, period_s, spd_mag, spd_from_deg, headings_deg, mem
                     if a < 0.0:
                         a += 360.0
                     f = False
+                    v = 0.0
+                    ca = 1.0
                     if beam_ok:
                         for r in range(nr):
                             if a >= beam_lo[r] and a <= beam_hi[r]:
                                 f = True
                                 break
-                    if not f and imo_ok:
+                    if not f and (imo_ok or hw_ok):
                         ca = cw * ch[j] + sw * sh[j]  # cos of the waves' encounter angle wf - h
                         # speed through the water on heading j in the speed model's sea state
                         v = speed_through_water(ship, sm, cws * ch[j] + sws * sh[j], sws * ch[j] - cws * sh[j])
+                        if hw_ok:  # T_E / T_W = 3 T_W / |3 T_W + V cos a| in [hw_lo, hw_hi]
+                            dw = abs(tw3 + v * ca)
+                            if dw > 0.0 and tw3 >= hw_lo * dw and tw3 <= hw_hi * dw:
+                                f = True
+                    if not f and imo_ok:
                         if use_surf and a > 135.0 and a < 225.0 and v * -ca > surf_num:  # cos(180 - a) = -cos a > 0
                             f = True
                         if not f and use_roll:
