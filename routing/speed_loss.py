@@ -527,13 +527,13 @@ def speed_loss(
     elif model == "kwon":
         from routing.speed_loss_kwon import KwonHull, speed_loss_kwon
 
-        if wind_ms is None:
-            raise ValueError("the Kwon model needs the wind speed (wind_ms)")
         hull = kwon if kwon is not None else KwonHull.from_vessel(vessel) if vessel is not None else None
         if hull is None:
             raise ValueError("the Kwon model needs the hull (kwon=KwonHull(...) or a vessel)")
+        if wind_ms is None:  # a caller without wind (e.g. a wave-only evaluation): unknown, said
+            warnings.warn("Kwon: no wind speed given (wind_ms): loss NaN", SpeedLossValidityWarning, stacklevel=2)
+            wind_ms = np.full(np.shape(_as_float(hs_m)), np.nan)
         loss = speed_loss_kwon(speed_kn, wind_ms, encounter_deg, hull)
-        loss = np.where(np.isnan(_as_float(hs_m)) & np.isnan(_as_float(wind_ms)), np.nan, _as_float(loss))
     else:
         loss = speed_loss_none(speed_kn, hs_m, encounter_deg)
     v0 = _as_float(speed_kn)
