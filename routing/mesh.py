@@ -118,8 +118,8 @@ class MeshGrid:
             raise MeshSizeError(f"mesh spacing must be positive, got {spacing_deg!r} deg")
         if not (lon_min < lon_max and lat_min < lat_max):
             raise MeshSizeError(f"empty bbox {bbox!r}: need lon_min < lon_max and lat_min < lat_max")
-        if lat_min < -89.0 or lat_max > 89.0 or lon_min < -540.0 or lon_max > 540.0 or lon_max - lon_min >= 360.0:
-            raise MeshSizeError(f"bbox {bbox!r} must lie within lat -89..89 and span less than 360 deg of longitude "
+        if lat_min < -89.0 or lat_max > 89.0 or lon_min < -540.0 or lon_max > 540.0 or lon_max - lon_min > 360.0:
+            raise MeshSizeError(f"bbox {bbox!r} must lie within lat -89..89 and span at most 360 deg of longitude "
                                 "(a continuous frame: past 180 deg to cross the antimeridian, e.g. 170..200)")
         lat0, lon0 = lat_min, lon_min
         if anchor is not None:

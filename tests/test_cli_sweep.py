@@ -189,12 +189,19 @@ def test_db_that_is_not_duckdb_is_one_line(tmp_path, capsys, content):
     assert line == f"error: workspace {tmp_path} is not a file (give --db a DuckDB file)"
 
 
-def test_route_across_the_antimeridian_is_a_user_error(capsys):
-    line = _cli_error(capsys, ["route", "--from", "10,170", "--to", "10,-170", "--depart", "2020-01-20T09:00Z",
-                               "--mesh-deg", "0.5", "--ignore-land", "--json"])
-    assert line == ("error: the great circle (10.0, 170.0) -> (10.0, -170.0) crosses the antimeridian: routes across it are "
-                    "not supported (the mesh spans lon -180..180)")
-    assert capsys.readouterr().out == ""
+def test_route_across_the_antimeridian_is_planned_and_a_box_round_the_world_is_a_user_error(capsys):
+    import json
+
+    from pipelines.cli import main
+
+    main(["route", "--from", "10,170", "--to", "10,-170", "--depart", "2020-01-20T09:00Z", "--mesh-deg", "0.5", "--ignore-land",
+          "--json"])  # fmt: skip
+    data = json.loads(capsys.readouterr().out)
+    lons = [w[1] for w in data["optimal_smoothed"]["waypoints"]]
+    assert lons[0] == 170.0 and lons[-1] == -170.0 and data["optimal_smoothed"]["dist_nmi"] < 1200.0  # across 180, not round
+    line = _cli_error(capsys, ["route", "--from", "10,170", "--to", "10,-170", "--depart", "2020-01-20T09:00Z", "--mesh-deg", "0.5",
+                               "--ignore-land", "--bbox", "-180,0,190,20"])  # fmt: skip
+    assert line.startswith("error: bbox (-180.0, 0.0, 190.0, 20.0) must lie within lat -89..89 and span at most 360 deg of longitude")
 
 
 # --- audit options; outputs that cannot be written --------------------------------------------------
@@ -306,7 +313,7 @@ def test_workspace_locked_by_another_process_is_one_line(tmp_path, capsys):
     ("argv", "expect"),
     [
         (["route", "--from", "39.2,2.9", "--to", "41.5,2.7", "--depart", "2020-01-20T09:00Z", "--speed-loss", "foo"],
-         "error: Invalid value for --speed-loss: 'foo' is not one of bowditch, aertssen, khokhlov, none (see `stormlane route --help`)"),
+         "error: Invalid value for --speed-loss: 'foo' is not one of bowditch, aertssen, khokhlov, kwon, none (see `stormlane route --help`)"),
         (["route", "--from", "39.2,2.9", "--to", "41.5,2.7", "--depart", "2020-01-20T09:00Z", "--edges", "12"],
          "error: Invalid value for --edges: 12 is not one of 8, 16, 24, 48 (see `stormlane route --help`)"),
         (["route", "--to", "41.5,2.7"], "error: Missing option '--from'. (see `stormlane route --help`)"),

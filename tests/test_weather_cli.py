@@ -76,7 +76,7 @@ def test_load_join_and_exceedance(demo_weather_dir, tmp_path, capsys):
     code, out, _ = run_cli(capsys, "weather", "exceedance", str(demo_weather_dir), "--vessel", "container-large", "--json")
     assert code == 0
     ex = json.loads(out)
-    assert ex["limits"] == "container, Lpp >= 200 m (seed Table 1)" and ex["skipped"][0].startswith("beam_seas")
+    assert ex["limits"] == "container, Lpp >= 200 m (MEPC.1/Circ.850/Rev.2 table, seed Table 1)" and ex["skipped"][0].startswith("beam_seas")
     assert len(ex["steps"]) == 19 and max(s["unsafe_frac"] for s in ex["steps"]) > 0.05  # storm B
     assert all(s["n_sea"] == ex["steps"][0]["n_sea"] for s in ex["steps"])
 
