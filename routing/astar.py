@@ -90,7 +90,8 @@ class ShipModel:
     Raises
     ------
     routing.speed_loss.SpeedLossRangeError
-        Khokhlov outside 4 000-20 000 dwt / 9-20 kn, or Kwon outside its table (Cb, Froude).
+        Khokhlov beyond D·v0 = 4.0e5 t·kn (the published 4 000-20 000 dwt x 9-20 kn's largest), or
+        Kwon outside its table (Cb, Froude).
     """
 
     speed_kn: float
@@ -156,8 +157,9 @@ class ShipModel:
         elif self.model == "bowditch":
             extra = f" ({self.bowditch_sectors} sectors)"
         elif self.model == "khokhlov":
+            note = sl.khokhlov_check(self.dwt_t, self.speed_kn)
             extra = (f" ({self.dwt_t:,.0f} dwt at {self.speed_kn:g} kn, D·v0 = {self.dwt_t * self.speed_kn:.3g} t·kn; "
-                     "published range 4,000-20,000 dwt, 9-20 kn)")
+                     + (note if note else "within the published 4,000-20,000 dwt, 9-20 kn") + ")")
         elif self.model == "kwon" and self.kwon is not None:
             extra = f" (Cb {self.kwon.cb:g}, {self.kwon.form}, Fn {self.kwon.froude(self.speed_kn):.3f})"
         return f"{self.model}{extra}"

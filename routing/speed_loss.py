@@ -12,9 +12,10 @@ formula converts to its own convention at its boundary:
 * Kwon tabulates head (0-30 deg), bow (30-60), beam (60-150) and following (150-180) weather,
   0 = head, folded to [0, 180].
 
-Validity. Khokhlov's formula is published for 4 000-20 000 dwt and 9-20 kn
-(:func:`khokhlov_check`): beyond D·v0 = 7.4e5 t·kn its last factor turns negative and head seas
-would *speed the ship up*; the router refuses it outside the published range. Kwon's table holds
+Validity. Khokhlov's formula is published for 4 000-20 000 dwt and 9-20 kn: the ship enters
+it through D·v0 only, at most 4.0e5 t·kn there; beyond D·v0 = 7.4e5 t·kn its last factor turns
+negative and head seas would *speed the ship up*. The router refuses D·v0 above 4.0e5 and says
+so when dwt or speed alone lies outside (:func:`khokhlov_check`). Kwon's table holds
 for block coefficients 0.55-0.85 and where its speed-reduction coefficient C_U is positive
 (:func:`routing.speed_loss_kwon.kwon_check`).
 
@@ -359,35 +360,56 @@ def _warn_khokhlov_range(v0, dwt):
         )
 
 
-def khokhlov_check(dwt_t: float, speed_kn: float, vessel_name: str = "") -> None:
-    """Refuse Khokhlov's formula outside its published range (4 000-20 000 dwt, 9-20 kn, [1]).
+def khokhlov_check(dwt_t: float, speed_kn: float, vessel_name: str = "") -> str | None:
+    """Khokhlov's validity for the router: refuse where D·v0 exceeds the published range's.
+
+    The formula is published for 4 000-20 000 dwt and 9-20 kn ([1] Appendix I, the SIMROUTE
+    manual §2); the ship enters it only through D·v0, in the factor (1 - 1.35e-6 D v0), which over
+    that range runs from 0.95 down to 0.46 (D·v0 = 20 000 t x 20 kn = 4.0e5 t·kn,
+    :data:`KHOKHLOV_DV_MAX`). Beyond it the factor falls toward 0 (at 7.4e5) and below (head seas
+    speeding the ship up): refused. A ship outside the dwt or speed range whose D·v0 stays within
+    it keeps a factor the formula was fitted on: allowed, and the returned note (said in every
+    output that used it) names the excursion.
+
+    Returns
+    -------
+    str or None
+        A note when dwt or speed lies outside the published range (D·v0 within it), else None.
 
     Raises
     ------
     SpeedLossRangeError
-        Naming the vessel, its deadweight, speed and D·v0 against the limits, e.g. container-large
-        (100 000 dwt, 19 kn: D·v0 = 1.9e6 t·kn, factor -1.57: 5 m head seas would raise its
-        speed from 19 to 24.8 kn).
+        D·v0 above 4.0e5 t·kn, naming the vessel, its deadweight, speed, D·v0 and the factor, e.g.
+        container-large (100 000 dwt, 19 kn: D·v0 = 1.9e6 t·kn, factor -1.56: 5 m head seas would
+        raise its speed from 19 to 24.8 kn).
 
     Examples
     --------
-    >>> khokhlov_check(8000.0, 16.1)  # SIMROUTE R6's ship: inside
+    >>> khokhlov_check(8000.0, 16.1) is None  # SIMROUTE R6's ship: inside
+    True
+    >>> print(khokhlov_check(21000.0, 17.0))  # a feeder 5 % over the dwt range, D·v0 within it
+    outside the published 4,000-20,000 dwt / 9-20 kn, D·v0 <= 4.00e+05 t·kn: factor 0.52 within its 0.46-0.95
     """
     dwt, v0 = float(dwt_t), float(speed_kn)
     lo_d, hi_d = KHOKHLOV_DWT_RANGE_T
     lo_v, hi_v = KHOKHLOV_SPEED_RANGE_KN
-    if lo_d <= dwt <= hi_d and lo_v <= v0 <= hi_v:
-        return
     dv = dwt * v0
     factor = 1.0 - KHOKHLOV_C * dv
-    who = f"vessel {vessel_name}" if vessel_name else "the vessel"
-    raise SpeedLossRangeError(
-        f"Khokhlov's speed loss is published for {lo_d:,.0f}-{hi_d:,.0f} dwt and {lo_v:g}-{hi_v:g} kn "
-        f"(D·v0 <= {KHOKHLOV_DV_MAX:.2e} t·kn; Grifoll et al. 2022, Appendix I): {who} has {dwt:,.0f} dwt at {v0:g} kn, "
-        f"D·v0 = {dv:.3g} t·kn (factor 1 - 1.35e-6·D·v0 = {factor:.2f}"
-        + ("; head seas would speed it up" if factor < 0 else "")
-        + "); choose another --speed-loss model (bowditch, aertssen, kwon)"
-    )
+    if dv > KHOKHLOV_DV_MAX:
+        who = f"vessel {vessel_name}" if vessel_name else "the vessel"
+        raise SpeedLossRangeError(
+            f"Khokhlov's speed loss is published for {lo_d:,.0f}-{hi_d:,.0f} dwt and {lo_v:g}-{hi_v:g} kn "
+            f"(D·v0 <= {KHOKHLOV_DV_MAX:.2e} t·kn; Grifoll et al. 2022, Appendix I): {who} has {dwt:,.0f} dwt at {v0:g} kn, "
+            f"D·v0 = {dv:.3g} t·kn (factor 1 - 1.35e-6·D·v0 = {factor:.2f}"
+            + ("; head seas would speed it up" if factor < 0 else "")
+            + "); choose another --speed-loss model (bowditch, aertssen, kwon)"
+        )
+    if lo_d <= dwt <= hi_d and lo_v <= v0 <= hi_v:
+        return None
+    f_lo = 1.0 - KHOKHLOV_C * KHOKHLOV_DV_MAX
+    f_hi = 1.0 - KHOKHLOV_C * lo_d * lo_v
+    return (f"outside the published {lo_d:,.0f}-{hi_d:,.0f} dwt / {lo_v:g}-{hi_v:g} kn, D·v0 <= {KHOKHLOV_DV_MAX:.2e} t·kn: "
+            f"factor {factor:.2f} within its {f_lo:.2f}-{f_hi:.2f}")
 
 
 def speed_loss_khokhlov(speed_kn, hs_m, encounter_deg, dwt_t):
@@ -418,7 +440,8 @@ def speed_loss_khokhlov(speed_kn, hs_m, encounter_deg, dwt_t):
     Valid for 4 000-20 000 dwt and 9-20 kn ([1] Appendix I); outside it a
     :class:`SpeedLossValidityWarning` is issued, and where D·v0 >= 1/1.35e-6 = 7.41e5 t·kn (the
     last factor <= 0: head seas would speed the ship up) the loss is NaN. The router refuses the
-    formula outside the published range (:func:`khokhlov_check`). Standard error about 0.5 kn [3].
+    formula where D·v0 exceeds the published range's (:func:`khokhlov_check`). Standard error about
+    0.5 kn [3].
 
     Examples
     --------

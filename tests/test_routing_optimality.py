@@ -248,11 +248,15 @@ def test_heuristic_never_exceeds_the_true_remaining_time(seed, variant, currents
 
 
 def test_khokhlov_outside_its_range_is_refused_naming_the_vessel_and_d_v0():
+    # the ship enters the formula through D·v0 only: at most 20 000 t x 20 kn = 4.0e5 t·kn in the published range
     with pytest.raises(SpeedLossRangeError, match=r"container-large has 100,000 dwt at 19 kn, D·v0 = 1\.9e\+06 t·kn.*-1\.56.*speed it up"):
         ShipModel(19.0, "khokhlov", dwt_t=100000.0, vessel_name="container-large")
-    with pytest.raises(SpeedLossRangeError, match=r"4,000-20,000 dwt and 9-20 kn \(D·v0 <= 4\.00e\+05"):
-        khokhlov_check(21000.0, 17.0)
-    khokhlov_check(20000.0, 20.0)  # the corner of the published range
+    with pytest.raises(SpeedLossRangeError, match=r"4,000-20,000 dwt and 9-20 kn \(D·v0 <= 4\.00e\+05.*D·v0 = 4\.2e\+05"):
+        khokhlov_check(21000.0, 20.0)  # 1.05 x the largest D·v0 (factor 0.43)
+    assert khokhlov_check(20000.0, 20.0) is None  # the corner of the published range
+    # 21 000 dwt at 17 kn: outside the dwt range, D·v0 = 3.57e5 within: allowed and said
+    ship = ShipModel(17.0, "khokhlov", dwt_t=21000.0, vessel_name="container-feeder")
+    assert "outside the published 4,000-20,000 dwt / 9-20 kn" in ship.describe() and "factor 0.52 within its 0.46-0.95" in ship.describe()
 
 
 # ------------------------------------------------------------------ the speed models' bounds

@@ -41,7 +41,7 @@ def test_wind_only_weather_needs_a_wind_model(shared_data, capsys):
     code, out, err = run(capsys, *GFS_ARGS, "--weather", str(path), "--speed-loss", "kwon", "--json")
     assert code == 0, err
     data = json.loads(out)
-    assert data["notes"][:2] == ["speed loss: kwon (Cb 0.575, loaded, Fn 0.176)",
+    assert data["notes"][:2] == ["speed loss: kwon (Cb 0.572, container, Fn 0.221)",  # the default vessel, container-feeder
                                  "Kwon's loss reads the 10 m wind (Beaufort number and direction), not the waves"]
     assert data["optimal"]["max_hs_m"] is None  # no waves in the data: unknown, not 0
     assert data["optimal_smoothed"]["time_h"] <= data["min_distance"]["time_h"] + 1e-9
