@@ -25,7 +25,7 @@ COMMANDS = dict(walk_commands(typer.main.get_command(app)))
 RETIRED_NAMES = {"--operator": "--profile", "--workdir": "--out", "--every": "--step-h"}
 #: Options that mean the same everywhere carry the same metavar.
 SAME_METAVAR = {"--db": "FILE", "--weather": "FILE|DIR", "--vessel": "NAME|FILE", "--profile": "NAME|FILE",
-                "--speed-loss": "bowditch|aertssen|khokhlov|none", "--task-runner": "sequential|dask[:ADDRESS]",
+                "--speed-loss": "bowditch|aertssen|khokhlov|kwon|none", "--task-runner": "sequential|dask[:ADDRESS]",
                 "--depart": "ISO", "--start": "ISO", "--end": "ISO", "--now": "ISO", "--lane": "ID",
                 "--window-h": "H", "--step-h": "H", "--safety": None, "--max-detail": "N", "--seed": "N", "--days": "N"}
 #: Commands that write data into the workspace and so may create it; every other --db must exist.
