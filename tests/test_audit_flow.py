@@ -203,9 +203,12 @@ def test_deviate_cli(workspace):
     assert obj["metrics"]["hs_decrease_pct"] > 0
     moved = [s for s in obj["steps"] if s["status"] == "deviated"]
     assert moved and all(s["rules_fired"] for s in moved)  # moved only where a rule fired
-    # the human output: here the deviation is safer, so no "not safer" note ...
+    # the human output says "not safer" exactly when the evaluations say so (here the deviation lowers
+    # the max Hs, 6.3 -> 5.4 m, but meets beam seas where it moved: 2.64 h over the limits against 2.57 h,
+    # with MEPC.1/Circ.850's Hs limit read with its period and the IMO rules as written) ...
+    worse = obj["deviation"]["adverse_h"] > obj["lane"]["adverse_h"] + 0.05 or obj["deviation"]["max_hs_m"] > obj["lane"]["max_hs_m"] + 0.05
     res = CliRunner().invoke(app, ["deviate", "--lane", "L1", "--depart", "2025-01-15T00:00Z", "--db", str(workspace)])
-    assert res.exit_code == 0 and "deviation:" in res.stdout and "than the lane" not in res.stdout
+    assert res.exit_code == 0 and "deviation:" in res.stdout and ("than the lane" in res.stdout) == worse
     res = CliRunner().invoke(app, ["deviate", "--lane", "L9", "--depart", "2025-01-15T00:00Z", "--db", str(workspace)])
     assert res.exit_code != 0 and "no lane 'L9'" in str(res.exception)
 
