@@ -58,7 +58,11 @@ def map_extent(routes: dict, weather: WeatherSnapshot | None = None, pad_frac: f
     lons = [r.lon_deg for r in routes.values() if r.n_waypoints]
     if lats:
         lat = np.concatenate(lats)
-        lon = np.concatenate(lons)
+        # one continuous longitude frame (the routes' lines are drawn unwrapped): a route across the
+        # antimeridian spans 170..190, not -180..180
+        ref = float(lons[0][0])
+        lon = np.concatenate([ref + (np.degrees(np.unwrap(np.radians(np.asarray(x, dtype=float)))) - float(x[0]))
+                              + ((float(x[0]) - ref + 180.0) % 360.0 - 180.0) for x in lons])
     elif weather is not None:
         lat, lon = weather.lat_deg, weather.lon_deg
     else:
