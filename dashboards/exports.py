@@ -267,7 +267,11 @@ def routes_to_geojson(routes: list[Route]) -> dict:
 
 
 def _split_antimeridian(coords: list[list[float]]) -> list[list[list[float]]]:
-    """Split a lon/lat polyline where a leg jumps more than 180 deg of longitude (RFC 7946, 3.1.9)."""
+    """Split a lon/lat polyline where a leg jumps more than 180 deg of longitude (RFC 7946, 3.1.9).
+
+    A route that starts or ends exactly on the antimeridian would leave a part of one repeated
+    point at the seam, which is no line (invalid in a MultiLineString): such parts are dropped,
+    so a route to 180 deg from the west is one line ending at 180."""
     parts = [[coords[0]]]
     for (lon0, lat0), (lon1, lat1) in zip(coords[:-1], coords[1:]):
         if abs(lon1 - lon0) > 180.0:
@@ -279,7 +283,8 @@ def _split_antimeridian(coords: list[list[float]]) -> list[list[list[float]]]:
             parts[-1].append([edge, lat_x])
             parts.append([[-edge, lat_x]])
         parts[-1].append([lon1, lat1])
-    return parts
+    lines = [part for part in parts if any(p != part[0] for p in part[1:])]
+    return lines or parts[:1]
 
 
 def routes_to_gpx(routes: list[Route]) -> ET.Element:

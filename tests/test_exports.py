@@ -135,6 +135,24 @@ def test_geojson_splits_at_the_antimeridian(tmp_path):
     assert shapely.geometry.shape(geom).is_valid
 
 
+@pytest.mark.parametrize("lon,n_parts", [([179.0, 180.0], 1), ([180.0, 179.0], 1), ([-179.0, -180.0], 1), ([-180.0, -179.0], 1),
+                                         ([179.0, 180.0, -179.0], 2), ([-179.0, 180.0, 179.0], 2)])  # fmt: skip
+def test_geojson_route_ending_on_the_antimeridian_is_one_valid_line(tmp_path, lon, n_parts):
+    # a route from or to 180 deg exactly used to leave a "line" of one repeated point at the seam (invalid)
+    route = Route(name="pacific", lat_deg=np.linspace(50.0, 52.0, len(lon)), lon_deg=np.array(lon),
+                  time_utc=pd.DatetimeIndex(pd.date_range("2025-01-01", periods=len(lon), freq="10h", tz="UTC")),
+                  leg_speed_kn=np.full(len(lon) - 1, 12.0))  # fmt: skip
+    path = tmp_path / "p.geojson"
+    write_routes(route, path)
+    geom = json.loads(path.read_text())["features"][0]["geometry"]
+    parts = geom["coordinates"] if geom["type"] == "MultiLineString" else [geom["coordinates"]]
+    assert len(parts) == n_parts and geom["type"] == ("LineString" if n_parts == 1 else "MultiLineString")
+    assert shapely.geometry.shape(geom).is_valid
+    assert all(len({tuple(p) for p in part}) >= 2 for part in parts)
+    assert parts[0][0][1] == 50.0 and parts[-1][-1][1] == 52.0  # from the start to the goal
+    assert all(-180.0 <= p[0] <= 180.0 for part in parts for p in part)
+
+
 # ------------------------------------------------------------------ GPX
 
 

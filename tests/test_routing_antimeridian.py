@@ -122,3 +122,41 @@ def test_real_trans_pacific_route_around_the_aleutians():
         ends = (np.arange(n) == 0) | (np.arange(n) == n - 1)
         assert (is_ocean(np.asarray(lat), np.asarray(lon)) | ends).all(), f"leg {i} crosses land"
     assert math.isclose(sm.time_h, sm.dist_nmi / 18.0, rel_tol=1e-9)  # calm water
+
+
+@pytest.mark.parametrize("goal", [(35.0, -165.0), (35.0, 180.0)], ids=["across", "to 180 exactly"])
+def test_route_cli_exports_across_the_antimeridian(tmp_path, capsys, goal):
+    # GeoJSON splits each line at the seam (RFC 7946, 3.1.9), GPX and RTZ carry longitudes wrapped to [-180, 180)
+    import json
+
+    import shapely.geometry
+
+    from dashboards.exports import read_gpx, read_rtz
+    from pipelines.cli import main
+
+    args = ["route", "--from", "40,170", "--to", f"{goal[0]},{goal[1]}", "--depart", "2024-01-10T00:00Z", "--mesh-nmi", "30",
+            "--speed-loss", "none", "--ignore-land"]  # fmt: skip
+    for ext in ("geojson", "gpx", "rtz"):
+        main(args + ["--out", str(tmp_path / f"r.{ext}")])
+    capsys.readouterr()
+    data = json.loads((tmp_path / "r.geojson").read_text())
+    lines = {f["properties"]["route"]: f["geometry"] for f in data["features"] if f["properties"]["feature"] == "route"}
+    assert set(lines) == {"optimal", "optimal_smoothed", "min_distance", "min_distance_calm"}
+    for geom in lines.values():
+        assert shapely.geometry.shape(geom).is_valid
+        if goal[1] == 180.0:  # ends on the seam: one line, to 180 from the west
+            assert geom["type"] == "LineString" and geom["coordinates"][-1] == [180.0, 35.0]
+        else:
+            west, east = geom["coordinates"]
+            assert geom["type"] == "MultiLineString" and west[-1][0] == 180.0 and east[0] == [-180.0, west[-1][1]]
+            assert west[0] == [170.0, 40.0] and east[-1] == [-165.0, 35.0]
+    points = [f["geometry"]["coordinates"][0] for f in data["features"] if f["geometry"]["type"] == "Point"]
+    assert all(-180.0 <= lon < 180.0 for lon in points)
+    routes = read_gpx(tmp_path / "r.gpx") + [read_rtz(p) for p in sorted(tmp_path.glob("r_*.rtz"))]
+    assert len(routes) == 8
+    for r in routes:
+        assert np.all((r.lon_deg >= -180.0) & (r.lon_deg < 180.0))
+        assert (r.lat_deg[0], r.lon_deg[0]) == pytest.approx((40.0, 170.0))
+        assert (r.lat_deg[-1], r.lon_deg[-1]) == pytest.approx((goal[0], -180.0 if goal[1] == 180.0 else goal[1]))
+        gc = float(haversine_nmi(40.0, 170.0, *goal))
+        assert gc <= r.dist_nmi < 1.02 * gc  # read back across the seam, not the long way round
