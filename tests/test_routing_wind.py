@@ -1,7 +1,8 @@
 """Wind-only weather (NOAA GFS GRIB, 10 m wind) is routed by Kwon's model, and refused by the wave
 models naming the model, the variable and the file (it used to route as a calm sea); the same for
-Kwon on a wave-only product; Khokhlov outside its range; every model's route on Storm Gloria and
-on wind-only weather is not slower than the minimum-distance route under the same model."""
+Kwon on a wave-only product; Khokhlov outside its range; every model's route on Storm Gloria (the
+wave models: it has no wind), on the demo's storm (all four) and on wind-only weather is not slower
+than the minimum-distance route under the same model."""
 
 from __future__ import annotations
 
@@ -70,3 +71,29 @@ def test_gloria_time_optimal_not_slower_than_minimum_distance(shared_data, capsy
     assert data["optimal_smoothed"]["time_h"] <= data["optimal"]["time_h"] + 1e-9
     assert data["notes"][0].startswith(f"speed loss: {model}")
     assert math.isfinite(data["optimal"]["max_hs_m"]) and data["optimal"]["max_hs_m"] > 6.0
+
+
+@pytest.fixture(scope="module")
+def demo_storm_weather(tmp_path_factory):
+    """The demo's weather (CMEMS GLOBAL waves + ERA5 wind, the demo's writers) around its first storm."""
+    from weather.io.scenario_files import write_scenario_weather
+    from weather.scenario import generate_weather
+
+    out = tmp_path_factory.mktemp("demo")
+    write_scenario_weather(out, weather=generate_weather(seed=0, start="2025-01-14T12:00Z", end="2025-01-15T18:00Z"))
+    return out / "weather"
+
+
+@pytest.mark.parametrize("model", ["bowditch", "aertssen", "khokhlov", "kwon"])
+def test_demo_time_optimal_not_slower_than_minimum_distance(demo_storm_weather, capsys, model):
+    # README's tour route (Barcelona -> Palma) as its storm passes; the demo has waves and wind, so every model routes
+    code, out, err = run(capsys, "route", "--from", "41.35,2.17", "--to", "39.56,2.63", "--depart", "2025-01-14T18:00Z",
+                         "--weather", str(demo_storm_weather), "--speed-loss", model, "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["notes"][0].startswith(f"speed loss: {model}")
+    assert data["optimal"]["time_h"] <= data["min_distance"]["time_h"] + 1e-9
+    assert data["optimal_smoothed"]["time_h"] <= data["optimal"]["time_h"] + 1e-9
+    # the storm slows the ship under every model (Hs up to about 4.8 m, Beaufort 7-8 on this leg)
+    assert data["min_distance"]["time_h"] > data["min_distance_calm"]["time_h"] * 1.005
+    assert data["optimal"]["max_hs_m"] > 4.0
