@@ -5,14 +5,16 @@ node ids ``j*nx + i``, a uint64 edge mask per node, per-row edge lengths and cou
 weather of every sea node on a regular time axis. The cost of an edge u -> v is
 
 * ``cost="time"``: the time from reaching u to reaching v, by the edge model of
-  :mod:`routing._kernels.edge`: at each weather slice the edge takes ``L * pace`` hours, with L
-  the great-circle length and pace the hours per nmi over ground in the mean of the two end
-  nodes' weather (sea state and current) for the edge's initial course (speed through the water
-  from :mod:`routing.speed_loss`'s formulas, compiled twin); between slices that travel time is
-  interpolated linearly in the departure time; and the ship may postpone the edge (wait, or sail
-  it slower: ``ShipModel.wait``, default on), so the arrival is the earliest over every later
-  departure. That arrival is non-decreasing in the departure time (FIFO) even where Bowditch's
-  sectors or Aertssen's Beaufort classes make the sailing time jump;
+  :mod:`routing._kernels.edge`: the weather is linear in time between its slices and is read at
+  quarter-hour sub-slices (m = ceil(dt / 0.25 h) per weather step dt); an edge left at t takes
+  ``L * pace`` hours, with L the great-circle length and pace the hours per nmi over ground in
+  the mean of the two end nodes' weather (sea state and current) at the sub-slice nearest to t,
+  for the edge's initial course (speed through the water from :mod:`routing.speed_loss`'s
+  formulas, compiled twin), so the travel time is constant within a sub-slice's piece and jumps
+  from one to the next; and the ship may postpone the edge (wait, or sail it slower:
+  ``ShipModel.wait``, default on), so the arrival is the earliest over every later departure.
+  That arrival is non-decreasing in the departure time (FIFO) even where Bowditch's sectors or
+  Aertssen's Beaufort classes make the sailing time jump;
 * ``cost="distance"``: L.
 
 With ``safety=`` (:class:`routing.safety.SafetyFlags`) the time search respects the vessel's

@@ -3,8 +3,9 @@
 * :mod:`.core` — the parameter vector's layout, great-circle geometry, the heap, the goal
   heuristic's tables, :func:`gather_bilinear_time` (weather grid -> mesh nodes).
 * :mod:`.speed` — the speed model (:func:`speed_through_water`, pace over ground).
-* :mod:`.edge` — the edge model: weather of a node at a slice, travel time interpolated between
-  slices, the FIFO arrival (waiting allowed).
+* :mod:`.edge` — the edge model: weather of a node at a slice or quarter-hour sub-slice (linear in
+  time between slices), the travel time in the weather of the sub-slice nearest to the departure,
+  the FIFO arrival (waiting allowed).
 * :mod:`.search` — :func:`astar`, time-dependent A* / Dijkstra on a regular lat/lon mesh.
 * :mod:`.search_safe` — :func:`astar_safe`, the same under the vessel's limits (per-cell,
   per-slice, per-heading-sector flags precomputed by :mod:`routing.safety`).

@@ -41,10 +41,11 @@ def astar(
     them whose cost was computed (the edges to closed nodes are skipped before that).
 
     Edge cost: its length (``distance_mode``), or the time from reaching u to reaching v,
-    ``A(t) - t``, by :func:`routing._kernels.edge.arrival` (travel times at sub-slices of the
-    weather step, linear in between; with ``p[P_WAIT]`` the FIFO arrival, min over later
-    departures). The labels are arrival times; under FIFO edges the first time the goal leaves
-    the heap its label is the earliest arrival. ``heuristic_speed`` > 0 gives the admissible
+    ``A(t) - t``, by the model of :func:`routing._kernels.edge.arrival` (the travel time in the
+    weather of the quarter-hour sub-slice nearest to t, the weather linear in time between
+    slices; with ``p[P_WAIT]`` the FIFO arrival, min over later departures). The labels are
+    arrival times; under FIFO edges the first time the goal leaves the heap its label is the
+    earliest arrival. ``heuristic_speed`` > 0 gives the admissible
     heuristic great-circle distance / speed (the speed is at least any speed over ground an
     edge can reach, so no edge is faster, waiting included); 0 gives Dijkstra.
     """

@@ -2,10 +2,11 @@
 hours spent on pieces that touch an unsafe cell.
 
 A leg of the polyline is cut into ceil(L / max_piece) equal great-circle pieces; each piece is
-timed exactly as the search times an edge (:func:`routing._kernels.edge.arrival`: travel times
-at sub-slices, linear in between, and with ``wait`` the FIFO arrival, min over later
-departures), the ends' weather read bilinearly over the sea nodes around them (the node values
-exactly at nodes, so a grid path re-timed here equals the search's cost).
+timed exactly as the search times an edge (:func:`routing._kernels.edge.arrival`: the travel
+time in the weather of the quarter-hour sub-slice nearest to the departure, the weather linear
+in time between slices, and with ``wait`` the FIFO arrival, min over later departures), the
+ends' weather read bilinearly over the sea nodes around them (the node values exactly at nodes,
+so a grid path re-timed here equals the search's cost).
 """
 
 from __future__ import annotations
