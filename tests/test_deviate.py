@@ -294,7 +294,7 @@ def test_lane_route_timing():
 
 
 def test_leg_judge_reports_the_highest_hs_met_between_the_ends():
-    from routing.deviate import _Judge
+    from routing.deviate_walk import Judge as _Judge
 
     grid = Grid(storm_speed_deg_h=0.0)  # a still storm: 7 m at 41.0 N 1.6 E, 2 m far from it
     judge = _Judge(grid.weather_at, check, spacing_nmi=3.0)
