@@ -312,8 +312,6 @@ def evaluate_operator(
     """
     if missing not in ("raise", "skip"):
         raise ValueError(f"missing must be 'raise' or 'skip', not {missing!r}")
-    rules: dict[str, RuleResult] = {}
-    nan_masks: list[np.ndarray] = []
     skipped: list[str] = []
 
     def lacking(rule: str, message: str) -> None:
@@ -331,62 +329,77 @@ def evaluate_operator(
     if isinstance(limits.hs_max_m, tuple) or isinstance(limits.wind_max_ms, tuple):
         raise OperatorProfileError(f"operator limits {limits.name!r} hold Lpp tables: resolve them with .for_lpp(lpp_m) first")
     p = _arr(tp_s if limits.period_kind == "peak" else tm_s)
-    if limits.hs_max_m is not None:
-        with np.errstate(invalid="ignore"):
-            fired = hs > limits.hs_max_m
-            margin = hs - limits.hs_max_m
-            if limits.hs_period_range_s is not None and p is not None:
-                # the adverse-condition row: this Hs with a period in the row's range (MEPC.1/Circ.850/Rev.2)
-                lo, hi = limits.hs_period_range_s
-                in_range = (p >= lo) & (p <= hi)
-                fired = fired & in_range
-                margin = np.where(in_range, margin, np.nan)
-        if limits.hs_period_range_s is not None and p is None:
-            skipped.append(f"hs: no {limits.period_var} in the data: the Hs limit applied at every period "
-                           f"(the table gives it for {limits.hs_period_range_s[0]:g}-{limits.hs_period_range_s[1]:g} s)")
-        rules["hs"] = RuleResult("hs", fired, margin, "m", hs, limits.hs_max_m)
-        nan_masks.append(np.isnan(hs))
-    w = None
-    if wind_ms is not None:
-        w = _arr(wind_ms)
-    elif wind_u_ms is not None and wind_v_ms is not None:
-        w = np.hypot(_arr(wind_u_ms), _arr(wind_v_ms))
-    if limits.wind_max_ms is not None and w is None:
-        lacking("wind", "needs 10 m wind (wind_ms or wind_u_ms + wind_v_ms), not in the data")
-    elif limits.wind_max_ms is not None:
-        with np.errstate(invalid="ignore"):
-            rules["wind"] = RuleResult("wind", w > limits.wind_max_ms, w - limits.wind_max_ms, "ms", w, limits.wind_max_ms)
-        nan_masks.append(np.isnan(w))
-    if limits.uses_period and p is None:
-        lacking("period", f"needs {limits.period_var} ({limits.period_kind} wave period), not in the data")
-    elif limits.uses_period:
-        with np.errstate(invalid="ignore"):
-            out_lo = (limits.period_min_s - p) if limits.period_min_s is not None else np.full(p.shape, -np.inf)
-            out_hi = (p - limits.period_max_s) if limits.period_max_s is not None else np.full(p.shape, -np.inf)
-            margin = np.maximum(out_lo, out_hi)  # > 0 outside the allowed range
-            fired = margin > 0
-            if limits.period_forbidden_s:
-                inside, depth = _in_ranges(p, limits.period_forbidden_s)  # >= 0 inside a forbidden range
-                fired = fired | inside
-                margin = np.maximum(margin, depth)
-            if gate is not None and limits.gate_hs_m > 0:
-                fired = fired & gate
-                margin = np.where(gate, margin, np.nan)
-        limit = limits.period_max_s if limits.period_max_s is not None else np.nan
-        rules["period"] = RuleResult("period", fired, margin, "s", p, np.where(np.isnan(margin), np.nan, limit))
-        nan_masks.append(np.isnan(p))
-    if limits.beam_sectors_deg and heading_deg is not None and wave_from_deg is None:
-        lacking("beam_seas", "needs wave_from_deg (mean wave direction), not in the data")
-    elif limits.beam_sectors_deg and heading_deg is not None:
-        alpha = np.mod(_arr(wave_from_deg) - _arr(heading_deg), 360.0)
-        with np.errstate(invalid="ignore"):
-            inside, depth = _in_ranges(alpha, limits.beam_sectors_deg)
-            fired = inside
-            margin = depth
-            if gate is not None and limits.gate_hs_m > 0:
-                fired = fired & np.broadcast_to(gate, np.broadcast_shapes(gate.shape, fired.shape))
-                margin = np.where(gate, margin, np.nan)
-        rules["beam_seas"] = RuleResult("beam_seas", fired, margin, "deg", alpha, np.nan)
-        nan_masks.append(np.isnan(alpha))
+    w = _arr(wind_ms) if wind_ms is not None else (
+        np.hypot(_arr(wind_u_ms), _arr(wind_v_ms)) if wind_u_ms is not None and wind_v_ms is not None else None)
+    results = [
+        _hs_rule(limits, hs, p, skipped) if limits.hs_max_m is not None else None,
+        _wind_rule(limits, w, lacking) if limits.wind_max_ms is not None else None,
+        _period_rule(limits, p, gate, lacking) if limits.uses_period else None,
+        _beam_rule(limits, wave_from_deg, heading_deg, gate, lacking) if limits.beam_sectors_deg and heading_deg is not None else None,
+    ]
+    rules = {r.name: r for r, _ in filter(None, results)}
+    nan_masks = [m for _, m in filter(None, results)]
     no_data = np.logical_or.reduce(np.broadcast_arrays(*nan_masks)) if nan_masks else None
     return Assessment(rules, no_data, tuple(skipped))
+
+
+def _hs_rule(limits: OperatorLimits, hs, p, skipped: list[str]):
+    """The Hs limit; with a period range (MEPC.1/Circ.850/Rev.2's adverse-condition row) it fires
+    only with a period in the row's range. Returns (rule, NaN mask of its input)."""
+    with np.errstate(invalid="ignore"):
+        fired = hs > limits.hs_max_m
+        margin = hs - limits.hs_max_m
+        if limits.hs_period_range_s is not None and p is not None:
+            lo, hi = limits.hs_period_range_s
+            in_range = (p >= lo) & (p <= hi)
+            fired = fired & in_range
+            margin = np.where(in_range, margin, np.nan)
+    if limits.hs_period_range_s is not None and p is None:
+        skipped.append(f"hs: no {limits.period_var} in the data: the Hs limit applied at every period "
+                       f"(the table gives it for {limits.hs_period_range_s[0]:g}-{limits.hs_period_range_s[1]:g} s)")
+    return RuleResult("hs", fired, margin, "m", hs, limits.hs_max_m), np.isnan(hs)
+
+
+def _wind_rule(limits: OperatorLimits, w, lacking):
+    """The 10 m wind limit; None (and the rule listed as lacking) without wind."""
+    if w is None:
+        lacking("wind", "needs 10 m wind (wind_ms or wind_u_ms + wind_v_ms), not in the data")
+        return None
+    with np.errstate(invalid="ignore"):
+        return RuleResult("wind", w > limits.wind_max_ms, w - limits.wind_max_ms, "ms", w, limits.wind_max_ms), np.isnan(w)
+
+
+def _period_rule(limits: OperatorLimits, p, gate, lacking):
+    """The wave-period rule: outside the allowed range or inside a forbidden one, gated by Hs.
+    Margin > 0 outside the allowed range, >= 0 inside a forbidden range."""
+    if p is None:
+        lacking("period", f"needs {limits.period_var} ({limits.period_kind} wave period), not in the data")
+        return None
+    with np.errstate(invalid="ignore"):
+        out_lo = (limits.period_min_s - p) if limits.period_min_s is not None else np.full(p.shape, -np.inf)
+        out_hi = (p - limits.period_max_s) if limits.period_max_s is not None else np.full(p.shape, -np.inf)
+        margin = np.maximum(out_lo, out_hi)
+        fired = margin > 0
+        if limits.period_forbidden_s:
+            inside, depth = _in_ranges(p, limits.period_forbidden_s)
+            fired = fired | inside
+            margin = np.maximum(margin, depth)
+        if gate is not None and limits.gate_hs_m > 0:
+            fired = fired & gate
+            margin = np.where(gate, margin, np.nan)
+    limit = limits.period_max_s if limits.period_max_s is not None else np.nan
+    return RuleResult("period", fired, margin, "s", p, np.where(np.isnan(margin), np.nan, limit)), np.isnan(p)
+
+
+def _beam_rule(limits: OperatorLimits, wave_from_deg, heading_deg, gate, lacking):
+    """The beam-seas sectors of the wave direction relative to the heading, gated by Hs."""
+    if wave_from_deg is None:
+        lacking("beam_seas", "needs wave_from_deg (mean wave direction), not in the data")
+        return None
+    alpha = np.mod(_arr(wave_from_deg) - _arr(heading_deg), 360.0)
+    with np.errstate(invalid="ignore"):
+        fired, margin = _in_ranges(alpha, limits.beam_sectors_deg)
+        if gate is not None and limits.gate_hs_m > 0:
+            fired = fired & np.broadcast_to(gate, np.broadcast_shapes(gate.shape, fired.shape))
+            margin = np.where(gate, margin, np.nan)
+    return RuleResult("beam_seas", fired, margin, "deg", alpha, np.nan), np.isnan(alpha)

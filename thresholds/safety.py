@@ -107,6 +107,14 @@ def assess(
     if not imo_settings.enabled:
         return result
 
+    return result.merge(_imo_rules(vessel, imo_settings, hs_m=hs_m, wave_from_deg=wave_from_deg, tp_s=tp_s, tm_s=tm_s,
+                                   heading_deg=heading_deg, speed_kn=speed_kn))
+
+
+def _imo_rules(vessel, imo_settings, *, hs_m, wave_from_deg, tp_s, tm_s, heading_deg, speed_kn) -> Assessment:
+    """IMO MSC.1/Circ.1228's rules (successive high waves, surf-riding, synchronous and parametric
+    roll) for one vessel; rules lacking their inputs (heading, wave direction, period, roll period)
+    are listed in ``Assessment.skipped``."""
     hs = np.asarray(hs_m, dtype=float)
     length = float(vessel.lpp_m)
     rules = {}
@@ -140,7 +148,7 @@ def assess(
             rules["parametric_roll"] = _gated(imo.parametric_roll(te, tr, imo_settings.roll_tolerance_frac), gate, imo_settings.gate_hs_m)
             missing.append(np.isnan(np.asarray(enc_period, dtype=float)))
     no_data = np.logical_or.reduce(np.broadcast_arrays(*missing))
-    return result.merge(Assessment(rules, no_data, tuple(skipped)))
+    return Assessment(rules, no_data, tuple(skipped))
 
 
 def _gated(rule, gate, gate_hs_m):
