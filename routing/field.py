@@ -158,28 +158,7 @@ class WeatherField:
         glat = self.lat_deg[ja:jb]
         v = {name: arr[first:, ja:jb][:, :, cols] for name, arr in self.variables.items()}
         valid = ~_no_data(v, (glat.size, glon.size))
-        jj, wy = _axis_weights(glat, mlat)
-        ii, wx = _axis_weights(glon, mlon)
-        # four neighbours (j0,i0), (j0,i1), (j1,i0), (j1,i1) of every node: shape (ny, nx, 4)
-        j_pairs = np.stack([jj[:, 0], jj[:, 0], jj[:, 1], jj[:, 1]], axis=-1)[:, None, :]
-        i_pairs = np.stack([ii[:, 0], ii[:, 1], ii[:, 0], ii[:, 1]], axis=-1)[None, :, :]
-        w = (
-            np.stack([wy[:, 0], wy[:, 0], wy[:, 1], wy[:, 1]], axis=-1)[:, None, :]
-            * np.stack([wx[:, 0], wx[:, 1], wx[:, 0], wx[:, 1]], axis=-1)[None, :, :]
-        )
-        j_pairs, i_pairs = np.broadcast_arrays(j_pairs, i_pairs)
-        inside = (j_pairs >= 0) & (i_pairs >= 0)
-        ok = inside & valid[np.clip(j_pairs, 0, None), np.clip(i_pairs, 0, None)]
-        w = np.where(ok, w, 0.0)
-        wsum = w.sum(axis=-1)
-        has_data = wsum >= 0.5
-        fill = node_sea & (has_data | fill_missing)
-        sea_index = np.full(ny * nx, -1, dtype=np.int32)
-        flat_fill = fill.ravel()
-        n_sea = int(flat_fill.sum())
-        sea_index[flat_fill] = np.arange(n_sea, dtype=np.int32)
-        flat_idx = (np.clip(j_pairs, 0, None) * glon.size + np.clip(i_pairs, 0, None)).reshape(-1, 4)[flat_fill]
-        flat_w = (w / np.where(wsum > 0, wsum, 1.0)[..., None]).reshape(-1, 4)[flat_fill]
+        sea_index, n_sea, flat_idx, flat_w, has_data = _node_weights(glat, glon, mlat, mlon, valid, node_sea, fill_missing)
         gather = _Gather(flat_idx.astype(np.int32), flat_w.astype(np.float32), t_idx0, t_w)
 
         shape0 = (t.size, glat.size, glon.size)
@@ -218,6 +197,41 @@ class WeatherField:
             weather_sea=has_data,
             attrs=dict(self.attrs),
         )
+
+
+def _node_weights(glat, glon, mlat, mlon, valid, node_sea, fill_missing: bool):
+    """Bilinear weights of every mesh node over its four grid neighbours, the invalid (land or
+    missing) neighbours given weight 0 and the rest renormalised.
+
+    A node *has data* when its valid neighbours carry at least half of its bilinear weight. The
+    nodes filled are ``node_sea`` nodes with data (or every ``node_sea`` node with
+    ``fill_missing``). Returns (sea_index: node -> row of the filled nodes or -1, the number
+    filled, per filled node its 4 flat grid indices and 4 weights, has_data (ny, nx)).
+    """
+    ny, nx = mlat.size, mlon.size
+    jj, wy = _axis_weights(glat, mlat)
+    ii, wx = _axis_weights(glon, mlon)
+    # four neighbours (j0,i0), (j0,i1), (j1,i0), (j1,i1) of every node: shape (ny, nx, 4)
+    j_pairs = np.stack([jj[:, 0], jj[:, 0], jj[:, 1], jj[:, 1]], axis=-1)[:, None, :]
+    i_pairs = np.stack([ii[:, 0], ii[:, 1], ii[:, 0], ii[:, 1]], axis=-1)[None, :, :]
+    w = (
+        np.stack([wy[:, 0], wy[:, 0], wy[:, 1], wy[:, 1]], axis=-1)[:, None, :]
+        * np.stack([wx[:, 0], wx[:, 1], wx[:, 0], wx[:, 1]], axis=-1)[None, :, :]
+    )
+    j_pairs, i_pairs = np.broadcast_arrays(j_pairs, i_pairs)
+    inside = (j_pairs >= 0) & (i_pairs >= 0)
+    ok = inside & valid[np.clip(j_pairs, 0, None), np.clip(i_pairs, 0, None)]
+    w = np.where(ok, w, 0.0)
+    wsum = w.sum(axis=-1)
+    has_data = wsum >= 0.5
+    fill = node_sea & (has_data | fill_missing)
+    sea_index = np.full(ny * nx, -1, dtype=np.int32)
+    flat_fill = fill.ravel()
+    n_sea = int(flat_fill.sum())
+    sea_index[flat_fill] = np.arange(n_sea, dtype=np.int32)
+    flat_idx = (np.clip(j_pairs, 0, None) * glon.size + np.clip(i_pairs, 0, None)).reshape(-1, 4)[flat_fill]
+    flat_w = (w / np.where(wsum > 0, wsum, 1.0)[..., None]).reshape(-1, 4)[flat_fill]
+    return sea_index, n_sea, flat_idx, flat_w, has_data
 
 
 def _no_data(variables: dict, shape) -> np.ndarray:
