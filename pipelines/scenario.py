@@ -121,12 +121,10 @@ def _records(df: pd.DataFrame, time_cols=(), round_cols=None) -> list[dict]:
     return recs
 
 
-def describe(scenario: Scenario) -> dict:
-    """The JSON-ready ground truth of a scenario (everything except the files written)."""
-    st, spec = scenario.settings, scenario.spec
+def describe_setup(st: ScenarioSettings, spec: ScenarioSpec, vessels: pd.DataFrame) -> dict:
+    """The JSON-ready settings, ports, routes, services and vessels of a scenario."""
     settings = {k: v for k, v in asdict(st).items() if k not in ("start_utc", "dirty_rates")}
     settings["dirty_rates"] = dict(st.dirty_rates)
-    vessels = scenario.vessels
     routes = []
     for (o, d), wp in spec.routes.items():
         routes.append({"route_id": f"{o}-{d}", "origin": o, "dest": d,
@@ -143,13 +141,6 @@ def describe(scenario: Scenario) -> dict:
     ports = [{"locode": p.locode, "name": p.name, "lat_deg": p.lat_deg, "lon_deg": p.lon_deg,
               "approach_lat_deg": p.approach_lat_deg, "approach_lon_deg": p.approach_lon_deg}
              for p in spec.ports.values()]
-    voyages = scenario.voyages.rename(columns={"depart_s": "depart_utc", "arrive_s": "arrive_utc",
-                                               "sea_start_s": "sea_start_utc", "sea_end_s": "sea_end_utc"})
-    n_fix = scenario.fixes.groupby("voyage_id").received.agg(["size", "sum"])
-    voyages["n_fixes"] = voyages.voyage_id.map(n_fix["size"]).fillna(0).astype(int)
-    voyages["n_fixes_received"] = voyages.voyage_id.map(n_fix["sum"]).fillna(0).astype(int)
-    stays = scenario.port_stays.rename(columns={"arrive_s": "arrive_utc", "depart_s": "depart_utc"})
-    gaps = scenario.gaps.rename(columns={"start_s": "start_utc", "end_s": "end_utc"})
     return {
         "scenario": {
             "generator": "stormlane scenario",
@@ -164,12 +155,45 @@ def describe(scenario: Scenario) -> dict:
         "routes": routes,
         "services": services,
         "vessels": _records(vessels),
+    }
+
+
+def describe(scenario: Scenario) -> dict:
+    """The JSON-ready ground truth of a scenario (everything except the files written)."""
+    voyages = scenario.voyages.rename(columns={"depart_s": "depart_utc", "arrive_s": "arrive_utc",
+                                               "sea_start_s": "sea_start_utc", "sea_end_s": "sea_end_utc"})
+    n_fix = scenario.fixes.groupby("voyage_id").received.agg(["size", "sum"])
+    voyages["n_fixes"] = voyages.voyage_id.map(n_fix["size"]).fillna(0).astype(int)
+    voyages["n_fixes_received"] = voyages.voyage_id.map(n_fix["sum"]).fillna(0).astype(int)
+    stays = scenario.port_stays.rename(columns={"arrive_s": "arrive_utc", "depart_s": "depart_utc"})
+    gaps = scenario.gaps.rename(columns={"start_s": "start_utc", "end_s": "end_utc"})
+    return {
+        **describe_setup(scenario.settings, scenario.spec, scenario.vessels),
         "voyages": _records(voyages, ("depart_utc", "arrive_utc", "sea_start_utc", "sea_end_utc"),
                             {"dist_nmi": 2, "sea_dist_nmi": 2, "speed_kn": 2, "lateral_offset_nmi": 3,
                              "anchorage_wait_h": 2, "anchorage_lat_deg": 5, "anchorage_lon_deg": 5}),
         "port_stays": _records(stays, ("arrive_utc", "depart_utc"), {"lat_deg": 6, "lon_deg": 6}),
         "gaps": _records(gaps, ("start_utc", "end_utc")),
     }
+
+
+def file_entries(recs: pd.DataFrame) -> list[dict]:
+    """Per written file (``recs["file"]``): its format, records, position records, static
+    messages, clean positions and dirty rows by kind."""
+    files = []
+    for name, g in recs.groupby("file", sort=True):
+        gp = g[g["msg_type"] != 5]
+        files.append({
+            "file": name,
+            "format": g["fmt"].iloc[0],
+            "records": int(len(g)),
+            "position_records": int(len(gp)),
+            "static_messages": int((g["msg_type"] == 5).sum()),
+            "clean_positions": int(((gp["dirty_kind"] == "") | (gp["dirty_kind"] == "sentinel_fields")).sum()),
+            "dirty": {k: int(n) for k, n in gp.loc[gp["dirty_kind"] != "", "dirty_kind"].value_counts()
+                      .sort_index().items()},
+        })
+    return files
 
 
 def write_ais(ctx: ScenarioContext) -> dict:
@@ -189,19 +213,7 @@ def write_ais(ctx: ScenarioContext) -> dict:
     is_pos = recs["msg_type"] != 5
     kind = recs["dirty_kind"]
     rejected = is_pos & (kind != "") & (kind != "sentinel_fields")
-    files = []
-    for name, g in recs.groupby("file", sort=True):
-        gp = g[g["msg_type"] != 5]
-        files.append({
-            "file": name,
-            "format": g["fmt"].iloc[0],
-            "records": int(len(g)),
-            "position_records": int(len(gp)),
-            "static_messages": int((g["msg_type"] == 5).sum()),
-            "clean_positions": int(((gp["dirty_kind"] == "") | (gp["dirty_kind"] == "sentinel_fields")).sum()),
-            "dirty": {k: int(n) for k, n in gp.loc[gp["dirty_kind"] != "", "dirty_kind"].value_counts()
-                      .sort_index().items()},
-        })
+    files = file_entries(recs)
     dirty = recs[kind != ""]
     rows = [{"kind": r.dirty_kind, "format": r.fmt, "file": r.file, "line": int(r.line), "mmsi": int(r.mmsi),
              "time_utc": iso(r.time_s), "detail": r.dirty_detail}

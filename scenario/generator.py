@@ -51,7 +51,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from scenario.records import _RECORD_COLUMNS, _inject_dirty, _quantise, _static_records, _voyage_context
+from scenario.records import _quantise, build_records
 from scenario.sailing import _sail_vessel
 from scenario.spec import (  # noqa: F401 (the configuration and result types, re-exported)
     DEFAULT_DAYS, DEFAULT_START_UTC, DIRTY_KINDS, Scenario, ScenarioConfigError, ScenarioSettings, ScenarioSpec,
@@ -92,57 +92,43 @@ def generate_scenario(spec: ScenarioSpec, settings: ScenarioSettings | None = No
     True
     """
     st = settings or ScenarioSettings()
-    vessel_rows = []
     all_fixes, all_voyages, all_stays, all_gaps = [], [], [], []
-    rank_in_service: dict[str, int] = {}
-    for i, v in enumerate(spec.vessels):
-        rank = rank_in_service.get(v.service, 0)
-        rank_in_service[v.service] = rank + 1
+    for i, (v, rank) in enumerate(zip(spec.vessels, service_ranks(spec))):
         fx, voy, stays, gaps = _sail_vessel(i, v, rank, spec, st)
         all_fixes.append(fx)
         all_voyages += voy
         all_stays += stays
         all_gaps += gaps
-        row = {k: getattr(v, k) for k in VesselSpec.__dataclass_fields__}
-        row["vessel_class"] = spec.services[v.service].vessel_class
-        vessel_rows.append(row)
-    vessels = pd.DataFrame(vessel_rows)
+    vessels = vessel_table(spec)
     fixes = pd.concat(all_fixes, ignore_index=True)
     fixes = _quantise(fixes)
     voyages = pd.DataFrame(all_voyages)
     stays = pd.DataFrame(all_stays)
     gaps = pd.DataFrame(all_gaps, columns=["mmsi", "kind", "start_s", "end_s", "fixes_lost"])
 
-    rng = np.random.default_rng([st.seed, 2])
-    fmt_of = dict(zip(vessels["mmsi"], vessels["ais_format"]))
-    idx_of = {m: i for i, m in enumerate(vessels["mmsi"])}
-    recs = fixes[fixes.received].drop(columns=["received"]).copy()
-    recs["msg_type"] = np.where(rng.random(len(recs)) < 0.15, 3, 1)  # some "special" position reports
-    static = _static_records(rng, st, fixes, vessels)
-    if len(static):
-        static["phase"] = ""
-        static["voyage_id"] = ""
-        recs = pd.concat([recs, static], ignore_index=True)
-    recs["fmt"] = recs["mmsi"].map(fmt_of)
-    recs["vessel_index"] = recs["mmsi"].map(idx_of).astype(np.int64)
-    recs["channel"] = np.where(rng.random(len(recs)) < 0.5, "A", "B")
-    recs["dirty_kind"] = ""
-    recs["dirty_detail"] = ""
-    recs["time_text"] = ""  # only read for dirty_kind == "bad_timestamp"
-    recs["sort_s"] = recs["time_s"]
-    recs["sort_sub"] = 0
-    recs = recs.sort_values(["mmsi", "time_s"], kind="stable").reset_index(drop=True)
-    recs = _inject_dirty(rng, st, recs)
-    recs = _voyage_context(recs, voyages, spec)
-    recs["time_s"] = recs["time_s"].astype(np.int64)
-    recs["sort_s"] = recs["sort_s"].astype(np.int64)
-    # output order: by time; an injected copy follows its original
-    recs = recs.sort_values(["sort_s", "mmsi", "sort_sub"], kind="stable").reset_index(drop=True)
-    recs = recs[[c for c in _RECORD_COLUMNS if c in recs.columns] + ["phase"]]
-    for col in ("sog_kn", "cog_deg", "heading_deg"):
-        recs[col] = recs[col].astype(float)
-    recs["nav_status"] = recs["nav_status"].fillna(-1).astype(np.int64)
+    recs = build_records(np.random.default_rng([st.seed, 2]), st, spec, fixes, vessels, voyages)
     return Scenario(st, spec, vessels, fixes, recs, voyages, stays, gaps)
+
+
+def service_ranks(spec: ScenarioSpec) -> list[int]:
+    """Each vessel's rank among the vessels of its service (0 for the first): it staggers where
+    and when the ships of one service start."""
+    seen: dict[str, int] = {}
+    ranks = []
+    for v in spec.vessels:
+        ranks.append(seen.get(v.service, 0))
+        seen[v.service] = ranks[-1] + 1
+    return ranks
+
+
+def vessel_table(spec: ScenarioSpec) -> pd.DataFrame:
+    """One row per vessel of the fleet: its :class:`VesselSpec` fields and ``vessel_class``."""
+    rows = []
+    for v in spec.vessels:
+        row = {k: getattr(v, k) for k in VesselSpec.__dataclass_fields__}
+        row["vessel_class"] = spec.services[v.service].vessel_class
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def with_settings(settings: ScenarioSettings, **changes) -> ScenarioSettings:

@@ -198,3 +198,44 @@ def _inject_dirty(rng, st: ScenarioSettings, recs: pd.DataFrame) -> pd.DataFrame
     if extra:
         recs = pd.concat([recs, *extra], ignore_index=True)
     return recs
+
+
+def build_records(rng, st: ScenarioSettings, spec: ScenarioSpec, fixes: pd.DataFrame, vessels: pd.DataFrame,
+                  voyages: pd.DataFrame) -> pd.DataFrame:
+    """What the writers write, from the quantised fixes: the received fixes (some as message 3),
+    NMEA static messages, the dirty rows, the voyage context typed by the crew; in output order
+    (by time; an injected copy follows its original).
+
+    ``vessels`` is the whole fleet table (``vessel_index`` is a row of it); ``fixes`` and
+    ``voyages`` may be the whole fleet's (the demo) or one ship's (the year-scale fleet of
+    :mod:`scenario.fleet`, one random stream per ship).
+    """
+    fmt_of = dict(zip(vessels["mmsi"], vessels["ais_format"]))
+    idx_of = {m: i for i, m in enumerate(vessels["mmsi"])}
+    recs = fixes[fixes.received].drop(columns=["received"]).copy()
+    recs["msg_type"] = np.where(rng.random(len(recs)) < 0.15, 3, 1)  # some "special" position reports
+    static = _static_records(rng, st, fixes, vessels)
+    if len(static):
+        static["phase"] = ""
+        static["voyage_id"] = ""
+        recs = pd.concat([recs, static], ignore_index=True)
+    recs["fmt"] = recs["mmsi"].map(fmt_of)
+    recs["vessel_index"] = recs["mmsi"].map(idx_of).astype(np.int64)
+    recs["channel"] = np.where(rng.random(len(recs)) < 0.5, "A", "B")
+    recs["dirty_kind"] = ""
+    recs["dirty_detail"] = ""
+    recs["time_text"] = ""  # only read for dirty_kind == "bad_timestamp"
+    recs["sort_s"] = recs["time_s"]
+    recs["sort_sub"] = 0
+    recs = recs.sort_values(["mmsi", "time_s"], kind="stable").reset_index(drop=True)
+    recs = _inject_dirty(rng, st, recs)
+    recs = _voyage_context(recs, voyages, spec)
+    recs["time_s"] = recs["time_s"].astype(np.int64)
+    recs["sort_s"] = recs["sort_s"].astype(np.int64)
+    # output order: by time; an injected copy follows its original
+    recs = recs.sort_values(["sort_s", "mmsi", "sort_sub"], kind="stable").reset_index(drop=True)
+    recs = recs[[c for c in _RECORD_COLUMNS if c in recs.columns] + ["phase"]]
+    for col in ("sog_kn", "cog_deg", "heading_deg"):
+        recs[col] = recs[col].astype(float)
+    recs["nav_status"] = recs["nav_status"].fillna(-1).astype(np.int64)
+    return recs

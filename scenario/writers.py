@@ -66,11 +66,11 @@ def dma_ship_type(code: int) -> str:
     )
 
 
-def _open(path: Path, gzip: bool):
+def _open(path: Path, gzip: bool, compresslevel: int = 9):
     """A text handle; gzip output is byte-identical across runs (no name, mtime 0)."""
     if gzip:
         raw = open(path, "wb")
-        gz = _gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0)
+        gz = _gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0, compresslevel=compresslevel)
         return io.TextIOWrapper(gz, encoding="ascii", newline="\n"), (gz, raw)
     return open(path, "w", encoding="ascii", newline="\n"), ()
 
@@ -113,8 +113,9 @@ def _day_groups(records: pd.DataFrame):
 
 
 def write_dma_csv(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, gzip: bool = False,
-                  prefix: str = "aisdk") -> pd.DataFrame:
-    """Write the ``dma_csv`` records, one file per UTC day (``{prefix}-YYYY-MM-DD.csv[.gz]``).
+                  prefix: str = "aisdk", compresslevel: int = 9) -> pd.DataFrame:
+    """Write the ``dma_csv`` records, one file per UTC day (``{prefix}-YYYY-MM-DD.csv[.gz]``,
+    gzip at ``compresslevel``).
 
     Returns a DataFrame indexed like the written records with ``file`` (name) and ``line``
     (1-based; the header is line 1).
@@ -154,7 +155,7 @@ def write_dma_csv(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *
             else:
                 tail = f",{dr:.1f},{dest},{eta_txt if eta_s >= 0 else ''},AIS,{dims}"
             lines.append(f"{head},,{sog:.1f},{cog:.1f},{int(hdg)},{st}{tail}")
-        handle, extra = _open(out_dir / name, gzip)
+        handle, extra = _open(out_dir / name, gzip, compresslevel)
         handle.write(DMA_HEADER + "\n")
         handle.write("\n".join(lines) + "\n")
         _close(handle, extra)
