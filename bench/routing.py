@@ -9,7 +9,8 @@ Groups (each interleaved A B A B, cold = first run of a fresh process, warm = a 
    measurement (2026-11-27, ANCHORS.md; never compared with a warm figure). ``stormlane
    --help`` against a bare interpreter start (``python -c pass``, the floor of any Python CLI).
    Both R6 searches alone (setup: weather and mesh built) against SIMROUTE's two searches
-   (external). Weather onto the mesh (``WeatherField.on_mesh``) against xarray's own
+   (external), and against the same searches by a ship that never waits (what the FIFO closure
+   of :mod:`routing._kernels.edge` costs). Weather onto the mesh (``WeatherField.on_mesh``) against xarray's own
    ``Dataset.interp`` of the same variables onto the same nodes.
 2. **R6 safe mode** (container feeder, default operator profile) against the plain R6 plan of
    the same vessel.
@@ -18,7 +19,8 @@ Groups (each interleaved A B A B, cold = first run of a fresh process, warm = a 
 4. **MEDSEA size** (1/24 deg over 6 W - 36 E, 30 - 46 N, 387 k nodes, Gibraltar -> Port Said
    through a generated storm): the whole plan against its floor, ``scipy.sparse.csgraph.dijkstra``
    of static distances over the same mesh; safe mode against the plain plan; the core's
-   throughput (edges whose cost was computed per second) against the same scipy Dijkstra.
+   throughput (edges whose cost was computed per second) against the same scipy Dijkstra, and
+   against the same core by a ship that never waits.
 """
 
 from __future__ import annotations
@@ -102,12 +104,22 @@ def run_cli(st: dict) -> dict:
 # --------------------------------------------------------------------------- R6 pieces
 
 
-def setup_r6_mesh() -> dict:
+def _never_waits(st: dict, wait: bool) -> dict:
+    """The state with a ship that never waits (``ShipModel.wait=False``) unless ``wait``: the
+    same searches without the FIFO closure, the baseline of what waiting costs."""
+    from dataclasses import replace
+
+    if not wait:
+        st["ship"] = replace(st["ship"], wait=False)
+    return st
+
+
+def setup_r6_mesh(wait: bool = True) -> dict:
     from pipelines.routing_weather import load_weather
 
     field, _ = load_weather([str(f) for f in cases.r6_files()])
     req, _ = cases.r6_request()
-    return cases.prepared_mesh(field, req)
+    return _never_waits(cases.prepared_mesh(field, req), wait)
 
 
 def run_searches(st: dict) -> dict:
@@ -205,10 +217,10 @@ def run_medsea(st: dict) -> dict:
     return info
 
 
-def setup_medsea_mesh(with_graph: bool = False) -> dict:
+def setup_medsea_mesh(with_graph: bool = False, wait: bool = True) -> dict:
     field = cases.make_storm_field()
     req, _ = cases.medsea_request()
-    st = cases.prepared_mesh(field, req)
+    st = _never_waits(cases.prepared_mesh(field, req), wait)
     if with_graph:
         import numpy as np
         from scipy.sparse.csgraph import breadth_first_order
@@ -282,6 +294,9 @@ def build(cfg):
                  argv=[sys.executable, "-c", "pass"], ours=False, warm_na="a bare interpreter start has no warm state"),
             Side("searches", "both R6 A* searches (time, then distance) on the built mesh", setup=f"{here}:setup_r6_mesh",
                  run=f"{here}:run_searches", work="edges whose cost was computed (both searches)", empty_cache=SAME_KERNELS),
+            Side("searches_no_wait", "both R6 A* searches, the ship never waits (ShipModel.wait=False: not optimal where "
+                 "edge times jump with time)", setup=f"{here}:setup_r6_mesh", kwargs={"wait": False}, run=f"{here}:run_searches",
+                 work="edges whose cost was computed (both searches)", empty_cache=SAME_KERNELS),
             Side("w2m", "R6 weather onto the mesh (WeatherField.on_mesh: bilinear over sea points, hourly steps)",
                  setup=f"{here}:setup_r6_grid", run=f"{here}:run_w2m", work="node-times filled (sea nodes x time steps)"),
             Side("w2m_xarray", "xarray Dataset.interp (linear) of Hs and the direction's unit vector onto every mesh node",
@@ -298,6 +313,9 @@ def build(cfg):
                     targets=[Target("cold <= 0.5 s", "cold.wall_s", "<=", 0.5, "s", "issue 18")]),
             Measure("r6_searches", "R6 both A* searches", "searches", external=SIMROUTE_SEARCHES,
                     targets=[Target("warm < 45 ms", "warm.wall_s", "<", 0.045, "s", "issue 5")]),
+            Measure("r6_wait", "R6 both A* searches: what waiting costs", "searches", "searches_no_wait",
+                    relation="the same searches without waiting (the FIFO closure min over later departures, "
+                             "routing._kernels.edge): the ratio is what the exact optimum under non-FIFO weather costs"),
             Measure("r6_w2m", "R6 weather onto the mesh", "w2m", "w2m_xarray",
                     relation="same fields, nodes and times; xarray interpolates every node with NaN next to land, "
                              "ours only sea nodes with the weights renormalised over sea points"),
@@ -322,6 +340,9 @@ def build(cfg):
                  setup=f"{here}:setup_medsea", kwargs={"safety": True}, run=f"{here}:run_medsea", empty_cache=SAFE_KERNELS),
             Side("core_time", "core: time-dependent Dijkstra over the mesh to Port Said", setup=f"{here}:setup_medsea_mesh",
                  run=f"{here}:run_core_time", work="edges whose cost was computed", empty_cache=SAME_KERNELS),
+            Side("core_time_no_wait", "the same core, the ship never waits (ShipModel.wait=False)",
+                 setup=f"{here}:setup_medsea_mesh", kwargs={"wait": False}, run=f"{here}:run_core_time",
+                 work="edges whose cost was computed", empty_cache=SAME_KERNELS),
             Side("scipy_dijkstra", "scipy.sparse.csgraph.dijkstra from the start over the same mesh's edges (CSR)",
                  setup=f"{here}:setup_medsea_mesh", kwargs={"with_graph": True}, run=f"{here}:run_scipy_dijkstra", ours=False,
                  work="edges (each undirected edge once, as our counter counts a full expansion)"),
@@ -337,6 +358,8 @@ def build(cfg):
             Measure("core", "core throughput, time-dependent Dijkstra (MEDSEA mesh)", "core_time", "scipy_dijkstra",
                     relation="scipy solves the static problem (the engine's floor); ours computes a time-dependent cost per edge",
                     targets=[Target(">= 30 M edges/s (computed)", "warm.throughput", ">=", 30e6, "edges/s", "issue 5")]),
+            Measure("core_wait", "core time-dependent Dijkstra (MEDSEA mesh): what waiting costs", "core_time",
+                    "core_time_no_wait", relation="the same search without waiting: the ratio is what the FIFO closure costs"),
         ])
     g_safe = Group(
         "r6_safe", "R6 safe mode (container feeder, default operator profile + IMO rules)", needs=r6,
