@@ -79,6 +79,10 @@ class PageVisit:
     screenshot_png : bytes
     title : str
         ``document.title`` after load.
+    values : dict
+        The results of the ``evaluate`` expressions (JSON values), by name.
+    pdf : bytes
+        The page printed to PDF (``print_pdf``), as Chromium's "Save as PDF" prints it.
     """
 
     url: str
@@ -87,6 +91,8 @@ class PageVisit:
     exceptions: list = field(default_factory=list)
     screenshot_png: bytes = b""
     title: str = ""
+    values: dict = field(default_factory=dict)
+    pdf: bytes = b""
 
     @property
     def errors(self) -> list[str]:
@@ -170,6 +176,15 @@ class _Pipe:
                     self.events.append(msg)
 
 
+def _evaluate(pipe, session, expressions: dict | None, values: dict) -> None:
+    """Evaluate each expression by the DevTools protocol (a promise awaited) into ``values``."""
+    for name, expression in (expressions or {}).items():
+        reply = pipe.call("Runtime.evaluate", session, expression=expression, returnByValue=True, awaitPromise=True)
+        if "exceptionDetails" in reply:
+            raise ReportError(f"evaluate {name}: {reply['exceptionDetails'].get('text', 'exception')}")
+        values[name] = reply.get("result", {}).get("value")
+
+
 def visit(
     path_or_url,
     *,
@@ -178,6 +193,9 @@ def visit(
     full_page: bool = False,
     chromium: str | None = None,
     timeout_s: float = 60.0,
+    evaluate: dict | None = None,
+    print_pdf: bool = False,
+    print_evaluate: dict | None = None,
 ) -> PageVisit:
     """Open a page headless, let it settle, take a screenshot and return what it did.
 
@@ -191,6 +209,15 @@ def visit(
         Screenshot of the whole page instead of the first viewport.
     chromium : str, optional
         Browser binary; default :func:`find_chromium`.
+    evaluate : dict of str -> str, optional
+        JavaScript expressions evaluated by the DevTools protocol after load, in order (the page's
+        Content-Security-Policy binds the page's own scripts, not the inspector's); a promise is
+        awaited. Their JSON values land in ``PageVisit.values`` (layout measures, anchor checks).
+    print_pdf : bool
+        Also print the page to PDF (print media, backgrounds) into ``PageVisit.pdf``.
+    print_evaluate : dict of str -> str, optional
+        Like ``evaluate``, with the print style sheet applied (CSS media emulated as ``print``,
+        what "Print" and "Save as PDF" lay out); after ``evaluate``, into ``PageVisit.values``.
     """
     binary = chromium or find_chromium()
     if binary is None:
@@ -235,6 +262,13 @@ def visit(
             shot.update(captureBeyondViewport=True, clip={"x": 0, "y": 0, "width": size["width"], "height": size["height"], "scale": 1})
         result.screenshot_png = base64.b64decode(pipe.call("Page.captureScreenshot", session, **shot)["data"])
         result.title = pipe.call("Runtime.evaluate", session, expression="document.title", returnByValue=True).get("result", {}).get("value", "")
+        _evaluate(pipe, session, evaluate, result.values)
+        if print_evaluate:
+            pipe.call("Emulation.setEmulatedMedia", session, media="print")
+            _evaluate(pipe, session, print_evaluate, result.values)
+            pipe.call("Emulation.setEmulatedMedia", session, media="")
+        if print_pdf:
+            result.pdf = base64.b64decode(pipe.call("Page.printToPDF", session, printBackground=True)["data"])
         pipe.drain(quiet_s=0.2)
         for ev in pipe.events:
             method, params = ev["method"], ev.get("params", {})

@@ -102,7 +102,7 @@ def table(columns: list | None, rows: Iterable[Iterable], class_: str | None = N
     if columns is None:
         body = [el("tr", el("th", row[0]), *(el("td", c) for c in row[1:])) for row in (list(r) for r in rows)]
         return el("table", el("tbody", *body), class_=class_)
-    head = el("thead", el("tr", *(el("th", c) for c in columns)))
+    head = el("thead", el("tr", *(el("th", c, class_="num" if i in numeric else None) for i, c in enumerate(columns))))
     body_rows = []
     for row in rows:
         cells = [el("td", c, class_="num" if i in numeric else None) for i, c in enumerate(row)]
@@ -124,12 +124,13 @@ body { margin:0; font:14px/1.45 -apple-system, "Segoe UI", "DejaVu Sans", Arial,
 header { background:#0b3a5b; color:#fff; padding:18px 28px; }
 header h1 { margin:0 0 4px 0; font-size:22px; }
 header p { margin:0; opacity:.85; }
-main { padding:8px 28px 40px; max-width:1280px; }
+main { padding:8px 28px 40px; }
 h2 { border-bottom:2px solid var(--line); padding-bottom:4px; margin-top:28px; }
 h3 { margin:22px 0 6px; }
 table { border-collapse:collapse; margin:8px 0 14px; font-size:13px; }
 th, td { border:1px solid var(--line); padding:4px 8px; text-align:left; vertical-align:top; }
 th { background:var(--bg); }
+th.num { text-align:right; }
 td.num { text-align:right; font-variant-numeric: tabular-nums; white-space:nowrap; }
 .cards { display:flex; flex-wrap:wrap; gap:10px; margin:12px 0; }
 .card { border:1px solid var(--line); border-radius:6px; padding:8px 14px; min-width:150px; background:var(--bg); }
@@ -144,6 +145,40 @@ img.fig { max-width:100%; height:auto; border:1px solid var(--line); margin:6px 
 details { margin:6px 0 12px; } summary { cursor:pointer; color:#0b3a5b; }
 code { background:var(--bg); padding:0 3px; }
 footer { color:var(--muted); font-size:12px; padding:12px 28px; border-top:1px solid var(--line); }
+main { max-width:1400px; }
+.small { font-size:12px; }
+.cards .card { min-width:120px; padding:6px 12px; } .cards .card b { font-size:18px; }
+.overview-row { display:flex; flex-wrap:wrap; gap:18px; align-items:flex-start; }
+.fleetbox img.fig.fleet { width:580px; max-width:100%; margin:0; }
+.toplist { flex:1 1 560px; } .toplist h3 { margin-top:0; }
+table.top td, table.compact td { padding:2px 6px; }
+table.matrix { border-collapse:collapse; font-size:12px; }
+table.matrix th, table.matrix td { padding:1px 4px; text-align:center; white-space:nowrap; }
+table.matrix th.dep { font-weight:normal; font-size:11px; line-height:1.1; }
+table.matrix td.route { text-align:left; max-width:260px; overflow:hidden; text-overflow:ellipsis; }
+table.matrix td a, .key { color:inherit; text-decoration:none; font-weight:bold; }
+.m-ok { background:#eef4f8; } .m-none { background:#fff; } .m0 { background:#d9d9d9; }
+.m1 { background:#fee090; } .m2 { background:#fdae61; } .m3 { background:#f46d43; color:#fff; } .m4 { background:#a50026; color:#fff; }
+.m-fail { background:#000; color:#fff; }
+.key { display:inline-block; padding:0 5px; margin:0 2px; border:1px solid var(--line); font-weight:normal; }
+.chip { display:inline-block; border:1px solid #c9d3de; border-radius:9px; padding:0 6px; margin:1px 0; font-size:11px;
+        background:#f3f6f9; white-space:nowrap; }
+.chip i { color:var(--muted); font-style:normal; }
+details.case { border-top:1px solid var(--line); margin:0; padding:4px 0; }
+details.case > summary { padding:3px 0; }
+details.section { border-top:1px solid var(--line); margin:4px 0; padding:4px 0; }
+.case-body { padding:2px 0 8px 14px; }
+.case-body h3 { margin:8px 0 2px; font-size:15px; }
+.notes li { margin:2px 0; }
+@media print {
+  /* printing unfolds every case: the content of a closed <details> is made visible */
+  details::details-content { content-visibility:visible; display:block; }
+  details > summary { list-style:none; }
+  header { background:none; color:#000; }
+  main { max-width:none; padding:0; }
+  img.fig { break-inside:avoid; }
+  details.case { break-before:auto; }
+}
 """
 
 #: No script may run and nothing may load except inline images and the inline style sheet.

@@ -20,15 +20,15 @@ Hand-off from the flows::
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass, field, fields
-from importlib import metadata
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from dashboards.errors import ReportError
+from dashboards.model_parts import (SOFTWARE, Provenance, SpeedLossCurve, WeatherSnapshot, _utc,  # noqa: F401 (re-exported)
+                                     software_versions)
 from routing.route import Route
 
 #: Route roles in display order, with their legend labels. ``lane`` (nightly) and
@@ -77,157 +77,6 @@ SEED_COLUMNS = {
     "length_diff_pct": "length difference [%]",
 }
 
-#: Package versions listed in the provenance section by :func:`software_versions`.
-SOFTWARE = ("stormlane", "numpy", "pandas", "xarray", "duckdb", "prefect", "scikit-learn", "rtree", "numba", "matplotlib", "global-land-mask")
-
-
-def _utc(t, name: str) -> pd.Timestamp | None:
-    """Timestamp as tz-aware UTC; naive input is refused (it would be ambiguous)."""
-    if t is None or (isinstance(t, float) and math.isnan(t)):
-        return None
-    ts = pd.Timestamp(t)
-    if ts is pd.NaT:
-        return None
-    if ts.tz is None:
-        raise ReportError(f"{name}: time {ts} has no timezone; give UTC times")
-    return ts.tz_convert("UTC")
-
-
-def software_versions(packages=SOFTWARE) -> dict[str, str]:
-    """Installed versions of the packages a run depends on (``"not installed"`` when absent)."""
-    out = {}
-    for name in packages:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = "not installed"
-    return out
-
-
-@dataclass
-class WeatherSnapshot:
-    """One time slice of the weather grid, drawn under a map.
-
-    Attributes
-    ----------
-    time_utc : Timestamp
-        Valid time of the slice (tz-aware UTC), normally the worst time met on the historical route.
-    lat_deg : ndarray, shape (ny,)
-        Grid latitudes, ascending. [deg]
-    lon_deg : ndarray, shape (nx,)
-        Grid longitudes, ascending, in [-180, 180). [deg]
-    hs_m : ndarray, shape (ny, nx)
-        Significant wave height; NaN on land or where there is no data. [m]
-    wave_from_deg : ndarray, shape (ny, nx), optional
-        Mean wave direction the waves come FROM, clockwise from north. [deg]
-    product : str
-        Product the slice comes from (e.g. the CMEMS dataset id).
-    """
-
-    time_utc: pd.Timestamp
-    lat_deg: np.ndarray
-    lon_deg: np.ndarray
-    hs_m: np.ndarray
-    wave_from_deg: np.ndarray | None = None
-    product: str = ""
-
-    def __post_init__(self):
-        self.time_utc = _utc(self.time_utc, "WeatherSnapshot.time_utc")
-        self.lat_deg = np.asarray(self.lat_deg, dtype=float)
-        self.lon_deg = np.asarray(self.lon_deg, dtype=float)
-        self.hs_m = np.asarray(self.hs_m, dtype=float)
-        shape = (self.lat_deg.size, self.lon_deg.size)
-        if self.hs_m.shape != shape:
-            raise ReportError(f"WeatherSnapshot.hs_m has shape {self.hs_m.shape}, expected (lat, lon) = {shape}")
-        if self.wave_from_deg is not None:
-            self.wave_from_deg = np.asarray(self.wave_from_deg, dtype=float)
-            if self.wave_from_deg.shape != shape:
-                raise ReportError(f"WeatherSnapshot.wave_from_deg has shape {self.wave_from_deg.shape}, expected {shape}")
-        for name in ("lat_deg", "lon_deg"):
-            axis = getattr(self, name)
-            if axis.size > 1 and not np.all(np.diff(axis) > 0):
-                raise ReportError(f"WeatherSnapshot.{name} must be strictly ascending")
-
-
-@dataclass
-class SpeedLossCurve:
-    """Attainable speed against wave height for the chosen vessel and model (manual figs. 5-8).
-
-    Attributes
-    ----------
-    vessel : str
-        Vessel profile name.
-    model : str
-        Speed-loss model (``"bowditch"``, ``"aertssen"``, ``"khokhlov"`` ...).
-    speed_kn : float
-        Calm-water service speed v0. [kn]
-    table : DataFrame
-        Long format, one row per point: ``hs_m`` [m], ``encounter_deg`` [deg, 0 = head seas],
-        ``speed_kn`` [kn] (attainable speed, after the model's floor).
-    min_speed_kn : float, optional
-        Speed floor applied by the model. [kn]
-    """
-
-    vessel: str
-    model: str
-    speed_kn: float
-    table: pd.DataFrame
-    min_speed_kn: float | None = None
-
-    def __post_init__(self):
-        missing = {"hs_m", "encounter_deg", "speed_kn"} - set(self.table.columns)
-        if missing:
-            raise ReportError(f"SpeedLossCurve.table lacks column(s) {sorted(missing)}")
-
-
-@dataclass
-class Provenance:
-    """Where the numbers come from (methods and provenance section).
-
-    Attributes
-    ----------
-    weather_products : list of str
-        Product ids or names (e.g. ``cmems_mod_glo_wav_anfc_0.083deg_PT3H-i``, ``ERA5 single levels``).
-    weather_files : list of str
-        Files read (names, not contents).
-    weather_start_utc, weather_end_utc : Timestamp, optional
-        Time span the weather covers (tz-aware UTC).
-    weather_source : str
-        ``"local files"``, ``"copernicusmarine"``, ``"cdsapi"`` ...
-    ais_sources : list of str
-        AIS files or feeds the lanes/tracks come from.
-    speed_loss_model : str
-        Model used for speed loss along routes.
-    thresholds_profile : str
-        Operator-limit profile applied (e.g. ``container<200m``).
-    limits : dict of str -> float
-        The profile's numeric limits in project names (``hs_m``, ``wind_ms``, ``tp_min_s`` ...);
-        ``limits["hs_m"]`` is drawn as a contour on maps and a line on Hs plots.
-    vessel : dict
-        Vessel particulars (``Vessel.to_dict()``).
-    software : dict of str -> str
-        Package versions (see :func:`software_versions`).
-    methods : list of str
-        Method notes printed as given (sources, known limits).
-    """
-
-    weather_products: list = field(default_factory=list)
-    weather_files: list = field(default_factory=list)
-    weather_start_utc: pd.Timestamp | None = None
-    weather_end_utc: pd.Timestamp | None = None
-    weather_source: str = ""
-    ais_sources: list = field(default_factory=list)
-    speed_loss_model: str = ""
-    thresholds_profile: str = ""
-    limits: dict = field(default_factory=dict)
-    vessel: dict = field(default_factory=dict)
-    software: dict = field(default_factory=software_versions)
-    methods: list = field(default_factory=list)
-
-    def __post_init__(self):
-        self.weather_start_utc = _utc(self.weather_start_utc, "Provenance.weather_start_utc")
-        self.weather_end_utc = _utc(self.weather_end_utc, "Provenance.weather_end_utc")
-
 
 @dataclass
 class RouteSet:
@@ -237,7 +86,9 @@ class RouteSet:
     ----------
     routes : dict of str -> Route
         Keyed by role: ``historical``, ``deviation``, ``optimal``, ``min_distance`` (others are
-        drawn too, in grey). Each carries its ETAs, leg speeds and the weather met.
+        drawn too, in grey). Each carries its ETAs, leg speeds and the weather met. Empty for a
+        case the report shows without maps (beyond ``NightlyReport.max_detail``): then
+        ``metrics`` holds one row per role and the page shows the table and notes only.
     metrics : DataFrame, optional
         One row per role (index = role), columns named with units (see :data:`METRIC_COLUMNS`:
         ``time_h``, ``dist_nmi``, ``max_hs_m``, ``mean_hs_m``, ``fuel_t``, ``co2_t``,
@@ -282,10 +133,11 @@ class RouteSet:
     notes: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        roles = set(self.routes) | (set(map(str, self.metrics.index)) if self.metrics is not None else set())
         if self.reference is None:
-            self.reference = next((r for r in REFERENCE_ROLES if r in self.routes), None)
-        elif self.reference not in self.routes:
-            raise ReportError(f"RouteSet.reference = {self.reference!r} is not one of the routes {sorted(self.routes)}")
+            self.reference = next((r for r in REFERENCE_ROLES if r in roles), None)
+        elif self.reference not in roles:
+            raise ReportError(f"RouteSet.reference = {self.reference!r} is not one of the routes {sorted(roles)}")
         for role, route in self.routes.items():
             if not isinstance(route, Route):
                 raise ReportError(f"RouteSet.routes[{role!r}] is {type(route).__name__}, not a Route")
@@ -294,21 +146,28 @@ class RouteSet:
                 raise ReportError(f"RouteSet.profiles[{role!r}] has no route of that role")
             if not isinstance(prof, pd.DataFrame) or not {"time_utc", "hs_m"} <= set(prof.columns):
                 raise ReportError(f"RouteSet.profiles[{role!r}] must be a DataFrame with columns time_utc and hs_m")
-        if self.proposed is not None and self.proposed not in self.routes:
-            raise ReportError(f"RouteSet.proposed = {self.proposed!r} is not one of the routes {sorted(self.routes)}")
+        if self.proposed is not None and self.proposed not in roles:
+            raise ReportError(f"RouteSet.proposed = {self.proposed!r} is not one of the routes {sorted(roles)}")
+
+    @property
+    def detailed(self) -> bool:
+        """The routes themselves are held (map, plots, waypoints); else only their metrics."""
+        return bool(self.routes)
 
     @property
     def ordered_roles(self) -> list[str]:
-        """Roles in display order: the known ones first, then the rest alphabetically."""
-        known = [r for r in ROUTE_ROLES if r in self.routes]
-        return known + sorted(r for r in self.routes if r not in ROUTE_ROLES)
+        """Roles in display order: the known ones first, then the rest alphabetically (the
+        metrics' rows when the routes are not held)."""
+        have = self.routes if self.routes or self.metrics is None else {str(r): None for r in self.metrics.index}
+        known = [r for r in ROUTE_ROLES if r in have]
+        return known + sorted(r for r in have if r not in ROUTE_ROLES)
 
     def metrics_table(self) -> pd.DataFrame:
         """The metrics as given, or else what the routes carry (time, distance, Hs met)."""
         if self.metrics is not None:
             table = self.metrics.copy()
-            order = [r for r in self.ordered_roles if r in table.index] + [r for r in table.index if r not in self.routes]
-            return table.loc[order]
+            first = [r for r in self.ordered_roles if r in table.index]
+            return table.loc[first + [r for r in table.index if r not in first]]
         rows = {}
         for role in self.ordered_roles:
             route = self.routes[role]
@@ -383,9 +242,16 @@ class LaneDeparture:
     error : str, optional
         What went wrong, for ``failed``.
     risk_avoided : float, optional
-        The run's ranking score (higher first), shown as given.
+        The run's ranking key: hours over a limit or in an IMO situation avoided (lane as
+        planned minus proposed), shown as given. [h]
     vessel : str, optional
         The vessel profile that sails this lane (its limits decided "adverse").
+    reasons : list of dict
+        The rules that fired, structured for the chips: ``rule``, ``value`` and ``limit`` (in
+        ``unit``), ``time_utc`` (ISO), ``lat_deg``, ``lon_deg``, ``n_points`` (centroids where
+        it fired); ``rules`` holds the same in full wording.
+    events_avoided : int, optional
+        IMO MSC.1/Circ.1228 events avoided (lane as planned minus proposed), the ranking's second key.
     """
 
     lane_id: str
@@ -402,6 +268,8 @@ class LaneDeparture:
     error: str | None = None
     risk_avoided: float | None = None
     vessel: str | None = None
+    reasons: list = field(default_factory=list)
+    events_avoided: int | None = None
 
     def __post_init__(self):
         self.lane_id = str(self.lane_id)
@@ -421,6 +289,40 @@ def metric_delta(routes: RouteSet | None, column: str) -> float:
     if column not in d.columns or routes.proposed not in d.index:
         return float("nan")
     return float(d.loc[routes.proposed, column])
+
+
+@dataclass
+class LaneLine:
+    """One lane (or planned voyage) the night checked, drawn on the fleet map.
+
+    Attributes
+    ----------
+    lane_id : str
+    origin, destination : str
+        Port names (escaped on output; never drawn into a figure).
+    vessel : str
+        The vessel profile that sails it.
+    lat_deg, lon_deg : ndarray
+        Its centroid path in sailing order. [deg]
+    """
+
+    lane_id: str
+    origin: str
+    destination: str
+    vessel: str = ""
+    lat_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    lon_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self):
+        self.lane_id = str(self.lane_id)
+        self.lat_deg = np.asarray(self.lat_deg, dtype=float)
+        self.lon_deg = np.asarray(self.lon_deg, dtype=float)
+        if self.lat_deg.shape != self.lon_deg.shape:
+            raise ReportError(f"LaneLine({self.lane_id}): lat_deg and lon_deg differ in length")
+
+
+#: Columns of ``NightlyReport.grid`` (one row per lane-departure checked).
+GRID_COLUMNS = ("lane_id", "depart_utc", "status", "rules", "risk_h", "risk_avoided_h", "proposed", "case")
 
 
 @dataclass
@@ -450,6 +352,20 @@ class NightlyReport:
     title : str
     max_detail : int
         At most this many adverse lane-departures get a map and plots (the rest are in the table).
+    lanes : list of LaneLine
+        Every lane checked (the fleet map); empty in models written before the overview.
+    grid : DataFrame, optional
+        One row per lane-departure checked (the lane x departure matrix): ``lane_id``,
+        ``depart_utc``, ``status`` (``ok``/``adverse``/``failed``), ``rules`` (names, comma
+        separated), ``risk_h`` (hours over a limit or in an IMO situation on the lane as planned,
+        NaN when not rerouted), ``risk_avoided_h`` (the ranking key, NaN without a proposal),
+        ``proposed`` (role or None), ``case`` (1-based position in ``departures`` or NaN).
+    summary : dict
+        The overview's figures as the run computed them (the CLI prints and ``--json`` returns the
+        same dict): counts, sums of the proposed reroutes' deltas, hours at risk avoided. When
+        empty the page sums the route sets (:meth:`totals`).
+    exports : dict of str -> str
+        Night-level export links (label -> path relative to the report), e.g. ``exports.zip``.
     """
 
     run_id: str
@@ -466,10 +382,21 @@ class NightlyReport:
     speed_loss: SpeedLossCurve | None = None
     title: str = "stormlane nightly reroute report"
     max_detail: int = 20
+    lanes: list = field(default_factory=list)
+    grid: pd.DataFrame | None = None
+    summary: dict = field(default_factory=dict)
+    exports: dict = field(default_factory=dict)
 
     def __post_init__(self):
         for name in ("started_utc", "finished_utc", "now_utc", "window_start_utc", "window_end_utc"):
             setattr(self, name, _utc(getattr(self, name), f"NightlyReport.{name}"))
+        if self.grid is not None:
+            missing = [c for c in GRID_COLUMNS if c not in self.grid.columns]
+            if missing:
+                raise ReportError(f"NightlyReport.grid lacks column(s) {missing}")
+        for lane in self.lanes:
+            if not isinstance(lane, LaneLine):
+                raise ReportError(f"NightlyReport.lanes holds a {type(lane).__name__}, not a LaneLine")
         for d in self.departures:
             if not isinstance(d, LaneDeparture):
                 raise ReportError(f"NightlyReport.departures holds a {type(d).__name__}, not a LaneDeparture")
@@ -572,79 +499,10 @@ class VoyageAudit:
             raise ReportError("VoyageAudit.routes must be a RouteSet")
 
 
-# ----------------------------------------------------------------------------- JSON round trip
+# The JSON round trip lives in dashboards.model_json (compact: arrays and frames as compressed
+# binary columns); imported here so that ``from dashboards.model import report_to_json`` works.
+from dashboards.model_json import report_from_json, report_to_json  # noqa: E402
 
-_CLASSES = {c.__name__: c for c in (WeatherSnapshot, SpeedLossCurve, Provenance, RouteSet, LaneDeparture, NightlyReport, VoyageAudit)}
-
-
-def _encode(obj):
-    if isinstance(obj, Route):
-        return {"__route__": json.loads(obj.to_json())}
-    if isinstance(obj, pd.DataFrame):
-        frame = obj.copy()
-        for col in frame.columns:
-            if isinstance(frame[col].dtype, pd.DatetimeTZDtype):
-                frame[col] = frame[col].map(lambda t: None if pd.isna(t) else t.isoformat())
-        return {"__frame__": json.loads(frame.to_json(orient="split", date_format="iso", default_handler=str))}
-    if isinstance(obj, pd.Timestamp):
-        return {"__time__": obj.isoformat()}
-    if isinstance(obj, np.ndarray):
-        return {"__array__": [None if (isinstance(x, float) and math.isnan(x)) else x for x in obj.ravel().tolist()], "shape": list(obj.shape)}
-    if isinstance(obj, np.generic):
-        return _encode(obj.item())
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if type(obj).__name__ in _CLASSES and hasattr(obj, "__dataclass_fields__"):
-        return {"__class__": type(obj).__name__, **{f.name: _encode(getattr(obj, f.name)) for f in fields(obj)}}
-    if isinstance(obj, dict):
-        return {str(k): _encode(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_encode(v) for v in obj]
-    return obj
-
-
-def _decode(obj):
-    if isinstance(obj, list):
-        return [_decode(v) for v in obj]
-    if not isinstance(obj, dict):
-        return obj
-    if "__route__" in obj:
-        return Route.from_json(json.dumps(obj["__route__"]))
-    if "__frame__" in obj:
-        spec = obj["__frame__"]
-        frame = pd.DataFrame(spec["data"], index=spec["index"], columns=spec["columns"])
-        for col in frame.columns:
-            if str(col).endswith("_utc"):
-                # isoformat() drops a zero fraction: mixed "…:00+00:00" / "…:00.5+00:00" strings
-                frame[col] = pd.to_datetime(frame[col], utc=True, format="ISO8601")
-        return frame
-    if "__time__" in obj:
-        return pd.Timestamp(obj["__time__"])
-    if "__array__" in obj:
-        return np.array([np.nan if x is None else x for x in obj["__array__"]], dtype=float).reshape(obj["shape"])
-    if "__class__" in obj:
-        cls = _CLASSES[obj["__class__"]]
-        return cls(**{k: _decode(v) for k, v in obj.items() if k != "__class__"})
-    return {k: _decode(v) for k, v in obj.items()}
-
-
-def report_to_json(model) -> str:
-    """Serialise a :class:`NightlyReport` or :class:`VoyageAudit` (round-trips through :func:`report_from_json`)."""
-    return json.dumps(_encode(model), allow_nan=False)
-
-
-def report_from_json(text: str):
-    """Inverse of :func:`report_to_json`."""
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise ReportError(f"report model is not valid JSON ({err})") from None
-    if not isinstance(data, dict) or data.get("__class__") not in ("NightlyReport", "VoyageAudit"):
-        raise ReportError("report model JSON must hold a NightlyReport or a VoyageAudit")
-    try:
-        return _decode(data)
-    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as err:
-        # a field missing, renamed or of the wrong type (an edited or truncated file, another
-        # version's model): one line saying so, not a traceback
-        what = f"missing field {err}" if isinstance(err, KeyError) else f"{type(err).__name__}: {err}"
-        raise ReportError(f"report model JSON is malformed ({' '.join(str(what).split())[:300]})") from None
+__all__ = ["ROUTE_ROLES", "REFERENCE_ROLES", "ROLE_LABELS", "METRIC_COLUMNS", "SEED_COLUMNS", "WeatherSnapshot", "SpeedLossCurve",
+           "Provenance", "RouteSet", "LaneDeparture", "LaneLine", "NightlyReport", "VoyageAudit", "metric_delta",
+           "software_versions", "report_to_json", "report_from_json"]

@@ -45,7 +45,19 @@ def label_for(role: str) -> str:
 def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", bbox_inches="tight", metadata={"Software": None})
-    return buf.getvalue()
+    return palette_png(buf.getvalue())
+
+
+def palette_png(png: bytes, colors: int = 256) -> bytes:
+    """The figure as an 8-bit palette PNG (median cut, no dithering), when that is smaller: a
+    figure holds few distinct colours, and a report of 20 maps is a third of the size (issue 22)."""
+    from PIL import Image
+
+    img = Image.open(io.BytesIO(png)).convert("RGB")
+    small = img.quantize(colors=colors, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    out = io.BytesIO()
+    small.save(out, format="PNG", optimize=True)
+    return out.getvalue() if out.tell() < len(png) else png
 
 
 def _naive_utc(times: pd.DatetimeIndex) -> np.ndarray:
@@ -305,4 +317,86 @@ def speed_loss_png(curve: SpeedLossCurve, *, width_in: float = 6.4, dpi: int = 1
     ax.grid(True, linewidth=0.4, alpha=0.6)
     ax.set_title(f"speed loss, model {curve.model}", fontsize=11)
     ax.legend(fontsize=8, loc="lower left", framealpha=0.92)
+    return _png(fig)
+
+
+#: Classes of the fleet map and the matrix: worst hours at risk on the lane as planned over the
+#: window (hours over an operator limit or in an IMO situation), and the colours (ColorBrewer
+#: RdYlBu, readable by colour-blind readers). Upper bounds in hours.
+RISK_CLASSES = ((0.0, "no adverse departure", "#4575b4"), (1.0, "< 1 h at risk", "#fee090"), (3.0, "1\u20133 h", "#fdae61"),
+                (6.0, "3\u20136 h", "#f46d43"), (float("inf"), "\u2265 6 h", "#a50026"))
+FAILED_STYLE = {"color": "#000000", "linestyle": (0, (2, 2)), "linewidth": 1.6}
+
+
+def risk_class(worst_h: float | None, adverse: bool) -> int:
+    """Index into :data:`RISK_CLASSES` (0: no adverse departure; unknown hours count as the first adverse class)."""
+    if not adverse:
+        return 0
+    h = 0.0 if worst_h is None or not np.isfinite(worst_h) else float(worst_h)
+    return next(k for k, (upper, _, _) in enumerate(RISK_CLASSES) if k > 0 and h < upper)
+
+
+def fleet_map_png(lanes: list, *, width_in: float = 6.4, dpi: int = 90) -> bytes:
+    """Every lane checked on one map, coloured by its worst risk over the window, numbered as in
+    the matrix, with a ringed number where a reroute is proposed.
+
+    Parameters
+    ----------
+    lanes : list of dict
+        ``number`` (int), ``lat_deg``, ``lon_deg`` (its path), ``risk`` (index into
+        :data:`RISK_CLASSES`), ``failed`` (bool: a departure failed), ``reroute`` (bool).
+        Only numbers are drawn: lane names and ports stay in the HTML.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patheffects import withStroke
+
+    routes = {str(k): Route(str(k), ln["lat_deg"], ln["lon_deg"], pd.DatetimeIndex([pd.Timestamp(0, tz="UTC")] * len(ln["lat_deg"])),
+                            np.ones(max(len(ln["lat_deg"]) - 1, 0)), {}, {}) for k, ln in enumerate(lanes) if len(ln["lat_deg"]) > 1}
+    if not routes:
+        fig = Figure(figsize=(width_in, 2.0), dpi=dpi)
+        fig.text(0.5, 0.5, "no lane with a path to draw", ha="center", va="center")
+        return _png(fig)
+    lon0, lon1, lat0, lat1 = map_extent(routes, pad_frac=0.06, min_pad_deg=0.3)
+    coslat = max(np.cos(np.deg2rad(0.5 * (lat0 + lat1))), 0.05)
+    height_in = min(max(width_in * (lat1 - lat0) / ((lon1 - lon0) * coslat) * 0.95 + 0.9, 2.5), 7.0)
+    fig = Figure(figsize=(width_in, height_in), dpi=dpi)
+    ax = fig.add_subplot()
+    ax.set_facecolor("#eef4f8")
+    lon_e, lat_e, land = land_mask(lon0, lon1, lat0, lat1, max_px=1200)
+    rgba = np.zeros(land.shape + (4,), dtype=np.uint8)
+    rgba[land] = [round(255 * x) for x in (*LAND_RGB, 1.0)]
+    ax.imshow(rgba, extent=(lon_e[0], lon_e[-1], lat_e[0], lat_e[-1]), origin="lower", interpolation="nearest", zorder=1, aspect="auto")
+    halo = [withStroke(linewidth=3.2, foreground="white")]
+    order = sorted(range(len(lanes)), key=lambda k: lanes[k]["risk"])  # the riskiest drawn last, on top
+    for k in order:
+        ln = lanes[k]
+        if len(ln["lat_deg"]) < 2:
+            continue
+        g_lat, g_lon = gc_polyline(ln["lat_deg"], ln["lon_deg"], step_nmi=2.0)
+        style = dict(FAILED_STYLE) if ln.get("failed") and ln["risk"] == 0 else {"color": RISK_CLASSES[ln["risk"]][2], "linewidth": 2.6}
+        ax.plot(g_lon, g_lat, zorder=3 + ln["risk"], path_effects=halo, solid_capstyle="round", **style)
+    for ln in lanes:
+        if len(ln["lat_deg"]) < 1:
+            continue
+        # a third of the way along: the lanes A -> B and B -> A share a path, not their labels
+        i = int(len(ln["lat_deg"]) * 0.33)
+        x, y = ln["lon_deg"][i], ln["lat_deg"][i]
+        if ln.get("reroute"):
+            ax.plot(x, y, "o", markersize=15, markerfacecolor="white", markeredgecolor="black", markeredgewidth=1.8, zorder=10)
+            ax.text(x, y, str(ln["number"]), ha="center", va="center", fontsize=7.5, fontweight="bold", zorder=11)
+        else:
+            ax.text(x, y, str(ln["number"]), ha="center", va="center", fontsize=7, color="#333333", zorder=9,
+                    path_effects=[withStroke(linewidth=2.5, foreground="white")])
+    handles = [Line2D([], [], color=c, linewidth=2.6, label=label) for _, label, c in RISK_CLASSES]
+    handles.append(Line2D([], [], label="failed", **FAILED_STYLE))
+    handles.append(Line2D([], [], marker="o", markersize=10, markerfacecolor="white", markeredgecolor="black", linestyle="none",
+                          label="reroute proposed (lane number)"))
+    ax.set_xlim(lon0, lon1)
+    ax.set_ylim(lat0, lat1)
+    ax.set_aspect(1.0 / coslat)
+    ax.tick_params(labelsize=7)
+    ax.grid(True, color="#999999", linewidth=0.3, alpha=0.5, zorder=2)
+    ax.set_title("Worst hours at risk on each lane as planned over the window", fontsize=9)
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=4, fontsize=7, frameon=False)
     return _png(fig)

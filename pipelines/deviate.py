@@ -133,7 +133,7 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         against lane) and ``deviation_id``.
     """
     from pipelines.config import load_operator_profile, load_vessel
-    from pipelines.nightly import lane_speed_vessel
+    from pipelines.nightly.reroute import lane_speed_vessel
     from pipelines.routing_weather import field_from_dataset
     from pipelines.storage import open_workspace
     from pipelines.storage.results import write_deviation

@@ -87,19 +87,37 @@ def reference_of(evaluations: dict) -> str | None:
     return next((r for r in REFERENCE_ROLES if r in evaluations), None)
 
 
-def route_notes_of(evaluations: dict, reference: str | None, optimality=()) -> dict:
-    """Per role, what the table alone does not say: why a route is not proposed (not sea-only,
-    more time without weather than the reference), legs repaired around land, and a route the
-    time-optimal one is slower than beyond the mesh's discretisation (or a safety constraint)."""
+def route_notes_of(evaluations: dict, reference: str | None, optimality=(), weather_end_utc=None) -> dict:
+    """Per role, what the table alone does not say (every note a command prints for the same
+    routes): why a route is not proposed (not sea-only, more time without weather than the
+    reference), legs repaired around land, a deviation that is not safer than the lane
+    (:func:`pipelines.deviate.not_safer_note`, as `stormlane deviate` prints it), a safe route that
+    fell back from hard to soft limits, a route that arrives after the last weather time (the last
+    field held; ``weather_end_utc``), and a route the time-optimal one is slower than beyond the
+    mesh's discretisation (or a safety constraint)."""
+    from dashboards.sections import SOFT_FALLBACK_NOTE, held_weather_note
+    from pipelines.deviate import not_safer_note
     from routing.audit import not_proposable
 
     notes: dict = {}
     ref = evaluations[reference].summary if reference in evaluations else {}
+    end = pd.Timestamp(weather_end_utc) if weather_end_utc is not None else None
     for role, ev in evaluations.items():
         parts = []
         why = not_proposable(ev.summary, ref) if role != reference and ref else None
         if why:
             parts.append(f"not proposed: {why}")
+        if role == "deviation" and reference == "lane" and ref:
+            parts.append(not_safer_note(ref, ev.summary))
+        props = ev.route.properties or {}
+        if props.get("safety_requested") == "hard" and props.get("safety_mode") == "soft":
+            parts.append(SOFT_FALLBACK_NOTE)
+        held = props.get("weather_held_after_h")
+        if not held and end is not None and len(ev.route.time_utc) and ev.route.time_utc[-1] > end:
+            held = (ev.route.time_utc[-1] - end).total_seconds() / 3600.0
+        if held:
+            parts.append(held_weather_note(float(held)))
+        parts = [x for x in parts if x]
         fixes = ev.route.properties.get("land_repairs") or []
         if fixes:
             parts.append(f"{len(fixes)} leg(s) over land replaced by the shortest sea path (+{sum(f['added_nmi'] for f in fixes):.1f} nmi)")
@@ -118,7 +136,9 @@ def route_notes_of(evaluations: dict, reference: str | None, optimality=()) -> d
     return notes
 
 
-def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = None, proposed: str | None = None, weather: WeatherSnapshot | None = None, exports: dict | None = None, hs_limit_m: float | None = None, optimality=()) -> RouteSet:
+def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = None, proposed: str | None = None,
+                               weather: WeatherSnapshot | None = None, exports: dict | None = None, hs_limit_m: float | None = None,
+                               optimality=(), weather_end_utc=None, detailed: bool = True) -> RouteSet:
     """A report ``RouteSet`` from ``routing.evaluate`` results keyed by role.
 
     ``table`` is :func:`routing.evaluate.comparison_table` against the reference (computed here
@@ -131,9 +151,15 @@ def route_set_from_evaluations(evaluations: dict, table: pd.DataFrame | None = N
     reference = reference_of(evaluations)
     if table is None and reference is not None:
         table = comparison_table(evaluations, reference=reference)
+    notes = route_notes_of(evaluations, reference, optimality, weather_end_utc)
+    if not detailed:
+        # a case shown without maps: its table and notes only (the page needs no route, weather
+        # slice, events or samples for it; the model stays small)
+        return RouteSet(reference=reference, notes=notes, routes={}, metrics=table, proposed=proposed,
+                        exports=dict(exports or {}), hs_limit_m=hs_limit_m)
     return RouteSet(
         reference=reference,
-        notes=route_notes_of(evaluations, reference, optimality),
+        notes=notes,
         routes={role: ev.route for role, ev in evaluations.items()},
         metrics=table,
         events=events_frame(evaluations),
@@ -284,24 +310,27 @@ def voyage_audit_model(out: dict, *, mmsi: int, static=None, voyage: dict | None
 def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, rules=(), evaluations: dict | None = None,
                          table: pd.DataFrame | None = None, proposed: str | None = None, weather_ds=None,
                          exports: dict | None = None, error: str | None = None, risk_avoided: float | None = None,
-                         hs_limit_m: float | None = None, vessel: str | None = None, optimality=()):
+                         hs_limit_m: float | None = None, vessel: str | None = None, optimality=(), reasons=(),
+                         events_avoided: int | None = None, detailed: bool = True):
     """One nightly lane-departure for the report: adverse with its evaluated routes, or failed with ``error``.
 
     The worst point is where the lane as planned meets its highest Hs; the map's weather
-    slice is taken at that time when ``weather_ds`` is given. ``hs_limit_m`` is the lane's vessel's
-    Hs limit (drawn on its map and plot).
+    slice is taken at that time when ``weather_ds`` is given (and ``detailed``: a case shown
+    without maps holds its comparison table and notes only). ``hs_limit_m`` is the lane's vessel's
+    Hs limit (drawn on its map and plot); ``reasons`` the screen's structured rules (the chips).
     """
     from dashboards.model import LaneDeparture
 
     if error is not None:
         return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="failed",
-                             rules=list(rules), error=str(error), vessel=vessel)
+                             rules=list(rules), error=str(error), vessel=vessel, reasons=list(reasons))
     if not evaluations:
         raise ValueError(f"lane {lane_id}: an adverse lane-departure needs its evaluated routes")
-    snapshot, worst = _snapshot_for(evaluations, weather_ds)
+    snapshot, worst = _snapshot_for(evaluations, weather_ds if detailed else None)
+    end = pd.Timestamp(weather_ds["time_utc"].values[-1]).tz_localize("UTC") if weather_ds is not None else None
     routes = route_set_from_evaluations(evaluations, table, proposed, weather=snapshot, exports=exports, hs_limit_m=hs_limit_m,
-                                        optimality=optimality)
+                                        optimality=optimality, weather_end_utc=end, detailed=detailed)
     return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="adverse",
                          rules=list(rules), worst_time_utc=worst["time_utc"], worst_lat_deg=worst["lat_deg"],
                          worst_lon_deg=worst["lon_deg"], worst_hs_m=worst["hs_m"], routes=routes, risk_avoided=risk_avoided,
-                         vessel=vessel)
+                         vessel=vessel, reasons=list(reasons), events_avoided=events_avoided)

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 from thresholds import land_raster as globe  # the package's 30" mask through its cache
 
-from dashboards.model import LaneDeparture, NightlyReport, Provenance, RouteSet, SpeedLossCurve, VoyageAudit, WeatherSnapshot
+from dashboards.model import LaneDeparture, LaneLine, NightlyReport, Provenance, RouteSet, SpeedLossCurve, VoyageAudit, WeatherSnapshot
 from routing.route import Route
 
 T0 = pd.Timestamp("2025-01-31T06:00Z")
@@ -118,6 +118,42 @@ def route_set(t0=T0, **kw) -> RouteSet:
     return RouteSet(routes=rs, metrics=metrics, events=EVENTS.copy(), exposure=EXPOSURE.copy(), weather=snapshot(), proposed="optimal", **kw)
 
 
+#: The fixture night's rule chips for every adverse case: structured as the screen gives them.
+REASONS = [{"rule": "hs", "value": 6.31, "limit": 4.5, "unit": "m", "time_utc": "2025-01-31T10:00:00+00:00", "n_points": 4,
+            "text": "hs: 6.31 m > 4.5 m at 2025-01-31T10:00Z, 40.50N 2.20E"},
+           {"rule": "surf_riding", "value": 14.2, "limit": 13.1, "time_utc": "2025-01-31T10:30:00+00:00", "n_points": 2,
+            "text": "surf_riding: 14.2 kn > 13.1 kn at 2025-01-31T10:30Z, 40.40N 2.21E"}]
+
+
+def lanes(origin="Barcelona") -> list:
+    """Four lanes for the fleet map: L1, L2 (adverse, rerouted), L9 (failed), L4 (no rule fired)."""
+    hist = routes()["historical"]
+    return [LaneLine("L1", origin, "Palma", "container-lt200", hist.lat_deg, hist.lon_deg),
+            LaneLine("L2", origin, "Palma", "container-lt200", hist.lat_deg + 0.05, hist.lon_deg - 0.1),
+            LaneLine("L9", "Genoa", "Tunis", "bulk", [41.0, 40.2, 39.0], [3.5, 3.9, 4.2]),
+            LaneLine("L4", "Valencia", "Ibiza", "ropax", [39.45, 39.2, 38.9], [0.0, 0.8, 1.4])]
+
+
+def grid(n_adverse: int) -> pd.DataFrame:
+    """One row per lane x departure (3 departures, 3 h apart from ``T0``): lane L<k+1> adverse at
+    its k-th departure with case k+1 (3 h at risk avoided, time-optimal proposed); L9 failed at
+    ``T0`` (the last case); every other cell passed."""
+    rows = []
+    ids = [f"L{k + 1}" for k in range(n_adverse)] + ["L9", "L4"]
+    for lane in ids:
+        for j in range(3):
+            t = T0 + pd.Timedelta(hours=3 * j)
+            row = {"lane_id": lane, "depart_utc": t, "status": "ok", "rules": "", "risk_h": np.nan, "risk_avoided_h": np.nan,
+                   "proposed": None, "case": np.nan}
+            if lane == "L9" and j == 0:
+                row.update(status="failed", case=float(n_adverse + 1))
+            elif lane not in ("L9", "L4") and j == int(lane[1:]) - 1:
+                row.update(status="adverse", rules="hs,surf_riding", risk_h=5.5, risk_avoided_h=3.0, proposed="optimal",
+                           case=float(j + 1))
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
 def nightly(origin="Barcelona", n_adverse=2) -> NightlyReport:
     deps = []
     for k in range(n_adverse):
@@ -128,7 +164,7 @@ def nightly(origin="Barcelona", n_adverse=2) -> NightlyReport:
                 rules=["operator: hs_m 6.31 > 4.5", "IMO MSC.1/Circ.1228: surf-riding/broaching"],
                 worst_time_utc=t0 + pd.Timedelta(hours=4), worst_lat_deg=40.5, worst_lon_deg=2.2, worst_hs_m=6.31,
                 routes=route_set(t0, exports={"RTZ": f"exports/L{k + 1}_optimal.rtz", "GPX": f"exports/L{k + 1}.gpx"}),
-                risk_avoided=3.0,
+                risk_avoided=3.0, events_avoided=3, vessel="container-lt200", reasons=[dict(r) for r in REASONS],
             )
         )
     deps.append(LaneDeparture(lane_id="L9", origin="Genoa", destination="Tunis", depart_utc=T0, status="failed", error="NoRouteError: goal (36.8N 10.3E) unreachable from the mesh"))
@@ -136,7 +172,7 @@ def nightly(origin="Barcelona", n_adverse=2) -> NightlyReport:
         run_id="fixture-run", started_utc=pd.Timestamp("2025-01-31T02:00:00Z"), finished_utc=pd.Timestamp("2025-01-31T02:00:42Z"),
         now_utc=T0 - pd.Timedelta(hours=6), window_start_utc=T0 - pd.Timedelta(hours=6), window_end_utc=T0 + pd.Timedelta(hours=42),
         departure_step_h=3.0, lanes_checked=7, departures_checked=112, departures=deps, provenance=provenance(), speed_loss=speed_loss(),
-        title="stormlane nightly reroute report (TEST FIXTURE)",
+        title="stormlane nightly reroute report (TEST FIXTURE)", lanes=lanes(origin), grid=grid(n_adverse),
     )
 
 

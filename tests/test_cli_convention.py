@@ -27,7 +27,7 @@ RETIRED_NAMES = {"--operator": "--profile", "--workdir": "--out", "--every": "--
 SAME_METAVAR = {"--db": "FILE", "--weather": "FILE|DIR", "--vessel": "NAME|FILE", "--profile": "NAME|FILE",
                 "--speed-loss": "bowditch|aertssen|khokhlov|kwon|none", "--task-runner": "sequential|dask[:ADDRESS]",
                 "--depart": "ISO", "--start": "ISO", "--end": "ISO", "--now": "ISO", "--lane": "ID",
-                "--window-h": "H", "--step-h": "H", "--safety": None, "--max-detail": "N", "--seed": "N", "--days": "N"}
+                "--window-h": "H", "--step-h": "H", "--safety": None, "--exports": "proposed|all|none", "--max-detail": "N", "--seed": "N", "--days": "N"}
 #: Commands that write data into the workspace and so may create it; every other --db must exist.
 CREATES_WORKSPACE = {"workspace", "ingest-ais", "weather load", "weather fetch"}
 

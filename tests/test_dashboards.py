@@ -154,30 +154,60 @@ def test_report_is_self_contained(which, nightly_page, audit_page):
         assert np.asarray(img).std() > 10
 
 
-def test_nightly_summary_and_lanes_at_risk(nightly_page):
+def _table(page, first):
+    return next(t for t in page.tables if t[0][: len(first)] == first)
+
+
+def test_nightly_overview_ranked_list_matrix_and_chips(nightly_page):
     page = parse(nightly_page)
     text = " ".join(" ".join(page.text).split())
-    # Summary cards: counts from the model; sums hand-computed from the typed metrics:
-    # fuel 2 x (29.1 - 30.0) = -1.8 t, CO2 2 x (90.8 - 93.6) = -5.6 t, events 2 x (3 - 0) = 6.
-    for value, label in (("7", "lanes checked"), ("112", "lane-departures checked"), ("2", "adverse lane-departures"), ("2", "proposed reroutes"), ("1", "failed lanes")):
-        assert f"{value} {label}" in text
-    assert "-1.80 t \u0394 fuel (sum)" in text
-    assert "-5.60 t \u0394 CO2 (sum)" in text
-    assert "6 safety events avoided" in text
-    lanes = next(t for t in page.tables if t[0][:3] == ["#", "lane", "route"])
-    assert len(lanes) == 1 + 3
-    row1 = dict(zip(lanes[0], lanes[1]))
-    assert row1["lane"] == "L1" and row1["route"] == "Barcelona \u2192 Palma"
-    assert "operator: hs_m 6.31 > 4.5" in row1["rule(s) fired"] and "surf-riding/broaching" in row1["rule(s) fired"]
-    assert row1["worst Hs on lane"].startswith("6.31 m at 40.50N 2.20E")
-    assert row1["\u0394 fuel [t]"] == "-0.900" and row1["\u0394 CO2 [t]"] == "-2.800" and row1["events avoided"] == "3"
-    failed = dict(zip(lanes[0], lanes[3]))
-    assert failed["lane"] == "L9" and failed["status"].startswith("failed: NoRouteError")
-    # Two detailed cases, each with a map and a time plot, plus the speed-loss curve.
+    # Overview cards: counts from the model (no run summary in the fixture, so the page counts and
+    # sums the cases); sums hand-computed from the typed metrics: fuel 2 x (29.1 - 30.0) = -1.8 t,
+    # CO2 2 x (90.8 - 93.6) = -5.6 t, events 2 x (3 - 0) = 6, at risk avoided 2 x 3.0 h.
+    for card in ("7 lanes checked", "112 lane-departures checked", "2 adverse, on 2 lanes", "2 proposed reroutes", "1 failed",
+                 "6.0 h at risk avoided (sum)", "6 IMO events avoided", "-1.8 t \u0394 fuel (sum)", "-5.6 t \u0394 CO2 (sum)"):
+        assert card in text
+    # every delta names its reference (the fixture's cases compare against the historical route)
+    assert "\u0394 = proposed \u2212 the historical (lane / AIS track) route, sailed by the same vessel model" in text
+    # ranked list: the ranking key is a column, rank order, linked to the case
+    top = _table(page, ["#", "lane", "departure [UTC]", "proposed", "at risk avoided [h]"])
+    assert [r[:5] for r in top[1:]] == [["1", "L1", "2025-01-31 06:00", "time-optimal A*", "3.0"],
+                                       ["2", "L2", "2025-01-31 09:00", "time-optimal A*", "3.0"],
+                                       ["3", "L9", "2025-01-31 06:00", "failed", "\u2013"]]
+    assert dict(zip(top[0], top[1]))["\u0394 fuel [t]"] == "-0.9"
+    # matrix: rows lanes (by their best case), columns the departures, the proposed role in the cell
+    m = _table(page, ["#", "lane", "route", "worst at risk [h]"])
+    assert [r[:4] for r in m[1:]] == [["1", "L1", "Barcelona \u2192 Palma", "5.5"], ["2", "L2", "Barcelona \u2192 Palma", "5.5"],
+                                     ["3", "L9", "Genoa \u2192 Tunis", "\u2013"], ["4", "L4", "Valencia \u2192 Ibiza", "\u2013"]]
+    assert m[1][4:] == ["TO", "", ""] and m[2][4:] == ["", "TO", ""] and m[3][4:] == ["\u2715", "", ""]
+    links = [a["href"] for t, a in page.tags if t == "a" and a.get("href", "").startswith("#")]
+    assert {"#case-1", "#case-2", "#case-3"} <= set(links)
+    # 3 h avoided falls in the 3-6 h class; passed cells have their own class
+    classes = [a.get("class") for t, a in page.tags if t == "td" and a.get("class", "").startswith("m")]
+    assert classes.count("m3") == 2 and classes.count("m-fail") == 1 and classes.count("m-ok") == 4 * 3 - 3
+    # all cases, compact: rules as chips (rule, worst value/limit with the unit, day and time)
+    allc = _table(page, ["#", "lane", "route", "vessel"])
+    row1 = dict(zip(allc[0], allc[1]))
+    assert row1["rules (worst value/limit, when)"] == "Hs 6.3/4.5 m 31 10:00 surf-riding 14.2/13.1 kn 31 10:30"
+    assert row1["worst Hs on lane [m]"] == "6.3" and row1["\u0394 fuel [t]"] == "-0.90" and row1["\u0394 CO2 [t]"] == "-2.80"
+    failed = dict(zip(allc[0], allc[3]))
+    assert failed["lane"] == "L9" and failed["proposed"] == "failed"
+    assert "NoRouteError: goal (36.8N 10.3E) unreachable" in text
+    # every case folded, the anchor inside it; the full rule wording in the case
+    cases = [a for t, a in page.tags if t == "details" and a.get("class") == "case"]
+    assert len(cases) == 3 and not any("open" in a for a in cases)
+    assert [a["id"] for t, a in page.tags if t == "h3" and "id" in a] == ["case-1", "case-2", "case-3"]
+    assert "Rules fired (worst point of each): operator: hs_m 6.31 > 4.5 IMO MSC.1/Circ.1228: surf-riding/broaching" in text
+    # fleet map + two drawn cases (map and time plot each) + the speed-loss curve
     imgs = [a for t, a in page.tags if t == "img"]
-    assert len(imgs) == 2 * 2 + 1
-    assert [a["id"] for t, a in page.tags if t == "h3" and "id" in a] == ["case-1", "case-2"]
+    assert len(imgs) == 1 + 2 * 2 + 1
     assert "Methods and provenance" in text and "container<200m" in text and "bowditch" in text
+
+
+def test_print_style_unfolds_the_cases(nightly_page):
+    style = nightly_page.split("<style>", 1)[1].split("</style>", 1)[0]
+    printed = style.split("@media print", 1)[1]
+    assert "details::details-content" in printed and "content-visibility:visible" in printed
 
 
 def _comparison(page):
@@ -188,7 +218,7 @@ def _comparison(page):
 def test_comparison_table_shows_values_and_deltas(nightly_page):
     rows = _comparison(parse(nightly_page))
     fuel = rows["fuel burnt (STEAM2) [t]"]
-    assert fuel["historical (lane / AIS track)"] == "30.00"
+    assert fuel["historical (lane / AIS track) (reference)"] == "30.00"
     assert fuel["time-optimal A* \u2605 proposed"] == "29.10 (-0.90)"
     assert rows["IMO MSC.1/Circ.1228 events (count)"]["minimum-distance A*"] == "4 (+1)"
     assert rows["highest significant wave height met [m]"]["cargo-safe deviation"] == "3.20 (-3.11)"
@@ -226,8 +256,8 @@ def test_max_detail_limits_maps(tmp_path):
     model = fx.nightly(n_adverse=3)
     model.max_detail = 1
     page = parse(nightly_html(model))
-    assert len([a for t, a in page.tags if t == "img"]) == 2 + 1
-    assert "Maps and plots for the first 1 of 3" in " ".join(" ".join(page.text).split())
+    assert len([a for t, a in page.tags if t == "img"]) == 1 + 2 + 1  # fleet map, one case's map and plot, speed loss
+    assert "1 with maps and plots (the first 1 of 3 in ranking order: --max-detail)" in " ".join(" ".join(page.text).split())
 
 
 def test_empty_night_says_so():
@@ -235,7 +265,7 @@ def test_empty_night_says_so():
     model.departures = []
     text = " ".join(" ".join(parse(nightly_html(model)).text).split())
     assert "No adverse lane-departure in the window" in text
-    assert "0 adverse lane-departures" in text
+    assert "0 adverse, on 0 lanes" in text
 
 
 def test_audit_report_content(audit_page):
@@ -248,6 +278,14 @@ def test_audit_report_content(audit_page):
     assert "Fixture finding" in text
     assert "3 IMO events on the sailed track" in text
     assert len([a for t, a in page.tags if t == "img"]) == 3
+    # issue 22: the sailed track's events as chips (criterion, count, hours, first start), the
+    # reference of the deltas named, events / waypoints / provenance folded with anchors inside
+    assert ("On the sailed track: operator hs_m > 4.5 1\u00d7, 2.5 h from 31 09:40 parametric roll 1\u00d7, 0.8 h from 31 10:30 "
+            "surf-riding/broaching 1\u00d7, 1.0 h from 31 10:00") in text
+    assert "\u0394 = time-optimal A* \u2212 historical (lane / AIS track) (the reference of every delta on this page)" in text
+    ids = [a["id"] for t, a in page.tags if "id" in a]
+    assert {"overview", "routes", "events", "waypoints", "provenance"} <= set(ids)
+    assert len([a for t, a in page.tags if t == "details" and a.get("class") == "section"]) == 3
 
 
 def test_render_writes_html_file_and_refuses_other_suffix(tmp_path):

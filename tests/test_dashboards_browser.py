@@ -43,10 +43,30 @@ def test_nightly_report_opens_clean_from_file(chromium, tmp_path):
 
 
 def test_audit_report_opens_clean_and_shows_the_name_as_text(chromium, tmp_path):
+    from report_page import measure
+
     path = render_audit_report(fx.audit(ship_name="<script>alert(1)</script>"), tmp_path / "audit.html")
-    v = visit(path, chromium=chromium)
+    v = measure(path, chromium)
     _check_clean(v, path)
     assert v.title == "stormlane voyage audit (TEST FIXTURE): <script>alert(1)</script>"  # text, not markup
+    # issue 22: the folded sections' links open them; printing lays every folded section out
+    assert v.values["anchors"]["links"] == 4 and v.values["anchors"]["bad"] == []
+    printed = v.values["print"]
+    assert printed["folded"] >= 4 and printed["hidden"] == 0
+
+
+def test_the_print_check_fails_without_the_print_style(chromium, tmp_path):
+    """Negative control of the print check: the same page without the rule that unfolds
+    <details> in print has every folded body hidden."""
+    from report_page import measure
+
+    text = render_audit_report(fx.audit(), tmp_path / "audit.html").read_text(encoding="utf-8")
+    rule = "details::details-content { content-visibility:visible; display:block; }"
+    assert rule in text
+    bare = tmp_path / "bare.html"
+    bare.write_text(text.replace(rule, ""), encoding="utf-8")
+    printed = measure(bare, chromium, anchors=False).values["print"]
+    assert printed["bodies"] >= 4 and printed["hidden"] == printed["bodies"]
 
 
 def test_the_check_catches_requests_errors_and_blank_pages(chromium, tmp_path):

@@ -95,6 +95,7 @@ def test_lane_departure_model_adverse_and_failed():
 
 def test_hs_plot_profile_shows_the_peak_a_long_leg_crosses_between_waypoints():
     from dashboards import model as report_model
+    from dashboards import model_json
     from dashboards.plots import series_png
     from pipelines.reporting import route_set_from_evaluations
     from routing.evaluate import evaluate_route
@@ -116,7 +117,7 @@ def test_hs_plot_profile_shows_the_peak_a_long_leg_crosses_between_waypoints():
     # the plot draws the profile (a different image than from the waypoints), and the profiles
     # survive the model's JSON codec (report.json, re-rendered by `stormlane report`)
     assert series_png(rs.routes, profiles=rs.profiles) != series_png(rs.routes)
-    back = report_model._decode(report_model._encode(rs))
+    back = model_json._decode(model_json._encode(rs))
     pd.testing.assert_frame_equal(back.profiles["historical"], prof, check_dtype=False)
     with pytest.raises(report_model.ReportError, match=r"profiles\['optimal'\] has no route"):
         report_model.RouteSet(routes=rs.routes, profiles={"optimal": prof})

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 
 import numpy as np
@@ -29,12 +30,13 @@ def world(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def night(world, prefect_harness):
-    """The demo's night (sequential runner), and the tables it stored."""
+    """The demo's night (sequential runner, the demo's --max-detail), and the tables it stored."""
     from pipelines.nightly import flow_with_runner
+    from pipelines.nightly.demo import DEMO_MAX_DETAIL
 
     out = world["folder"] / "out"
     summary = flow_with_runner("sequential")(db=str(world["db"]), out=str(out), weather=[str(world["weather"])], now=NOW,
-                                              max_detail=2)
+                                              max_detail=DEMO_MAX_DETAIL)
     return summary, _tables(world["db"], summary["run_id"])
 
 
@@ -313,16 +315,18 @@ def test_the_demo_audit_is_sea_only_like_for_like_and_states_the_bias(demo_audit
 
 
 def test_report_and_exports_are_written(world, night):
+    from dashboards.archive import read_index
     from dashboards.exports import read_rtz
+    from dashboards.model import report_from_json
 
     summary, t = night
     out = world["folder"] / "out"
     html = (out / "report.html").read_text(encoding="utf-8")
-    assert summary["report"] == str(out / "report.html")
+    assert summary["report"] == str(out / "report.html") and summary["model"] == str(out / "report.json")
     assert summary["run_id"] in html and "http://" not in html.split("Content-Security-Policy")[0]
     model = json.loads((out / "report.json").read_text(encoding="utf-8"))
     assert model["run_id"] == summary["run_id"]
-    # each case's map and plot draw the Hs limit of the vessel that sails that lane
+    # each drawn case's map and plot draw the Hs limit of the vessel that sails that lane
     from pipelines.config import load_operator_profile, load_vessel
 
     profile = load_operator_profile(None)
@@ -332,52 +336,194 @@ def test_report_and_exports_are_written(world, night):
     for lane, hs_limit in drawn:
         v = load_vessel(vessel_of[lane])
         assert hs_limit == profile.limits_for(v.vessel_class, v.lpp_m).hs_max_m
-    # and the lanes-at-risk table names that vessel on every row
+    # every case names the vessel that sails it; the provenance lists every profile used, with its limit set
     assert all(c["vessel"] == vessel_of[c["lane_id"]] for c in model["departures"])
-    if len({c["vessel"] for c in model["departures"]}) > 1:
-        assert "lanes at risk)" in html
-    geo = sorted((out / "exports").glob("*.geojson"))
-    assert len(geo) == summary["adverse"]
-    first = json.loads(geo[0].read_text(encoding="utf-8"))
-    assert first["type"] == "FeatureCollection" and first["features"]
-    assert {f["properties"].get("route") for f in first["features"]} >= {"lane", "deviation", "optimal"}
-    # the proposed route of every reroute as RTZ (and GPX), the same waypoints as stored
+    back = report_from_json((out / "report.json").read_text(encoding="utf-8"))
+    listed = {v["name"]: v for v in back.provenance.vessels}
+    assert set(vessel_of.values()) <= set(listed)
+    for name in set(vessel_of.values()):
+        v = load_vessel(name)
+        assert listed[name]["limits"]["hs_m"] == profile.limits_for(v.vessel_class, v.lpp_m).hs_max_m
+        assert listed[name]["lanes"] == sum(1 for x in vessel_of.values() if x == name)
+    # only the first max_detail cases hold their routes (the page draws those); all hold their table
+    held = [d for d in back.departures if d.routes is not None and d.routes.detailed]
+    assert len(held) == min(back.max_detail, summary["adverse"]) and all(d.routes.metrics is not None for d in back.adverse)
+    # one archive, the proposed routes only (RTZ, GPX, GeoJSON per reroute), indexed
+    assert not (out / "exports").exists() and summary["exports_zip"] == str(out / "exports.zip")
+    index = read_index(out / "exports.zip")
     d, routes = t["departures"], t["routes"].set_index(["path_id", "depart_utc", "role"])
     props = d[d["proposed"].notna()]
-    rtz = sorted((out / "exports").glob("*.rtz"))
-    assert len(rtz) == len(list((out / "exports").glob("*.gpx"))) == len(props) == summary["reroutes"]
+    assert len(index) == summary["exports"] == 3 * len(props) == 3 * summary["reroutes"]
+    assert (index["proposed"] == "yes").all() and sorted(index["format"].unique()) == ["geojson", "gpx", "rtz"]
+    assert sorted(set(zip(index["lane"], index["role"]))) == sorted(set(zip(props["path_id"].astype(str), props["proposed"])))
     r = props.sort_values("rank").iloc[0]
-    stem = f"{r.path_id}_{r.depart_utc:%Y%m%dT%H%MZ}_{r.proposed}"
-    back = read_rtz(out / "exports" / f"{stem}.rtz")
+    name = f"{r.path_id}_{r.depart_utc:%Y%m%dT%H%MZ}_{r.proposed}.rtz"
+    assert index.loc[index["file"] == name, "rank"].item() == r["rank"]
+    import zipfile
+
+    with zipfile.ZipFile(out / "exports.zip") as zf:
+        (out / "first.rtz").write_bytes(zf.read(name))
+    back_rtz = read_rtz(out / "first.rtz")
     from routing.route import Route
 
     stored = Route.from_json(routes.loc[(r.path_id, r.depart_utc, r.proposed), "route_json"])
-    assert back.n_waypoints == stored.n_waypoints
-    assert np.allclose(back.lat_deg, stored.lat_deg, atol=1e-6) and np.allclose(back.lon_deg, stored.lon_deg, atol=1e-6)
+    assert back_rtz.n_waypoints == stored.n_waypoints
+    assert np.allclose(back_rtz.lat_deg, stored.lat_deg, atol=1e-6) and np.allclose(back_rtz.lon_deg, stored.lon_deg, atol=1e-6)
 
 
-@pytest.mark.browser
-def test_the_nights_report_opens_clean_in_a_headless_browser(world, night):
-    """Issue 8: the demo night's own report (maps, plots, the lanes-at-risk table), opened from
-    file:// in headless Chromium: no request leaves file://, no console error, not blank."""
+def test_the_demo_nights_sizes(world, night, capsys):
+    """Issue 22: the demo night's page <= 2 MB and its stored model <= 3 MB (printed)."""
+    summary, _ = night
+    out = world["folder"] / "out"
+    sizes = {name: (out / name).stat().st_size for name in ("report.html", "report.json", "exports.zip")}
+    with capsys.disabled():
+        print(f"\n[issue 22] demo night ({summary['lanes_checked']} lanes x {summary['window']['departures']} departures, "
+              f"{summary['adverse']} adverse, --max-detail 10): " + ", ".join(f"{k} {v / 1e6:.2f} MB" for k, v in sizes.items())
+              + f", {summary['exports']} route files in the archive")
+    assert sizes["report.html"] <= 2_000_000 and sizes["report.json"] <= 3_000_000
+
+
+def test_terminal_json_and_page_hold_the_same_overview(world, night, capsys):
+    """The summary the CLI prints, the JSON's top level and the page's overview: the same figures."""
+    from dashboards.model import report_from_json
+    from pipelines.commands.nightly import print_summary
+
+    summary, t = night
+    out = world["folder"] / "out"
+    model = report_from_json((out / "report.json").read_text(encoding="utf-8"))
+    keys = ("lanes_checked", "departures_checked", "adverse", "failed", "reroutes", "lanes_at_risk", "risk_avoided_h",
+            "events_avoided", "delta_time_h", "delta_fuel_t", "delta_co2_t")
+    assert {k: model.summary[k] for k in keys} == {k: summary[k] for k in keys}
+    # recomputed from the stored tables (not from the summary's own helper)
+    d = t["departures"]
+    rer = d[(d["status"] == "adverse") & d["proposed"].notna()]
+    assert summary["adverse"] == (d["status"] == "adverse").sum() and summary["reroutes"] == len(rer)
+    assert summary["risk_avoided_h"] == pytest.approx(rer["risk_avoided_h"].sum(), abs=1e-5)
+    assert summary["delta_fuel_t"] == pytest.approx(rer["delta_fuel_t"].sum(), abs=1e-5)
+    assert summary["lanes_at_risk"] == d.loc[d["status"] == "adverse", "path_id"].nunique()
+    # the page shows them (cards) and ranks the same cases with the same key
+    html = (out / "report.html").read_text(encoding="utf-8")
+    text = " ".join(re.sub(r"<[^>]+>", " ", html).split())
+    assert f"{summary['adverse']} adverse, on {summary['lanes_at_risk']} lanes" in text
+    assert f"{summary['risk_avoided_h']:.1f} h at risk avoided (sum)" in text
+    assert f"{summary['delta_fuel_t']:+.1f} t \u0394 fuel (sum)" in text and f"{summary['events_avoided']} IMO events avoided" in text
+    for row in summary["top"][:5]:
+        dep = model.departures[row["rank"] - 1]
+        assert (dep.lane_id, dep.depart_utc.isoformat()) == (row["lane"], row["depart_utc"])
+        if row["risk_avoided_h"] is not None:
+            assert dep.risk_avoided == pytest.approx(row["risk_avoided_h"])
+            assert re.search(rf'href="#case-{row["rank"]}">{row["rank"]}</a></td><td>{re.escape(row["lane"])}</td><td>[^<]+</td><td>[^<]+'
+                             rf'</td><td class="num"><b>{row["risk_avoided_h"]:.1f}</b>', html)
+    # and the terminal prints the same figures
+    print_summary(summary)
+    printed = capsys.readouterr().out
+    assert f"{summary['adverse']} adverse on {summary['lanes_at_risk']} lanes" in printed
+    assert f"{summary['risk_avoided_h']:.1f} h at risk avoided" in printed and f"fuel {summary['delta_fuel_t']:+.1f} t" in printed
+    first = summary["top"][0]
+    assert re.search(rf"1\. {re.escape(first['lane'])} .* {first['risk_avoided_h']:.1f} h", printed)
+
+
+def _chromium():
     import os
 
-    from dashboards.browser import find_chromium, is_blank_png, visit
+    from dashboards.browser import find_chromium
 
     chromium = find_chromium()
     if chromium is None:
         if os.environ.get("STORMLANE_REQUIRE_BROWSER") == "1":
             pytest.fail("STORMLANE_REQUIRE_BROWSER=1 but no chromium found (make test installs Debian's 'chromium')")
         pytest.skip("no chromium on PATH (make test installs it; or set STORMLANE_CHROMIUM)")
+    return chromium
+
+
+@pytest.mark.browser
+def test_the_nights_report_opens_clean_in_a_headless_browser(world, night, capsys):
+    """Issues 8 and 22: the demo night's own report, opened from file:// in headless Chromium at
+    1400 px: no request leaves file://, no console error, not blank; the overview (fleet map,
+    ranked list, lane x departure matrix) ends above 2,000 px; every in-page link opens its case;
+    under the print style sheet every folded case is laid out."""
+    from dashboards.browser import is_blank_png
+    from report_page import measure
+
     summary, _ = night
     path = world["folder"] / "out" / "report.html"
-    v = visit(path, chromium=chromium, full_page=True)
+    v = measure(path, _chromium())
     assert v.requests and v.requests[0] == path.resolve().as_uri()
     assert v.requests_leaving() == [], f"requests left file://: {v.requests_leaving()}"
     assert v.errors == [], f"console errors: {v.errors}"
     assert not is_blank_png(v.screenshot_png)
     assert all(u.startswith("data:image/png;base64,") for u in v.requests[1:])
-    assert summary["adverse"] == 0 or len(v.requests) > 1  # the adverse departures' maps and plots were loaded
+    lay, anchors, printed = v.values["layout"], v.values["anchors"], v.values["print"]
+    with capsys.disabled():
+        print(f"\n[issue 22] demo night page at 1400 px: fleet map ends at {lay['fleet_map']} px, ranked list {lay['ranked_list']} px, "
+              f"matrix {lay['matrix']} px; page {lay['height']} px tall; {anchors['links']} in-page links")
+    assert max(lay["fleet_map"], lay["ranked_list"], lay["matrix"]) <= 2000
+    assert lay["width"] <= 1400  # no sideways scrolling
+    assert lay["cases"] == summary["adverse"] + summary["failed"]
+    assert anchors["links"] >= lay["cases"] and anchors["bad"] == []
+    assert printed["folded"] >= lay["cases"] and printed["bodies"] >= lay["cases"] and printed["hidden"] == 0
+
+
+def _scaled_night(model, copies: int):
+    """A night of ``copies`` times the lanes: the demo night's own model, each lane repeated under
+    new ids (same paths, cases, tables and routes), the cases re-ranked by the ranking key.
+    Schema-true (a :class:`NightlyReport` the renderer validates), but not a routed night."""
+    import copy
+
+    lanes, grid, cases = [], [], []
+    for c in range(copies):
+        tag = f"/{chr(ord('a') + c)}"
+        for ln in model.lanes:
+            x = copy.copy(ln)
+            x.lane_id = ln.lane_id + tag
+            lanes.append(x)
+        g = model.grid.copy()
+        g["lane_id"] = g["lane_id"] + tag
+        grid.append(g)
+        for k, d in enumerate(model.departures, start=1):
+            x = copy.copy(d)
+            x.lane_id = d.lane_id + tag
+            cases.append((k, c, x, g.index[g["case"] == k]))
+    cases.sort(key=lambda e: (e[0], e[1]))
+    grid = [g.copy() for g in grid]
+    for rank, (k, c, d, rows) in enumerate(cases, start=1):
+        grid[c].loc[rows, "case"] = float(rank)
+    big = copy.copy(model)
+    big.lanes, big.grid, big.departures, big.summary = lanes, pd.concat(grid, ignore_index=True), [e[2] for e in cases], {}
+    big.lanes_checked, big.departures_checked = len(lanes), len(big.grid)
+    return big
+
+
+@pytest.mark.browser
+def test_a_60_lane_night_renders_in_the_browser_within_10_s_and_under_5_mb(world, night, tmp_path, capsys):
+    """Issue 22: 60 lanes x 16 departures of the demo's kind. Built from the demo night's model
+    (its 20 lanes three times under new ids: 960 lane-departures, 3 x its adverse cases, the
+    first 10 drawn), not by routing 960 cases (minutes of CPU): see :func:`_scaled_night`."""
+    import time
+
+    from dashboards.model import report_from_json
+    from dashboards.report import render_nightly_report
+    from report_page import measure
+
+    summary, _ = night
+    model = report_from_json((world["folder"] / "out" / "report.json").read_text(encoding="utf-8"))
+    big = _scaled_night(model, 3)
+    assert (len(big.lanes), len(big.grid), len(big.departures)) == (3 * summary["lanes_checked"], 960, 3 * len(model.departures))
+    assert len(big.lanes) == 60 and big.grid["depart_utc"].nunique() == 16
+    t0 = time.perf_counter()
+    path = render_nightly_report(big, tmp_path / "big.html")
+    render_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    v = measure(path, _chromium(), anchors=False, printed=False)
+    visit_s = time.perf_counter() - t0
+    lay, size = v.values["layout"], path.stat().st_size
+    with capsys.disabled():
+        print(f"\n[issue 22] 60 lanes x 16 departures ({len(big.departures)} cases): {size / 1e6:.2f} MB, written in {render_s:.1f} s; "
+              f"browser load event at {lay['load_ms'] / 1000:.2f} s (whole visit {visit_s:.1f} s), page {lay['height']} px")
+    assert v.errors == [] and v.requests_leaving() == []
+    assert size < 5_000_000
+    assert lay["load_ms"] < 10_000 and lay["cases"] == len(big.departures)
+
 
 @pytest.mark.slow
 def test_rerun_on_a_two_worker_dask_cluster_is_identical_and_adds_no_rows(world, night):

@@ -49,6 +49,9 @@ SafetyOption = typer.Option("hard", "--safety", metavar="hard|soft|none", show_d
 MaxDetailOption = typer.Option(10, "--max-detail", min=0, metavar="N", show_default=True,
                                help="Adverse lane-departures drawn with a map and plots in the report.")
 NoReportOption = typer.Option(False, "--no-report", help="Store the results only (no HTML report or exports).")
+ExportsOption = typer.Option("proposed", "--exports", metavar="proposed|all|none", show_default=True,
+                             help="Route exports in DIR/exports.zip (with index.csv): the proposed routes only (RTZ, GPX, "
+                                  "GeoJSON), every route of every adverse case, or none.")
 
 
 def register(app: typer.Typer) -> None:
@@ -57,7 +60,7 @@ def register(app: typer.Typer) -> None:
     def nightly(
         db: Path = DbReadOption,
         out: Path = typer.Option(None, "--out", metavar="DIR", callback=lambda v: check_output_dir(v, "--out"),
-                                 help="Folder for report.html, report.json and exports/ (default nightly/<now>)."),
+                                 help="Folder for report.html, report.json and exports.zip (default nightly/<now>)."),
         weather: list[Path] = WeatherNight,
         fetch: bool = FetchOption,
         now: str = typer.Option(None, "--now", metavar="ISO", help="Forecast reference time (default: the current hour, UTC); departures start here."),
@@ -71,12 +74,13 @@ def register(app: typer.Typer) -> None:
         safety: str = SafetyOption,
         max_detail: int = MaxDetailOption,
         no_report: bool = NoReportOption,
+        exports: str = ExportsOption,
         task_runner: str = TaskRunnerOption,
         json_out: bool = JsonOption,
     ) -> None:
         """Run one nightly reroute now: screen every lane x departure of the forecast window against the vessel's limits, reroute the adverse ones (cargo-safe deviation and time-optimal A*), evaluate, rank, store under a run id and write the report.
 
-        Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes), report, timings_s and the top-ranked lane-departures.
+        Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes, lanes_at_risk, lanes_with_reroute), the sums over the proposed reroutes (risk_avoided_h, events_avoided, delta_time_h, delta_fuel_t, delta_co2_t: proposed minus the lane as planned), report, model, exports_zip, timings_s and the top-ranked lane-departures with the ranking key (risk_avoided_h): the figures of the report's overview.
 
         Example (the next 24 h of departures from a given time, with local forecast files):
 
@@ -94,6 +98,7 @@ def register(app: typer.Typer) -> None:
             db=str(db), out=str(out) if out else None, weather=paths_text(weather), weather_source=source, now=now,
             window_h=window_h, step_h=step_h, voyages=str(voyages) if voyages else None, lanes=list(lane or []) or None,
             vessel=vessel, profile=profile, speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report,
+            exports=exports,
         )
         make_task_runner(task_runner)  # validate before starting anything
         preflight(params)
@@ -106,17 +111,7 @@ def register(app: typer.Typer) -> None:
         if json_out:
             emit_json(summary)
             return
-        typer.echo(f"night {summary['run_id']} (now {summary['now_utc']}, {summary['window']['departures']} departures every "
-                   f"{summary['window']['step_h']:g} h): {summary['lanes_checked']} lanes, {summary['departures_checked']} "
-                   f"lane-departures checked, {summary['adverse']} adverse, {summary['reroutes']} with a proposed reroute, "
-                   f"{summary['failed']} failed")
-        for row in summary["top"]:
-            what = f"failed: {row['error']}" if row["status"] == "failed" else (
-                f"{row['rules']} -> {row['proposed'] or 'no safer alternative'}"
-                + (f", {row['risk_avoided_h']:.1f} h at risk avoided, {row['delta_time_h']:+.1f} h" if row["proposed"] else ""))
-            typer.echo(f"  {row['rank']:>3}. {row['lane']:<10} {row['depart_utc'][:16]}Z  {what}")
-        if summary.get("report"):
-            typer.echo(f"report: {summary['report']}")
+        print_summary(summary)
 
     @app.command("schedule")
     def schedule(
@@ -138,6 +133,7 @@ def register(app: typer.Typer) -> None:
         safety: str = SafetyOption,
         max_detail: int = MaxDetailOption,
         no_report: bool = NoReportOption,
+        exports: str = ExportsOption,
     ) -> None:
         """Serve the nightly reroute as a Prefect deployment on a cron schedule (runs until stopped).
 
@@ -166,10 +162,38 @@ def register(app: typer.Typer) -> None:
             db=str(db.resolve()), out_root=str(out.resolve()) if out else None, weather=[str(Path(w).resolve()) for w in weather or []],
             weather_source="fetch" if fetch else ("files" if weather else "auto"), window_h=window_h, step_h=step_h,
             voyages=str(voyages.resolve()) if voyages else None, lanes=list(lane or []) or None, vessel=vessel, profile=profile,
-            speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report,
+            speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report, exports=exports,
         )
         params = checked.model_dump(exclude={"now", "out", "cache_dir"}, exclude_none=True)
         from prefect.deployments.runner import EntrypointType
 
         _flow().serve(name=name, schedules=[sched], parameters=params, entrypoint_type=EntrypointType.MODULE_PATH,
                       description=f"stormlane nightly reroute, cron {cron!r} ({timezone})", pause_on_shutdown=False)
+
+
+def _num(x, spec: str, unit: str = "") -> str:
+    return "-" if x is None else f"{format(x, spec)}{unit}"
+
+
+def print_summary(summary: dict) -> None:
+    """The terminal summary: the report overview's figures (the same dict, ``overview_of``)."""
+    s = summary
+    typer.echo(f"night {s['run_id']} (now {s['now_utc']}, {s['window']['departures']} departures every "
+               f"{s['window']['step_h']:g} h): {s['lanes_checked']} lanes, {s['departures_checked']} lane-departures checked, "
+               f"{s['adverse']} adverse on {s['lanes_at_risk']} lanes, {s['reroutes']} with a proposed reroute, {s['failed']} failed")
+    if s["reroutes"]:
+        typer.echo(f"proposed reroutes (against the lane as planned, same vessel model): {_num(s['risk_avoided_h'], '.1f', ' h')} "
+                   f"at risk avoided, {s['events_avoided']} IMO events avoided, time {_num(s['delta_time_h'], '+.1f', ' h')}, "
+                   f"fuel {_num(s['delta_fuel_t'], '+.1f', ' t')}, CO2 {_num(s['delta_co2_t'], '+.1f', ' t')}")
+    if s["top"]:
+        typer.echo(f"  {'#':>3}  {'lane':<10} {'departure':<17} {'at risk avoided':>15}  {'proposed':<14} {'time':>7}  rules")
+    for row in s["top"]:
+        if row["status"] == "failed":
+            typer.echo(f"  {row['rank']:>3}. {row['lane']:<10} {row['depart_utc'][:16]}Z  failed: {row['error']}")
+            continue
+        typer.echo(f"  {row['rank']:>3}. {row['lane']:<10} {row['depart_utc'][:16]}Z {_num(row['risk_avoided_h'], '.1f', ' h'):>15}  "
+                   f"{row['proposed'] or 'no safer route':<14} {_num(row['delta_time_h'], '+.1f', ' h'):>7}  {row['rules']}")
+    if s.get("report"):
+        typer.echo(f"report: {s['report']}")
+    if s.get("exports_zip"):
+        typer.echo(f"exports: {s['exports_zip']} ({s['exports']} files, index.csv)")

@@ -64,6 +64,7 @@ class NightlyParams(BaseModel):
     safety: Literal["hard", "soft", "none"] = "hard"
     max_detail: int = Field(20, ge=0)
     report: bool = True
+    exports: Literal["proposed", "all", "none"] = "proposed"
     cache_dir: str | None = None
 
     @field_validator("speed_loss")

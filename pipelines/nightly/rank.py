@@ -98,3 +98,41 @@ def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightR
     }
     return NightResult(deps, pd.DataFrame(route_rows, columns=list(ROUTE_COLUMNS)),
                        pd.DataFrame(event_rows, columns=list(EVENT_COLUMNS)), cases, counts)
+
+
+def overview_of(result: NightResult, top: int = 10) -> dict:
+    """The night's overview as one dict (pure): the counts, the sums over the proposed reroutes
+    (proposed minus the lane as planned, sailed by the same model), and the ``top`` cases in rank
+    order with the ranking key. The report's overview shows these figures, ``stormlane nightly``
+    prints them and ``--json`` returns them: one computation, so the three agree."""
+    d = result.departures
+    adverse = d[d["status"] == "adverse"]
+    re = adverse[adverse["proposed"].notna()]
+
+    def total(col):
+        v = pd.to_numeric(re[col], errors="coerce")
+        return round(float(v.sum()), 6) if v.notna().any() else None
+
+    ranked = d[d["rank"].notna()].sort_values("rank").head(top)
+    return {
+        **result.counts,
+        "lanes_at_risk": int(adverse["path_id"].nunique()),
+        "lanes_with_reroute": int(re["path_id"].nunique()),
+        "risk_avoided_h": total("risk_avoided_h"),
+        "events_avoided": int(pd.to_numeric(re["events_avoided"], errors="coerce").fillna(0).sum()),
+        "delta_time_h": total("delta_time_h"),
+        "delta_fuel_t": total("delta_fuel_t"),
+        "delta_co2_t": total("delta_co2_t"),
+        "ranking_key": "risk_avoided_h: hours over an operator limit or in an IMO situation, lane as planned minus proposed "
+                       "(then IMO events avoided, then extra time and fuel)",
+        "top": [{"rank": int(r["rank"]), "case": f"case-{int(r['rank'])}", "lane": r["path_id"], "origin": r["origin"],
+                 "destination": r["destination"], "depart_utc": r["depart_utc"].isoformat(), "status": r["status"],
+                 "rules": r["rules"], "proposed": r["proposed"], "risk_avoided_h": _num(r["risk_avoided_h"]),
+                 "events_avoided": None if r["events_avoided"] is None or pd.isna(r["events_avoided"]) else int(r["events_avoided"]),
+                 "delta_time_h": _num(r["delta_time_h"]), "delta_fuel_t": _num(r["delta_fuel_t"]), "error": r["error"]}
+                for r in ranked.to_dict("records")],
+    }
+
+
+def _num(x) -> float | None:
+    return None if x is None or pd.isna(x) else round(float(x), 6)

@@ -42,24 +42,29 @@ def store_night(db, night: Night, result: NightResult, run: dict) -> dict:
 
 
 def summary_of(night: Night, result: NightResult, report: dict | None, timings: dict, top: int = 10) -> dict:
-    """The CLI's JSON object (``reference`` names what every delta is measured against)."""
-    d = result.departures
-    ranked = d[d["rank"].notna()].sort_values("rank").head(top)
+    """The CLI's JSON object (``reference`` names what every delta is measured against).
+
+    Its top level holds the report overview's figures (:func:`pipelines.nightly.rank.overview_of`:
+    the same dict the page shows, ``summary`` in ``report.json``): counts, the sums over the
+    proposed reroutes and the top cases with the ranking key.
+    """
+    from pipelines.nightly.rank import overview_of
+
+    rep = report or {}
     return {
         "run_id": night.run_id,
         "now_utc": night.now_utc.isoformat(),
         "window": {"start_utc": night.departures[0].isoformat(), "hours": night.params.window_h, "step_h": night.params.step_h,
                    "departures": len(night.departures)},
-        **result.counts,
+        **overview_of(result, top=top),
         "weather": {"source": night.weather_source, "product": str(night.weather_meta.get("product", "")),
                     "digest": night.weather_digest[:16]},
-        "report": (report or {}).get("report"),
-        "exports": (report or {}).get("exports", 0),
+        "report": rep.get("report"),
+        "model": rep.get("model"),
+        "exports": rep.get("exports", 0),
+        "exports_zip": rep.get("exports_zip"),
         "out": str(night.out),
         "timings_s": timings,
         "reference": "lane: the lane as planned, sailed by the same vessel model (the lane's typical AIS speed minus the speed "
                      "loss) from the same departure in the same weather; every delta is proposed minus it",
-        "top": [{"rank": int(r["rank"]), "lane": r["path_id"], "depart_utc": r["depart_utc"].isoformat(), "status": r["status"],
-                 "rules": r["rules"], "proposed": r["proposed"], "risk_avoided_h": r["risk_avoided_h"],
-                 "delta_time_h": r["delta_time_h"], "error": r["error"]} for r in ranked.to_dict("records")],
     }
