@@ -5,7 +5,9 @@ Runs each ``bench/<name>.py``'s groups in turn (:func:`bench._harness.run_groups
 smaller inputs, the README untouched; ``--smoke``: every side once, to check that every script
 runs) and regenerates the README's benchmark table and
 ``docs/benchmarks.md`` from it. ``--only`` re-runs some scripts and merges their sections into the
-existing file (each section keeps its own time and load). ``--wait-quiet S`` first waits up to S
+existing file (each section keeps its own time, commit and load; the table and the page say
+which sections were re-run alone); a new ``bench/<name>.py`` is found and run without being listed
+anywhere (:func:`bench._report.scripts`). ``--wait-quiet S`` first waits up to S
 seconds for the 1-minute load average to drop below 1 (the machine is shared); the load is
 recorded either way.
 """
@@ -15,6 +17,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import resource
 import time
 
 from bench import _harness, _report
@@ -28,19 +31,6 @@ def _wait_quiet(limit_s: float, threshold: float = 1.0) -> str:
     return f"waited {waited:.0f} s for a 1-minute load average below {threshold:g}"
 
 
-def _load_range(results: dict) -> tuple[float, float]:
-    """Lowest and highest 1-minute load average recorded before or after any run."""
-    values = []
-    for sec in results["benchmarks"].values():
-        for g in sec["groups"]:
-            for side in (g.get("sides") or {}).values():
-                for phase in ("cold", "warm", "cold_empty_cache"):
-                    ph = side.get(phase) or {}
-                    for key in ("load_1min_before", "load_1min_after"):
-                        values += [v for v in ((ph.get(key) or {}).get("values") or []) if v is not None]
-    return (min(values), max(values)) if values else (float("nan"), float("nan"))
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="development mode (fewer runs, smaller inputs; separate file)")
@@ -48,10 +38,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", default="", help="comma-separated scripts to run, e.g. routing,lanes")
     ap.add_argument("--wait-quiet", type=float, default=0.0, metavar="S", help="wait up to S s for load < 1 first")
     args = ap.parse_args(argv)
-    names = [n for n in args.only.split(",") if n] or list(_report.SCRIPT_ORDER)
-    unknown = [n for n in names if n not in _report.SCRIPT_ORDER]
+    known = _report.scripts()
+    names = [n for n in args.only.split(",") if n] or known
+    unknown = [n for n in names if n not in known]
     if unknown:
-        ap.error(f"unknown benchmark(s) {', '.join(unknown)}; choose from {', '.join(_report.SCRIPT_ORDER)}")
+        ap.error(f"unknown benchmark(s) {', '.join(unknown)}; choose from {', '.join(known)}")
     args.quick = args.quick or args.smoke
     cfg = _harness.Config.make(args.quick, smoke=args.smoke)
     waited = _wait_quiet(args.wait_quiet) if args.wait_quiet > 0 else ""
@@ -60,6 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     results = _report.load_results(path) if (partial and path.exists()) else _report.new_results("quick" if args.quick else "full")
     load0 = os.getloadavg()
     t0 = time.perf_counter()
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     for name in names:
         try:
             mod = importlib.import_module(f"bench.{name}")
@@ -70,27 +62,25 @@ def main(argv: list[str] | None = None) -> int:
 
             tail = traceback.format_exc().strip().splitlines()[-3:]
             print(f"== bench/{name}.py FAILED: {err}", flush=True)
-            section = {"script": f"bench/{name}.py", "groups": [], "notes": [], "error": " | ".join(tail)}
-        if partial:
-            section["run_alone_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-            results.setdefault("sections_run_alone", [])
-            if name not in results["sections_run_alone"]:
-                results["sections_run_alone"].append(name)
+            section = {"script": f"bench/{name}.py", "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                       "git": _report.git_state(), "groups": [], "notes": [], "error": " | ".join(tail)}
+        if waited and name == names[0] and "load_note" in section:
+            section["load_note"] += f"; {waited}"
+        if partial:  # merged into the existing file; the page and table say it was re-run alone
+            results = _report.merge_section(section, quick=args.quick, results=results)
+            continue
         results["benchmarks"][name] = section
         _report.write_results(results, path)  # after each script: a crash later keeps what was measured
     load1 = os.getloadavg()
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if not partial:
         results["elapsed_s"] = round(time.perf_counter() - t0, 1)
+        # every measured process is a waited-for child: their CPU seconds are what the run would take
+        # on a machine with nothing else running (a single-threaded process's wall ~ its CPU)
+        results["children_cpu_s"] = round(cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime, 1)
         results["load_1min"] = {"before": round(load0[0], 2), "after": round(load1[0], 2)}
-        lo, hi = _load_range(results)
-        note = (f"1-minute load average {load0[0]:.2f} before the run, {load1[0]:.2f} after it, {lo:.2f}-{hi:.2f} "
-                f"around the runs ({os.cpu_count()} cores; the benchmark's own process counts about 1 in it)")
-        if hi >= 2.0:
-            note += ("; the machine was NOT quiet during this run (other work was running on its 2 cores): wall times "
-                     "are inflated, compare the CPU seconds and the ratios of the interleaved pairs")
-        if waited:
-            note += f"; {waited}"
-        results["load_note"] = note
+        note = _report.load_note(load0[0], load1[0], results["benchmarks"].values())
+        results["load_note"] = note + (f"; {waited}" if waited else "")
     _report.write_results(results, path)
     if not args.quick:
         _report.regenerate(results)

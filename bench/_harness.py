@@ -343,16 +343,32 @@ def run_group(cfg: Config, group: Group) -> dict:
 
 def run_groups(cfg: Config, script: str, groups: list[Group], notes: list[str] | None = None) -> dict:
     """Run every group of one bench script; returns the script's section of the result file."""
+    from bench import _report
+
+    import resource
+
     t0 = time.perf_counter()
+    load0 = os.getloadavg()[0]
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     _log(cfg, f"== {script}")
-    section = {"script": script, "groups": [], "notes": list(notes or [])}
+    # each section says when, on which commit and under what load it was measured: a script may be
+    # re-run alone and merged into a result file whose other sections are older
+    section = {"script": script, "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+               "git": _report.git_state(), "groups": [], "notes": list(notes or [])}
     for g in groups:
         _log(cfg, f"  -- {g.title}")
         res = run_group(cfg, g)
         section["groups"].append(res)
         for m in res.get("measures", []):
             _log(cfg, "     " + _results.one_line(m, res["sides"]))
+    load1 = os.getloadavg()[0]
     section["elapsed_s"] = round(time.perf_counter() - t0, 1)
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    # CPU seconds of every process measured (each is waited for): about the script's wall time on a
+    # machine with nothing else running, whatever the load was during this run
+    section["children_cpu_s"] = round(cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime, 1)
+    section["load_1min"] = {"before": round(load0, 2), "after": round(load1, 2)}
+    section["load_note"] = _report.load_note(load0, load1, [section], f"{script}")
     return section
 
 
@@ -384,6 +400,8 @@ def source_stamp(*folders: str) -> str:
     h = hashlib.sha256()
     for folder in folders:
         base = ROOT / folder
+        if not base.exists():  # a moved package would silently leave the stamp unchanged
+            raise FileNotFoundError(f"source_stamp: {base} does not exist")
         files = [base] if base.is_file() else sorted(base.rglob("*.py"))
         for f in files:
             h.update(str(f.relative_to(ROOT)).encode())

@@ -23,7 +23,21 @@ README = ROOT / "README.md"
 PAGE = ROOT / "docs" / "benchmarks.md"
 README_BEGIN = "<!-- bench-table:begin -->"
 README_END = "<!-- bench-table:end -->"
+#: The order of the scripts in ``make bench``, the README's table and the page; a script not listed
+#: here (a new ``bench/<name>.py``) runs after these, in alphabetical order (:func:`scripts`).
 SCRIPT_ORDER = ("ingest", "ingest_dask", "lanes", "weather", "routing", "evaluate", "report", "nightly")
+
+
+def scripts() -> list[str]:
+    """Every benchmark script, ``bench/<name>.py`` without a leading underscore, in running order."""
+    found = {p.stem for p in (ROOT / "bench").glob("[!_]*.py")}
+    return [n for n in SCRIPT_ORDER if n in found] + sorted(found - set(SCRIPT_ORDER))
+
+
+def not_run_yet(results: dict) -> list[str]:
+    """Scripts the result file knows of (``results["scripts"]``, the scripts present when it was
+    last written) that have no section in it yet."""
+    return [n for n in results.get("scripts", []) if n not in results["benchmarks"]]
 
 
 # --------------------------------------------------------------------------- the file
@@ -77,22 +91,52 @@ def write_results(results: dict, path: Path = RESULTS) -> None:
 
 def new_results(mode: str) -> dict:
     return {"schema": 1, "mode": mode, "generated_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "git": git_state(), "machine": machine(), "benchmarks": {}}
+            "git": git_state(), "machine": machine(), "scripts": scripts(), "benchmarks": {}}
 
 
-def merge_section(section: dict, quick: bool = False) -> None:
-    """Put one script's section (run on its own) into the result file and regenerate the pages."""
+def load_range(sections) -> tuple[float, float]:
+    """Lowest and highest 1-minute load average recorded before or after any run of ``sections``."""
+    values = []
+    for sec in sections:
+        for g in sec["groups"]:
+            for side in (g.get("sides") or {}).values():
+                for phase in ("cold", "warm", "cold_empty_cache"):
+                    ph = side.get(phase) or {}
+                    for key in ("load_1min_before", "load_1min_after"):
+                        values += [v for v in ((ph.get(key) or {}).get("values") or []) if v is not None]
+    return (min(values), max(values)) if values else (float("nan"), float("nan"))
+
+
+def load_note(before: float, after: float, sections, what: str = "the run") -> str:
+    """What the load was: before and after ``what`` and the range around its runs; says when the
+    machine was not quiet."""
+    lo, hi = load_range(sections)
+    note = (f"1-minute load average {before:.2f} before {what}, {after:.2f} after it, {lo:.2f}-{hi:.2f} "
+            f"around the runs ({os.cpu_count()} cores; the benchmark's own process counts about 1 in it)")
+    if hi >= 2.0:
+        note += ("; the machine was NOT quiet (other work was running on its cores): wall times "
+                 "are inflated, compare the CPU seconds and the ratios of the interleaved pairs")
+    return note
+
+
+def merge_section(section: dict, quick: bool = False, results: dict | None = None) -> dict:
+    """Put one script's section, run on its own, into the result file (``results``, else the file
+    on disk; a new one when there is none), write it and, unless ``quick``, regenerate the README's
+    table and the page. Every other section keeps its own figures, time, commit and load."""
     path = RESULTS_QUICK if quick else RESULTS
-    results = load_results(path) if path.exists() else new_results("quick" if quick else "full")
+    if results is None:
+        results = load_results(path) if path.exists() else new_results("quick" if quick else "full")
     name = Path(section["script"]).stem
-    section["run_alone_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    section["run_alone_utc"] = section.get("started_utc") or time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     results["benchmarks"][name] = section
+    results["scripts"] = scripts()
     results.setdefault("sections_run_alone", [])
     if name not in results["sections_run_alone"]:
         results["sections_run_alone"].append(name)
     write_results(results, path)
     if not quick:
         regenerate(results)
+    return results
 
 
 def regenerate(results: dict) -> None:
@@ -102,7 +146,8 @@ def regenerate(results: dict) -> None:
     PAGE.write_text(render_page(results), encoding="utf-8")
 
 
-def update_readme(table: str, path: Path = README) -> None:
+def update_readme(table: str, path: Path | None = None) -> None:
+    path = path or README
     text = path.read_text(encoding="utf-8")
     if README_BEGIN not in text or README_END not in text:
         raise SystemExit(f"{path}: the markers {README_BEGIN} / {README_END} are missing")
@@ -111,9 +156,9 @@ def update_readme(table: str, path: Path = README) -> None:
     path.write_text(head + README_BEGIN + "\n" + table + README_END + tail, encoding="utf-8")
 
 
-def readme_block(path: Path = README) -> str:
+def readme_block(path: Path | None = None) -> str:
     """What the README holds between the markers (the generated table)."""
-    text = path.read_text(encoding="utf-8")
+    text = (path or README).read_text(encoding="utf-8")
     return text.split(README_BEGIN, 1)[1].split(README_END, 1)[0][1:]
 
 
@@ -223,6 +268,9 @@ def render_table(results: dict) -> str:
     ]
     if results.get("load_note"):
         lines += [f"Load: {results['load_note']}", ""]
+    for name in results.get("sections_run_alone", []):
+        sec = results["benchmarks"].get(name) or {}
+        lines += [f"Re-run alone after the full run: bench/{name}.py, {_when(sec)}.", ""]
     lines += ["| bench | measure | ours cold | ours warm | baseline (same run) | baseline cold | baseline warm | "
               "baseline ÷ ours, cold | baseline ÷ ours, warm | peak MB ours / baseline | load (1 min) | targets |",
               "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | --- | --- |"]
@@ -247,11 +295,27 @@ def render_table(results: dict) -> str:
                      f"{bwarm} | {rc} | {rw} | {mem} | {_load(g)} | {_targets(m)} |")
     skipped = [(name, g) for name in results["benchmarks"] for g in results["benchmarks"][name]["groups"] if g.get("skipped")]
     failed = [(name, sec["error"]) for name, sec in results["benchmarks"].items() if sec.get("error")]
-    if skipped or failed:
+    pending = not_run_yet(results)
+    if skipped or failed or pending:
         lines.append("")
         lines += [f"Skipped: {name} / {g['title']}: {g['skipped']}" for name, g in skipped]
         lines += [f"**Failed**: bench/{name}.py: {err}" for name, err in failed]
+        lines += [f"Not run yet: bench/{name}.py (no figures in bench/results.json; `python -m bench --only {name}` "
+                  "measures it and merges it in)" for name in pending]
     return "\n".join(lines) + "\n"
+
+
+def _when(sec: dict) -> str:
+    """When, on which commit and under what load a section was measured."""
+    commit = (sec.get("git") or {}).get("commit", "")
+    text = f"started {sec.get('started_utc') or sec.get('run_alone_utc', '?')}, commit {commit[:10] or '?'}"
+    if sec.get("elapsed_s") is not None:
+        text += f", {sec['elapsed_s']:.0f} s"
+    if sec.get("children_cpu_s") is not None:
+        text += f" ({sec['children_cpu_s']:.0f} CPU s in the measured processes)"
+    if sec.get("load_note"):
+        text += f"; load: {sec['load_note']}"
+    return text
 
 
 # --------------------------------------------------------------------------- the page
@@ -305,7 +369,10 @@ def render_page(results: dict) -> str:
            f"{mach['cpus']} cores ({mach['cpu_model'] or '?'}), {mach.get('memory_gb')} GB, Python {mach['python']}; "
            f"versions {', '.join(f'{k} {v}' for k, v in mach.get('versions', {}).items())}.", ""]
     if results.get("elapsed_s"):
-        out += [f"The whole `make bench` took {results['elapsed_s']:.0f} s."]
+        cpu = results.get("children_cpu_s")
+        out += [f"The whole `make bench` took {results['elapsed_s']:.0f} s"
+                + (f" ({cpu:.0f} CPU seconds in its measured processes: about what it takes on a quiet machine)."
+                   if cpu else ".")]
     if results.get("load_note"):
         out += ["", f"**Load.** {results['load_note']}"]
     if results.get("sections_run_alone"):
@@ -319,6 +386,9 @@ def render_page(results: dict) -> str:
     for name in [n for n in SCRIPT_ORDER if n in results["benchmarks"]] + [n for n in results["benchmarks"] if n not in SCRIPT_ORDER]:
         sec = results["benchmarks"][name]
         out += [f"## `{sec['script']}`", ""]
+        if sec.get("started_utc"):
+            alone = " (re-run alone after the full run)" if name in results.get("sections_run_alone", []) else ""
+            out += [f"Measured{alone}: {_when(sec)}.", ""]
         if sec.get("error"):
             out += [f"**The script failed**: {sec['error']}", ""]
         out += [f"- {n}" for n in sec.get("notes", [])]
@@ -363,4 +433,8 @@ def render_page(results: dict) -> str:
                     out += [f"- target ({t['source']}): {t['name']} — `{t['metric']}` {t['op']} {t['value']:g} {t['unit']}: "
                             f"measured {meas}: {state}"]
                 out.append("")
+    pending = not_run_yet(results)
+    if pending:
+        out += ["## Not run yet", ""] + [f"- `bench/{n}.py`: no figures in bench/results.json yet (`python -m bench --only {n}` "
+                                          "measures it and merges it in)" for n in pending]
     return "\n".join(out).rstrip() + "\n"

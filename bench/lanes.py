@@ -123,7 +123,7 @@ def build(cfg):
     here = "bench.lanes"
     rows = 600_000 if cfg.quick else None
     path = str(ushant_file())
-    points = str(Path(cfg.cache_dir) / "lanes" / f"ushant_points_{rows or 'all'}_{source_stamp('lanes')}.parquet")
+    points = str(Path(cfg.cache_dir) / "lanes" / f"ushant_points_{rows or 'all'}_{source_stamp('lanes', 'thresholds', 'bench/lanes.py')}.parquet")
     what = f"the first {rows:,} Ushant positions" if rows else "the whole Ushant set (2.4 M positions)"
     g = Group(
         "ushant", f"lanes chain and lane step, {what}", needs=[Path(path)],

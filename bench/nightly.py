@@ -102,7 +102,7 @@ def run_cluster_start(st: dict) -> dict:
 
 def build(cfg):
     here = "bench.nightly"
-    cache = str(Path(cfg.cache_dir) / f"nightly-world-{source_stamp('lanes', 'scenario', 'weather', 'pipelines/lanes.py', 'tests/nightly_world.py')}")
+    cache = str(Path(cfg.cache_dir) / f"nightly-world-{source_stamp('lanes', 'scenario', 'weather', 'thresholds', 'pipelines/lanes.py', 'pipelines/scenario.py', 'tests/nightly_world.py')}")
     run_dir = str(Path(cfg.cache_dir) / "nightly-run")
     seq, dsk = night_args(cache, run_dir, "sequential"), night_args(cache, run_dir, "dask")
     g = Group(

@@ -75,3 +75,38 @@ def test_generated_table_shows_medians_ratios_and_targets(tmp_path):
     assert "external: a peer (2026-01-01)" in rows[1] and "never compared" in rows[1] and "vs external" in rows[1]
     page = _report.render_page(results)
     assert "### probe" in page and "baseline ÷ ours, cold" in page and "not measured in this run" in page
+
+
+def test_a_script_run_alone_is_merged_and_scripts_without_figures_are_not_run_yet(tmp_path, monkeypatch):
+    """``python -m bench --only NAME`` / ``python bench/NAME.py``: the script's new section replaces
+    its old one (with its own time, commit and load), every other section stays, and the table and
+    the page say what was re-run alone and which scripts have no figures yet."""
+    from bench import _report
+
+    for attr, name in (("RESULTS", "results.json"), ("PAGE", "benchmarks.md")):
+        monkeypatch.setattr(_report, attr, tmp_path / name)
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{_report.README_BEGIN}\nold\n{_report.README_END}\nrest\n", encoding="utf-8")
+    monkeypatch.setattr(_report, "README", readme)
+    cfg = _harness.Config(runs=1, empty_runs=0, cache_dir=tmp_path, verbose=False)
+    g = _harness.Group("probe", "probe", sides=[_harness.Side("a", "sleep 1 ms", setup="bench._probe:setup",
+                                                              kwargs={"seconds": 0.001}, run="bench._probe:run")],
+                       measures=[_harness.Measure("m", "probe", "a", external={"label": "x", "date": "d", "machine": "m",
+                                                                                  "method": "cold", "cold_s": 1.0})])
+    old = _report.new_results("full")
+    kept = {"script": "bench/ingest.py", "groups": [], "notes": ["kept"]}
+    old["benchmarks"] = {"ingest": kept, "probe": {"script": "bench/probe.py", "groups": [], "notes": ["old"]}}
+    _report.write_results(old, _report.RESULTS)
+    section = _harness.run_groups(cfg, "bench/probe.py", [g])
+    assert section["git"]["commit"] and section["load_note"].startswith("1-minute load average") and section["started_utc"]
+    merged = _report.merge_section(section)
+    on_disk = _report.load_results(_report.RESULTS)
+    assert on_disk == merged and on_disk["benchmarks"]["ingest"] == kept and on_disk["sections_run_alone"] == ["probe"]
+    assert on_disk["benchmarks"]["probe"]["groups"][0]["sides"]["a"]["cold"]["wall_s"]["n"] == 1
+    assert on_disk["scripts"] == _report.scripts() and "routing" in _report.not_run_yet(on_disk)
+    table = _report.readme_block(readme)
+    assert readme.read_text().startswith("intro\n") and readme.read_text().endswith("\nrest\n")
+    assert "Re-run alone after the full run: bench/probe.py, started " in table and "| probe | probe |" in table
+    assert "Not run yet: bench/routing.py" in table and "Not run yet: bench/ingest.py" not in table
+    page = (tmp_path / "benchmarks.md").read_text()
+    assert "Measured (re-run alone after the full run): started" in page and "`bench/routing.py`: no figures" in page
