@@ -3,7 +3,8 @@
 The case (generated, deterministic; the lanes computed once and cached, the rest built in each
 process's untimed setup): the demo region
 (Western Mediterranean, lon -1.5..11.5, lat 35.5..45.0) on the CMEMS global wave grid (1/12 deg,
-3-hourly, 4 days) with a moving storm (Hs up to 8 m), land from global-land-mask; 10 lanes
+3-hourly, 4 days) with a moving storm (Hs up to 8 m), land from global-land-mask (read through
+thresholds.land_raster, the land check every stage uses); 10 lanes
 between the demo ports with centroids every ~8 nmi along the calm-water minimum-distance sea
 route; 10 departures per lane, 6 h apart: 100 lane-departures.
 
@@ -54,13 +55,13 @@ def make_weather_arrays():
     """The storm on the CMEMS global grid over the demo region: (times ns, lat, lon, variables)."""
     import numpy as np
     import pandas as pd
-    from global_land_mask import globe
+    from thresholds.land_raster import is_land
 
     lat = np.round(np.arange(35.5, 45.0001, 1 / 12), 6)
     lon = np.round(np.arange(-1.5, 11.5001, 1 / 12), 6)
     times = pd.date_range(pd.Timestamp(T0), periods=33, freq="3h")
     lon2, lat2 = np.meshgrid(lon, lat)
-    land = globe.is_land(lat2, lon2)
+    land = is_land(lat2, lon2)  # the one land check (bit-packed raster): not the 0.93 GB globe array
     h = np.arange(times.size)[:, None, None] * 3.0
     xc, yc = 0.5 + 0.09 * h, 38.0 + 0.03 * h  # storm centre moving east-north-east
     r2 = ((lon2 - xc) / 2.0) ** 2 + ((lat2 - yc) / 1.2) ** 2
@@ -180,7 +181,7 @@ def run_reroute(st: dict) -> dict:
 
 def build(cfg):
     here = "bench.evaluate"
-    lanes = str(Path(cfg.cache_dir) / f"evaluate-lanes-{source_stamp('routing', 'bench/evaluate.py')}.npz")
+    lanes = str(Path(cfg.cache_dir) / f"evaluate-lanes-{source_stamp('routing', 'thresholds', 'bench/evaluate.py')}.npz")
     g = Group(
         "deviations", f"{len(LANES)} lanes x {DEPARTURES} departures (100 lane-departures), generated storm",
         prepare=f"{here}:prepare", prepare_kwargs={"path": lanes},
