@@ -42,6 +42,10 @@ def test_harness_interleaves_and_compares_like_with_like(tmp_path):
     pairs = [b / a for a, b in zip(fast["warm"]["wall_s"]["values"], slow["warm"]["wall_s"]["values"])]
     assert m["speedup"]["warm"]["values"] == pytest.approx(pairs, rel=1e-3) and m["speedup"]["warm"]["median"] > 1.5
     assert [t["met"] for t in m["targets"]] == [True, False]
+    from bench import _report  # a wall target missed while the CPU seconds meet it (sleep uses no CPU): said so
+
+    assert _report.cpu_check(m["targets"][0], out["sides"]) == ""
+    assert _report.cpu_check(m["targets"][1], out["sides"]).endswith(": within it)")
 
 
 def test_missing_input_skips_the_group_with_its_reason(tmp_path):
