@@ -1,0 +1,265 @@
+"""Compiled least-fuel search with a speed setting per edge and an arrival deadline.
+
+The model (what "optimal" means here)
+-------------------------------------
+* A route is a mesh path; on every edge the ship runs one calm-water speed setting ``s`` out of a
+  given set (engine settings), and it may wait at any node (engines stopped: no propulsion fuel).
+* An edge of length L left at time t at setting s takes ``c_j(s) = L * pace_s(weather at the
+  sub-slice j nearest to t)`` hours -- the edge model of :mod:`routing._kernels.edge` with the
+  speed-loss model evaluated at the setting's speed (no waiting inside the edge: waits are explicit).
+* Its fuel is ``rate(s) * c_j(s)`` with ``rate(s) = P(s) SFOC(P(s)) `` the STEAM2 fuel rate of the
+  setting (:func:`routing.emissions.steam2_legs` of one hour at s, computed in Python and passed
+  in): the engine setting's power over the slowed time, the weather charged once through the
+  time (:func:`routing.emissions.leg_power_kw`).
+* Minimise total fuel subject to arrival at the goal no later than the deadline D.
+
+Why departures at piece starts suffice: within a sub-slice's piece ``[(j - 1/2) tau, (j + 1/2) tau)``
+an edge's travel time and fuel do not depend on the departure time, so leaving earlier in the piece
+is never worse; a ship at a node at time t therefore only needs to consider leaving at t or at the
+start of a later piece ([1]: waiting at nodes makes every earlier label at least as good as a later
+one with no more fuel).
+
+Algorithm: bicriteria label setting over node x time bucket
+-----------------------------------------------------------
+Labels (time, fuel) are settled in the order (time bucket, fuel), buckets ``Delta = tau / k`` wide
+and aligned with the pieces. A label at node v is *dominated* when a settled label at v arrived
+no later with no more fuel ([2], Martins' multicriteria label setting; with waiting allowed the
+dominating label can do whatever the dominated one does). Every settled label spawns a *waiting*
+label at the start of the next piece (same fuel), unless a settled label with less fuel at no
+later time exists (its own waiting chain then covers). Two variants share the code:
+
+* ``relax=False`` (the route): labels keep their exact times. Within one bucket of one node only the
+  first label settled (the least fuel of the bucket) and labels arriving *earlier* than every label
+  settled there are kept; a later, costlier one in the same bucket is dropped. Every label is a real
+  schedule, so the result is feasible and its fuel an upper bound UB of the optimum (the earliest
+  label of every node is always kept: the time-optimal schedule stays reachable).
+* ``relax=True`` (the bound): a settled label's time is rounded down to its bucket's start, so all
+  labels of a bucket are equal in time and the least-fuel one dominates the others exactly. By
+  induction along any real schedule (each of its labels is dominated by a relaxed label: the relaxed
+  one leaves no later, in the same piece or at the start of the real one's piece through its waiting
+  chain), the relaxed optimum is a lower bound LB of the real optimum.
+
+``UB - LB`` is the reported gap; with ``Delta`` below every difference of arrival times both equal
+the exact optimum (the brute-force tests check LB <= brute force <= UB, and equality for a fine
+Delta). Labels later than ``D - (great-circle distance to goal) / v_top`` or with more fuel than
+``incumbent - distance * (least fuel per nmi)`` are pruned (both bounds admissible: ``v_top`` is the
+highest speed over ground any setting reaches in this weather, the fuel per nmi the least rate /
+(that setting's highest speed over ground)).
+
+References
+----------
+.. [1] A. Orda and R. Rom, "Shortest-path and minimum-delay algorithms in networks with
+       time-dependent edge-length," J. ACM, vol. 37, no. 3, pp. 607-625, 1990, doi:10.1145/79147.214078.
+.. [2] E. Q. V. Martins, "On a multicriteria shortest path problem," Eur. J. Oper. Res., vol. 16,
+       no. 2, pp. 236-245, 1984, doi:10.1016/0377-2217(84)90077-8.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from routing._kernels.core import P_MIN_SOG, goal_tables
+from routing._kernels.edge import _lerp, mean_pace, node_at, node_slice, sub_index, sub_slices, substeps
+from routing._kernels.speed import ship_of
+
+
+@njit(inline="always")
+def _less(b1, f1, b2, f2):
+    return b1 < b2 or (b1 == b2 and f1 < f2)
+
+
+@njit
+def _hpush(hb, hf, hv, size, b, f, v):
+    """Push (bucket, fuel) -> label onto a binary min-heap ordered by bucket, then fuel."""
+    if size == hb.size:
+        nb = np.empty(hb.size * 2, dtype=hb.dtype)
+        nf = np.empty(hf.size * 2, dtype=hf.dtype)
+        nv = np.empty(hv.size * 2, dtype=hv.dtype)
+        nb[:size], nf[:size], nv[:size] = hb[:size], hf[:size], hv[:size]
+        hb, hf, hv = nb, nf, nv
+    i = size
+    while i > 0:
+        par = (i - 1) >> 1
+        if not _less(b, f, hb[par], hf[par]):
+            break
+        hb[i], hf[i], hv[i] = hb[par], hf[par], hv[par]
+        i = par
+    hb[i], hf[i], hv[i] = b, f, v
+    return hb, hf, hv, size + 1
+
+
+@njit
+def _hpop(hb, hf, hv, size):
+    tb, tf, tv = hb[0], hf[0], hv[0]
+    size -= 1
+    if size > 0:
+        b, f, v = hb[size], hf[size], hv[size]
+        i = 0
+        while True:
+            c = 2 * i + 1
+            if c >= size:
+                break
+            if c + 1 < size and _less(hb[c + 1], hf[c + 1], hb[c], hf[c]):
+                c += 1
+            if not _less(hb[c], hf[c], b, f):
+                break
+            hb[i], hf[i], hv[i] = hb[c], hf[c], hv[c]
+            i = c
+        hb[i], hf[i], hv[i] = b, f, v
+    return tb, tf, tv, size
+
+
+@njit
+def _grow(a, n):
+    if n < a.size:
+        return a
+    out = np.empty(a.size * 2, dtype=a.dtype)
+    out[: a.size] = a
+    return out
+
+
+@njit(cache=True)
+def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_index, wave, cur, has_cur, dt_h, n_times, P, rate,
+                start, goal, t_start_h, f_start, deadline_h, k_bucket, relax, v_top_kn, fuel_per_nmi_min, radius, max_labels):
+    """Least fuel from ``start`` (reached at ``t_start_h`` with ``f_start`` fuel) to ``goal`` by
+    ``deadline_h``, settings ``P[s]`` (parameter vectors) at ``rate[s]`` [fuel per hour].
+
+    Returns ``(lt, lf, lnode, lpar, lspd, n_labels, goal_labels, n_goal, settled, status)``: the
+    label arrays (time, fuel, node, parent label, setting index or -1 for a wait), the settled
+    labels at the goal in time order (each with less fuel than the one before: the time-fuel
+    front; the last one is the least fuel), the number settled, and ``status`` 0 (done) or 1 (the
+    label budget ``max_labels`` was exhausted).
+    """
+    step = False
+    m_sub, tau, n_sub, phase = substeps(dt_h, n_times, step)
+    delta = tau / k_bucket
+    origin = -phase * tau  # bucket boundaries fall on the pieces' starts
+    n = allowed.size
+    K = di.size
+    S = rate.size
+    min_sog = P[0, P_MIN_SOG]
+    srow, crow, scol = goal_tables(lat_rad, lon_rad, goal, nx)
+    dist = np.full(n, -1.0)  # great-circle distance to goal [nmi], cached
+    best_f = np.full(n, np.inf)  # least fuel settled at the node
+    prev_f = np.full(n, np.inf)  # least fuel settled in the node's earlier buckets
+    last_b = np.full(n, -(2**62), dtype=np.int64)
+    tmin_b = np.full(n, np.inf)  # earliest time settled in last_b
+    cap = 1 << 16
+    lt = np.empty(cap)
+    lf = np.empty(cap)
+    lnode = np.empty(cap, dtype=np.int64)
+    lpar = np.empty(cap, dtype=np.int64)
+    lspd = np.empty(cap, dtype=np.int64)
+    hb = np.empty(1 << 14, dtype=np.int64)
+    hf = np.empty(1 << 14)
+    hv = np.empty(1 << 14, dtype=np.int64)
+    size = 0
+    lt[0], lf[0], lnode[0], lpar[0], lspd[0] = t_start_h, f_start, start, -1, -2
+    nl = 1
+    b0 = int(math.floor((t_start_h - origin) / delta))
+    hb, hf, hv, size = _hpush(hb, hf, hv, size, b0, f_start, 0)
+    goal_labels = np.empty(64, dtype=np.int64)
+    n_goal = 0
+    incumbent = np.inf
+    settled = 0
+    status = 0
+    while size > 0:
+        b, f, lab, size = _hpop(hb, hf, hv, size)
+        if origin + b * delta > deadline_h + 1e-9:
+            break
+        u = lnode[lab]
+        t = lt[lab]
+        if f >= incumbent:
+            continue
+        if lspd[lab] == -1:  # a waiting label: valid unless a label with less fuel settled at no later time
+            ref = prev_f[u] if last_b[u] == b else best_f[u]
+            if f > ref:
+                continue
+        else:
+            if last_b[u] == b:
+                if f >= prev_f[u] or t >= tmin_b[u]:
+                    continue  # dominated by an earlier bucket, or a costlier later label of this bucket
+                tmin_b[u] = t
+                if f < best_f[u]:
+                    best_f[u] = f
+            else:
+                if f >= best_f[u]:
+                    continue
+                prev_f[u] = best_f[u]
+                best_f[u] = f
+                last_b[u] = b
+                tmin_b[u] = t
+            if relax:
+                t = origin + b * delta
+                lt[lab] = t
+        settled += 1
+        if u == goal:
+            if t <= deadline_h + 1e-9 and f < incumbent:
+                incumbent = f
+                goal_labels = _grow(goal_labels, n_goal)
+                goal_labels[n_goal] = lab
+                n_goal += 1
+            continue
+        if nl + K * S + 1 >= max_labels:
+            status = 1
+            break
+        # the waiting label: leave at the start of the next piece (the weather is held after the last)
+        j_u = sub_index(t, tau, n_sub, phase)
+        du = dist[u]
+        if du < 0.0:
+            ju_ = u // nx
+            du = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[ju_] + crow[ju_] * scol[u - ju_ * nx])))
+            dist[u] = du
+        if j_u + 1 < n_sub:
+            tw = (j_u + 1 - phase) * tau
+            if tw + du / v_top_kn <= deadline_h + 1e-9:
+                lt = _grow(lt, nl)
+                lf = _grow(lf, nl)
+                lnode = _grow(lnode, nl)
+                lpar = _grow(lpar, nl)
+                lspd = _grow(lspd, nl)
+                lt[nl], lf[nl], lnode[nl], lpar[nl], lspd[nl] = tw, f, u, lab, -1
+                bw = int(math.floor((tw - origin) / delta + 1e-9))
+                hb, hf, hv, size = _hpush(hb, hf, hv, size, bw, f, nl)
+                nl += 1
+        ju = u // nx
+        mask = allowed[u]
+        su = sea_index[u]
+        k0, k1, fr = sub_slices(j_u, m_sub, n_times)
+        u_j = node_at(su, j_u, m_sub, n_times, wave, cur, has_cur)
+        for k in range(K):
+            if (mask >> np.uint64(k)) & np.uint64(1) == 0:
+                continue
+            v = u + dj[k] * nx + di[k]
+            dv = dist[v]
+            if dv < 0.0:
+                jv = v // nx
+                dv = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[jv] + crow[jv] * scol[v - jv * nx])))
+                dist[v] = dv
+            t_lb = dv / v_top_kn
+            f_lb = dv * fuel_per_nmi_min
+            L = elen[ju, k]
+            sv = sea_index[v]
+            v_j = node_slice(sv, k0, wave, cur, has_cur)
+            if fr != 0.0:
+                v_j = _lerp(v_j, node_slice(sv, k1, wave, cur, has_cur), fr)
+            for s in range(S):
+                c = L * mean_pace(ship_of(P[s]), min_sog, u_j, v_j, has_cur, ecos[ju, k], esin[ju, k])
+                arr = t + c
+                if arr + t_lb > deadline_h + 1e-9:
+                    continue
+                nf = f + rate[s] * c
+                if nf + f_lb >= incumbent or nf >= best_f[v] and arr >= tmin_b[v]:
+                    continue
+                lt = _grow(lt, nl)
+                lf = _grow(lf, nl)
+                lnode = _grow(lnode, nl)
+                lpar = _grow(lpar, nl)
+                lspd = _grow(lspd, nl)
+                lt[nl], lf[nl], lnode[nl], lpar[nl], lspd[nl] = arr, nf, v, lab, s
+                hb, hf, hv, size = _hpush(hb, hf, hv, size, int(math.floor((arr - origin) / delta)), nf, nl)
+                nl += 1
+    return lt, lf, lnode, lpar, lspd, nl, goal_labels, n_goal, settled, status
