@@ -55,6 +55,11 @@ DEFAULT_LOW_FRAC = 0.6
 DEFAULT_BUCKETS_PER_SUBSLICE = 5
 #: Labels the search may create before it stops with an error (about 45 bytes each).
 DEFAULT_MAX_LABELS = 20_000_000
+#: Default fuel resolution (fraction of the known route's fuel) and corridor width (see :class:`FuelSpec`).
+DEFAULT_FUEL_RESOLUTION_FRAC = 1e-4
+DEFAULT_CORRIDOR = 0
+#: Labels remembered per node for pruning at push time (:func:`routing._kernels.fuel._front_dominated`).
+DEFAULT_FRONT_CAP = 16
 #: Arrival tolerance of the same-arrival reference (bisection on its constant setting). [h]
 ARRIVAL_TOL_H = 1.0 / 60.0
 
@@ -92,7 +97,7 @@ def speed_settings(vessel, engine: Engine, speeds=None, speed_range=None, steps:
         k = int(steps or DEFAULT_SPEED_STEPS)
         if k < 1 or not (0.0 < lo <= hi):
             raise ValueError(f"speed range {lo:g}..{hi:g} kn with {k} steps is not a range of positive speeds")
-        out = sorted(set(np.round(np.linspace(lo, hi, k), 6).tolist()) | ({float(vessel.speed_kn)} if speed_range is None else set()))
+        out = sorted(set(np.minimum(np.round(np.linspace(lo, hi, k), 6), v_max).tolist()) | ({float(vessel.speed_kn)} if speed_range is None else set()))
     for s in out:
         if not s > 0.0:
             raise ValueError(f"speed setting {s:g} kn is not positive")
@@ -118,6 +123,11 @@ class FuelSpec:
     buckets_per_subslice: int = DEFAULT_BUCKETS_PER_SUBSLICE
     max_labels: int = DEFAULT_MAX_LABELS
     pareto: int = 0  # > 0: also that many routes of the time-fuel front
+    #: Fuel resolution as a fraction of the reference fuel (``eps_f`` of :mod:`routing._kernels.fuel`; 0: exact dominance).
+    fuel_resolution_frac: float = DEFAULT_FUEL_RESOLUTION_FRAC
+    #: The graph searched: None the whole mesh; w >= 0 the corridor of :func:`corridor_edges` (w grid steps around the
+    #: time-optimal paths of every setting and the minimum-distance path).
+    corridor: int | None = DEFAULT_CORRIDOR
 
     def __post_init__(self):
         if self.objective not in ("fuel", "co2"):
@@ -126,17 +136,29 @@ class FuelSpec:
             raise ValueError("at least one speed setting is needed")
 
 
+def lower_envelope(x, y) -> tuple[np.ndarray, np.ndarray]:
+    """Lower convex envelope of the points (0, 0) and (x_i, y_i), up to the largest x (monotone chain)."""
+    pts = sorted({(0.0, 0.0)} | {(float(a), float(b)) for a, b in zip(x, y)})
+    hull: list = []
+    for p in pts:
+        while len(hull) >= 2 and (hull[-1][0] - hull[-2][0]) * (p[1] - hull[-2][1]) - (hull[-1][1] - hull[-2][1]) * (p[0] - hull[-2][0]) <= 0:
+            hull.pop()
+        hull.append(p)
+    return np.array([p[0] for p in hull]), np.array([p[1] for p in hull])
+
+
 @dataclass
 class FuelProblem:
-    """One search's inputs on a built mesh: the settings' parameter vectors and fuel rates, bounds."""
+    """One search's inputs on a built mesh: the settings' parameter vectors and fuel rates, and the
+    fuel bound's envelope over (highest speed over ground, rate) of every setting."""
 
     mesh: Mesh
     wx: WeatherArrays
     ships: list
     P: np.ndarray
     rate: np.ndarray
-    v_top_kn: float
-    fuel_per_nmi_min: float
+    hull_x: np.ndarray
+    hull_y: np.ndarray
 
     @classmethod
     def build(cls, mesh: Mesh, wx: WeatherArrays, ship: ShipModel, spec: FuelSpec) -> "FuelProblem":
@@ -144,17 +166,57 @@ class FuelProblem:
         tops = np.array([heuristic_speed_kn(sh, wx) for sh in ships])
         P = np.stack([sh.params(wx.step_time, pace_min=1.0 / tops.max()) for sh in ships])
         rate = fuel_rates_t_per_h(spec.speeds_kn, spec.engine)
-        return cls(mesh, wx, ships, P, rate, float(tops.max()), float(np.min(rate / tops)))
+        hx, hy = lower_envelope(tops, rate)
+        return cls(mesh, wx, ships, P, rate, hx, hy)
 
-    def run(self, start: int, goal: int, t_h: float, f0: float, deadline_h: float, k: int, relax: bool, max_labels: int):
+    allowed: np.ndarray | None = None  # the edges searched (default the mesh's): see :func:`corridor_edges`
+
+    def run(self, start: int, goal: int, t_h: float, f0: float, deadline_h: float, k: int, relax: bool, max_labels: int,
+            f_upper: float = np.inf, front_cap: int = DEFAULT_FRONT_CAP, eps_f: float = 0.0):
         g, m = self.mesh.grid, self.mesh
+        allowed = m.allowed if self.allowed is None else self.allowed
         elen, ecos, esin = m.edge_geometry
         wx = self.wx
         return fuel_search(
-            g.nx, m.allowed, m.steps[:, 0].copy(), m.steps[:, 1].copy(), elen, ecos, esin, np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg),
+            g.nx, allowed, m.steps[:, 0].copy(), m.steps[:, 1].copy(), elen, ecos, esin, np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg),
             wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, self.P, self.rate, int(start), int(goal), float(t_h),
-            float(f0), float(deadline_h), int(k), bool(relax), self.v_top_kn, self.fuel_per_nmi_min, EARTH_RADIUS_NMI, int(max_labels),
+            float(f0), float(deadline_h), int(k), bool(relax), self.hull_x, self.hull_y, float(f_upper), EARTH_RADIUS_NMI, int(max_labels),
+            int(front_cap), float(eps_f),
         )  # fmt: skip
+
+
+def corridor_edges(mesh: Mesh, paths, width: int = 0) -> np.ndarray:
+    """The mesh's edge masks restricted to a corridor: the edges of the given node paths, and with
+    ``width`` > 0 every mesh edge between nodes within ``width`` grid steps (Chebyshev) of a path node."""
+    g = mesh.grid
+    out = np.zeros_like(mesh.allowed)
+    steps = mesh.steps
+    target = {(int(d[0]), int(d[1])): k for k, d in enumerate(steps)}
+    for path in paths:
+        path = np.asarray(path, dtype=np.int64)
+        for u, v in zip(path[:-1], path[1:]):
+            if u == v:
+                continue
+            key = (int(v % g.nx - u % g.nx), int(v // g.nx - u // g.nx))
+            out[u] |= np.uint64(1) << np.uint64(target[key])
+    if width > 0:
+        inside = np.zeros((g.ny, g.nx), dtype=bool)
+        for path in paths:
+            jj, ii = np.asarray(path) // g.nx, np.asarray(path) % g.nx
+            for dy in range(-width, width + 1):
+                for dx in range(-width, width + 1):
+                    inside[np.clip(jj + dy, 0, g.ny - 1), np.clip(ii + dx, 0, g.nx - 1)] = True
+        flat = inside.ravel()
+        nodes = np.flatnonzero(flat)
+        j, i = nodes // g.nx, nodes % g.nx
+        for k, (di, dj) in enumerate(steps):
+            jv, iv = j + int(dj), i + int(di)
+            ok = (jv >= 0) & (jv < g.ny) & (iv >= 0) & (iv < g.nx)
+            ok[ok] &= flat[jv[ok] * g.nx + iv[ok]]
+            bit = np.uint64(1) << np.uint64(k)
+            sel = nodes[ok]
+            out[sel] |= mesh.allowed[sel] & bit
+    return out
 
 
 @dataclass
@@ -186,7 +248,7 @@ def schedule_of(out, lab: int, speeds_kn) -> Schedule:
 class FuelResult:
     """The least-fuel schedule of one search pair, its bound and the front."""
 
-    schedule: Schedule
+    schedule: Schedule | None  # None: no route below the known one (``f_upper``)
     lower_bound_t: float
     front: list  # Schedules of the time-fuel front, earliest first
     labels: int
@@ -194,27 +256,29 @@ class FuelResult:
 
 
 def least_fuel(prob: FuelProblem, start: int, goal: int, t_h: float, f0: float, deadline_h: float, spec: FuelSpec,
-               *, bound: bool = True, earliest=None) -> FuelResult:
+               *, bound: bool = True, earliest=None, f_upper: float = np.inf) -> FuelResult:
     """The least-fuel schedule from ``start`` (at ``t_h`` with ``f0`` fuel) to ``goal`` by ``deadline_h``,
     and (``bound``) the relaxation's lower bound. Raises :class:`InfeasibleArrivalError` (with the
     earliest possible arrival from ``earliest()``, a callable giving it as text) when nothing arrives in time."""
     t0 = _time.perf_counter()
     k = spec.buckets_per_subslice
-    out = prob.run(start, goal, t_h, f0, deadline_h, k, False, spec.max_labels)
+    scale = f_upper if np.isfinite(f_upper) else float(prob.rate.max()) * max(deadline_h - t_h, 0.0)
+    eps = spec.fuel_resolution_frac * scale
+    out = prob.run(start, goal, t_h, f0, deadline_h, k, False, spec.max_labels, f_upper, eps_f=eps)
     if out[9] == 1:
         raise NoRouteError(f"the least-fuel search stopped at its label budget ({spec.max_labels:,} labels): use fewer speed settings, "
                            "a coarser mesh or fewer buckets (--fuel-buckets)")
     n_goal = int(out[7])
-    if n_goal == 0:
+    if n_goal == 0 and not np.isfinite(f_upper):
         raise InfeasibleArrivalError("no route arrives by the requested time" + (f": the earliest possible arrival is {earliest()}" if earliest else ""))
     goal_labels = out[6][:n_goal]
-    best = schedule_of(out, int(goal_labels[-1]), prob_speeds(prob))
+    best = schedule_of(out, int(goal_labels[-1]), prob_speeds(prob)) if n_goal else None  # None: nothing beats f_upper
     front = [schedule_of(out, int(lab), prob_speeds(prob)) for lab in goal_labels] if spec.pareto else []
     lb = float("nan")
     if bound:
-        rel = prob.run(start, goal, t_h, f0, deadline_h, k, True, spec.max_labels)
-        if rel[9] == 0 and rel[7] > 0:
-            lb = float(rel[1][rel[6][rel[7] - 1]])
+        rel = prob.run(start, goal, t_h, f0, deadline_h, k, True, spec.max_labels, f_upper, eps_f=eps)
+        if rel[9] == 0:  # nothing below f_upper in the relaxation: f_upper is the bound
+            lb = float(rel[1][rel[6][rel[7] - 1]]) if rel[7] > 0 else float(f_upper)
     return FuelResult(best, lb, front, int(out[5]), _time.perf_counter() - t0)
 
 

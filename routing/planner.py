@@ -136,7 +136,7 @@ class RoutePlan:
         """The CLI's JSON object (with safety: the safe routes, each route's hours over the limits,
         and a ``safety`` summary)."""
         out = {"great_circle_nmi": round(self.great_circle_nmi, 6)}
-        for name in ROUTE_NAMES + SAFE_ROUTE_NAMES:
+        for name in ROUTE_NAMES + SAFE_ROUTE_NAMES + FUEL_ROUTE_NAMES:
             if name not in self.routes:
                 continue
             r = self.routes[name]
@@ -146,6 +146,8 @@ class RoutePlan:
                     out[name][key] = r.properties[key]
         if "safety" in self.stats:
             out["safety"] = self.stats["safety"]
+        if "fuel" in self.stats:
+            out["fuel"] = self.stats["fuel"]
         out["speed_loss"] = self.stats.get("speed_loss")
         return out
 
@@ -153,9 +155,11 @@ class RoutePlan:
 #: Routes every plan has, and those a safety-constrained plan adds.
 ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
 SAFE_ROUTE_NAMES = ("safe_optimal", "safe_optimal_smoothed")
+#: Routes a plan with a fuel objective adds (:mod:`routing.planner_fuel`).
+FUEL_ROUTE_NAMES = ("least_fuel", "min_distance_same_arrival")
 #: Route properties copied into the JSON object when present.
-SAFETY_KEYS = ("hours_over_limits", "operator_h", "imo_h", "hours_by_rule", "unsafe_cell_h", "safety_requested", "safety_mode",
-               "safety_fallback")
+SAFETY_KEYS = ("fuel_t", "co2_t", "speed_setting_kn", "hours_over_limits", "operator_h", "imo_h", "hours_by_rule", "unsafe_cell_h",
+               "safety_requested", "safety_mode", "safety_fallback")
 
 
 @dataclass
@@ -393,6 +397,7 @@ def plan_routes(
     limits=None,
     penalty_per_h: float = DEFAULT_PENALTY_PER_H,
     sectors: int = DEFAULT_SECTORS,
+    fuel=None,
 ) -> RoutePlan:
     """Compute the optimal, smoothed, minimum-distance and calm routes for ``req``.
 
@@ -408,11 +413,15 @@ def plan_routes(
         The operator limits (``None``: IMO rules only).
     penalty_per_h, sectors
         See :class:`routing.safety.SafetySpec`.
+    fuel : routing.fuel.FuelSpec, optional
+        Also the least-fuel route with a speed setting per leg and its same-arrival reference
+        (:mod:`routing.planner_fuel`); every route then reports ``fuel_t`` and ``co2_t``.
 
     Raises
     ------
     WeatherCoverageError, WeatherVariableError, OutsideMeshError, LandPointError, NoRouteError, MeshSizeError
-        With messages naming the point, the mesh, the variable and what to change.
+        With messages naming the point, the mesh, the variable and what to change;
+        :class:`routing.fuel.InfeasibleArrivalError` (a NoRouteError) when no route meets ``fuel.arrive_by``.
     """
     spec = safety if isinstance(safety, SafetySpec) else SafetySpec(str(safety), vessel, limits, penalty_per_h, sectors)
     st = _Stage(req, {})
@@ -431,6 +440,11 @@ def plan_routes(
             spec, req, st.mesh, st.mw, st.wx, routes, st.timings, start_node=st.start_node, goal_node=st.goal_node,
             t_node_h=st.t_node_h, t0_h=st.t0_h, polyline=st.polyline, props=_props_maker(st),
         )  # fmt: skip
+    if fuel is not None:
+        from routing.planner_fuel import fuel_routes
+
+        with _Clock(st.timings, "search_fuel"):
+            safety_stats["fuel"] = fuel_routes(st, routes, results["time"].nodes, results["distance"].nodes, fuel, _props_maker(st))
     st.timings["total_s"] = _time.perf_counter() - t_all
     st.timings["total_cpu_s"] = _time.process_time() - c_all
     stats = {

@@ -65,7 +65,7 @@ def setup(seed, model="bowditch", ny=3, nx=3, n_times=5, currents=False):
     grid, field, rng = random_weather(seed, ny, nx, n_times, currents=currents)
     ship = ship_for(model, speed_kn=12.0)
     mesh, wx = build(grid, field, ship)
-    spec = FuelSpec(SPEEDS, ENGINE)
+    spec = FuelSpec(SPEEDS, ENGINE, corridor=None)
     prob = FuelProblem.build(mesh, wx, ship, spec)
     costs = [slice_costs(mesh, wx, sh) for sh in prob.ships]
     return mesh, wx, ship, spec, prob, costs, rng
@@ -84,5 +84,5 @@ def test_least_fuel_equals_brute_force_and_lies_within_its_gap(model):
             res = least_fuel(prob, start, goal, t0, 0.0, deadline, spec)
             assert res.lower_bound_t <= ref + 1e-9 <= res.schedule.fuel_t + 2e-9, (seed, slack)
             assert res.schedule.times_h[-1] <= deadline + 1e-9
-            fine = least_fuel(prob, start, goal, t0, 0.0, deadline, FuelSpec(SPEEDS, ENGINE, buckets_per_subslice=100_000))
+            fine = least_fuel(prob, start, goal, t0, 0.0, deadline, FuelSpec(SPEEDS, ENGINE, buckets_per_subslice=100_000, fuel_resolution_frac=0.0))
             assert fine.schedule.fuel_t == pytest.approx(ref, rel=1e-9), (seed, slack)

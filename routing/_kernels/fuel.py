@@ -29,22 +29,25 @@ label at the start of the next piece (same fuel), unless a settled label with le
 later time exists (its own waiting chain then covers). Two variants share the code:
 
 * ``relax=False`` (the route): labels keep their exact times. Within one bucket of one node only the
-  first label settled (the least fuel of the bucket) and labels arriving *earlier* than every label
-  settled there are kept; a later, costlier one in the same bucket is dropped. Every label is a real
-  schedule, so the result is feasible and its fuel an upper bound UB of the optimum (the earliest
-  label of every node is always kept: the time-optimal schedule stays reachable).
-* ``relax=True`` (the bound): a settled label's time is rounded down to its bucket's start, so all
-  labels of a bucket are equal in time and the least-fuel one dominates the others exactly. By
+  first label settled (the least fuel of the bucket) is kept, and a costlier one only when it arrives
+  before every label settled at the node (so the earliest label of every node is kept: the
+  time-optimal schedule stays reachable); a label within ``eps_f`` of the fuel of a label settled
+  earlier at the node is dropped. Every label is a real schedule, so the result is feasible and its
+  fuel an upper bound UB of the optimum.
+* ``relax=True`` (the bound): a settled label's time is rounded down to its bucket's start and its
+  fuel down to a multiple of ``eps_f``, so all labels of a bucket are equal in time and the
+  least-fuel one dominates the others exactly. By
   induction along any real schedule (each of its labels is dominated by a relaxed label: the relaxed
   one leaves no later, in the same piece or at the start of the real one's piece through its waiting
   chain), the relaxed optimum is a lower bound LB of the real optimum.
 
 ``UB - LB`` is the reported gap; with ``Delta`` below every difference of arrival times both equal
 the exact optimum (the brute-force tests check LB <= brute force <= UB, and equality for a fine
-Delta). Labels later than ``D - (great-circle distance to goal) / v_top`` or with more fuel than
-``incumbent - distance * (least fuel per nmi)`` are pruned (both bounds admissible: ``v_top`` is the
-highest speed over ground any setting reaches in this weather, the fuel per nmi the least rate /
-(that setting's highest speed over ground)).
+Delta). Pruning (admissible, so neither variant loses what it would otherwise find): a label
+later than ``D - d / v_top`` (d the great-circle distance to the goal, ``v_top`` the highest speed
+over ground any setting reaches in this weather), or whose fuel plus :func:`fuel_bound` (the least
+fuel that covers d in the time left) reaches the incumbent (the best goal label, or a known route's
+fuel ``f_upper``), or that a label already created at its node dominates.
 
 References
 ----------
@@ -112,6 +115,60 @@ def _hpop(hb, hf, hv, size):
     return tb, tf, tv, size
 
 
+@njit(inline="always")
+def fuel_bound(d_nmi, t_rem_h, hull_x, hull_y):
+    """Least fuel to cover ``d_nmi`` within ``t_rem_h``: ``t_rem * phi(d / t_rem)`` with phi the lower convex
+    envelope of (0, 0) (waiting) and every setting's (highest speed over ground, fuel rate) (Jensen's
+    inequality over the time-weighted speeds; inf when even the fastest setting is too slow)."""
+    if d_nmi <= 0.0:
+        return 0.0
+    if t_rem_h <= 0.0:
+        return np.inf
+    x = d_nmi / t_rem_h
+    if x > hull_x[-1] * (1.0 + 1e-12):
+        return np.inf
+    for i in range(1, hull_x.size):
+        if x <= hull_x[i]:
+            w = (x - hull_x[i - 1]) / (hull_x[i] - hull_x[i - 1])
+            return t_rem_h * (hull_y[i - 1] + w * (hull_y[i] - hull_y[i - 1]))
+    return t_rem_h * hull_y[-1]
+
+
+@njit
+def _front_dominated(ft, ff, fn, v, t, f, tol):
+    """Is (t, f) dominated by a label already created at node v (no later, no more fuel than f + tol)? If not, remember it
+    (a full memory forgets its latest entry: less pruning, never a wrong one)."""
+    cnt = fn[v]
+    pos = 0
+    while pos < cnt and ft[v, pos] <= t:
+        pos += 1
+    if pos > 0 and ff[v, pos - 1] <= f + tol:
+        return True
+    # drop the entries the new label dominates (later with no less fuel: contiguous from pos)
+    end = pos
+    while end < cnt and ff[v, end] >= f:
+        end += 1
+    shift = end - pos
+    if shift > 0:
+        for q in range(end, cnt):
+            ft[v, q - shift] = ft[v, q]
+            ff[v, q - shift] = ff[v, q]
+        cnt -= shift
+    cap = ft.shape[1]
+    if cnt == cap:
+        if pos == cap:
+            fn[v] = cnt
+            return False
+        cnt -= 1
+    for q in range(cnt, pos, -1):
+        ft[v, q] = ft[v, q - 1]
+        ff[v, q] = ff[v, q - 1]
+    ft[v, pos] = t
+    ff[v, pos] = f
+    fn[v] = cnt + 1
+    return False
+
+
 @njit
 def _grow(a, n):
     if n < a.size:
@@ -123,9 +180,14 @@ def _grow(a, n):
 
 @njit(cache=True)
 def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_index, wave, cur, has_cur, dt_h, n_times, P, rate,
-                start, goal, t_start_h, f_start, deadline_h, k_bucket, relax, v_top_kn, fuel_per_nmi_min, radius, max_labels):
+                start, goal, t_start_h, f_start, deadline_h, k_bucket, relax, hull_x, hull_y, f_upper, radius, max_labels, front_cap,
+                eps_f):
     """Least fuel from ``start`` (reached at ``t_start_h`` with ``f_start`` fuel) to ``goal`` by
-    ``deadline_h``, settings ``P[s]`` (parameter vectors) at ``rate[s]`` [fuel per hour].
+    ``deadline_h``, settings ``P[s]`` (parameter vectors) at ``rate[s]`` [fuel per hour], below
+    ``f_upper`` (a known route's fuel, or inf). ``hull_x, hull_y``: the fuel bound's envelope
+    (:func:`fuel_bound`); ``front_cap``: labels remembered per node for pruning at push time;
+    ``eps_f``: the fuel resolution (the route: a label within ``eps_f`` of an earlier one's fuel is
+    dropped; the bound: fuels are rounded down to multiples of it).
 
     Returns ``(lt, lf, lnode, lpar, lspd, n_labels, goal_labels, n_goal, settled, status)``: the
     label arrays (time, fuel, node, parent label, setting index or -1 for a wait), the settled
@@ -146,7 +208,10 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
     best_f = np.full(n, np.inf)  # least fuel settled at the node
     prev_f = np.full(n, np.inf)  # least fuel settled in the node's earlier buckets
     last_b = np.full(n, -(2**62), dtype=np.int64)
-    tmin_b = np.full(n, np.inf)  # earliest time settled in last_b
+    earliest = np.full(n, np.inf)  # earliest time settled at the node
+    first_t = np.full(n, np.inf)  # earliest time of any label created at the node
+    tent_b = np.full(n, -(2**62), dtype=np.int64)  # the latest bucket a label was created in at the node
+    tent_f = np.full(n, np.inf)  # and the least fuel created there
     cap = 1 << 16
     lt = np.empty(cap)
     lf = np.empty(cap)
@@ -157,22 +222,34 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
     hf = np.empty(1 << 14)
     hv = np.empty(1 << 14, dtype=np.int64)
     size = 0
+    js = start // nx
+    dist[start] = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[js] + crow[js] * scol[start - js * nx])))
     lt[0], lf[0], lnode[0], lpar[0], lspd[0] = t_start_h, f_start, start, -1, -2
     nl = 1
     b0 = int(math.floor((t_start_h - origin) / delta))
     hb, hf, hv, size = _hpush(hb, hf, hv, size, b0, f_start, 0)
     goal_labels = np.empty(64, dtype=np.int64)
     n_goal = 0
-    incumbent = np.inf
+    incumbent = f_upper
+    v_top_kn = hull_x[-1]
+    ft = np.full((n, front_cap), np.inf)  # per node: labels created so far (time ascending, fuel descending)
+    ff = np.full((n, front_cap), np.inf)
+    fn = np.zeros(n, dtype=np.int64)
     settled = 0
     status = 0
+    tol = 0.0 if relax else eps_f
     while size > 0:
         b, f, lab, size = _hpop(hb, hf, hv, size)
         if origin + b * delta > deadline_h + 1e-9:
             break
         u = lnode[lab]
         t = lt[lab]
-        if f >= incumbent:
+        if relax:  # the relaxation: time down to the bucket's start, fuel down to the resolution
+            t = origin + b * delta
+            if eps_f > 0.0:
+                f = math.floor(f / eps_f) * eps_f
+            lt[lab], lf[lab] = t, f
+        if f >= incumbent or (u != goal and f + fuel_bound(dist[u], deadline_h - t, hull_x, hull_y) >= incumbent):
             continue
         if lspd[lab] == -1:  # a waiting label: valid unless a label with less fuel settled at no later time
             ref = prev_f[u] if last_b[u] == b else best_f[u]
@@ -180,21 +257,19 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
                 continue
         else:
             if last_b[u] == b:
-                if f >= prev_f[u] or t >= tmin_b[u]:
-                    continue  # dominated by an earlier bucket, or a costlier later label of this bucket
-                tmin_b[u] = t
+                if t >= earliest[u] or f >= prev_f[u] - tol:
+                    continue  # a costlier label of a bucket already settled, unless the earliest of the node
+                earliest[u] = t
                 if f < best_f[u]:
                     best_f[u] = f
             else:
-                if f >= best_f[u]:
+                if f >= best_f[u] - tol:
                     continue
                 prev_f[u] = best_f[u]
                 best_f[u] = f
                 last_b[u] = b
-                tmin_b[u] = t
-            if relax:
-                t = origin + b * delta
-                lt[lab] = t
+                if t < earliest[u]:
+                    earliest[u] = t
         settled += 1
         if u == goal:
             if t <= deadline_h + 1e-9 and f < incumbent:
@@ -213,7 +288,7 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
             ju_ = u // nx
             du = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[ju_] + crow[ju_] * scol[u - ju_ * nx])))
             dist[u] = du
-        if j_u + 1 < n_sub:
+        if j_u + 1 < n_sub and f <= best_f[u]:  # only the least fuel so far waits (it covers the others)
             tw = (j_u + 1 - phase) * tau
             if tw + du / v_top_kn <= deadline_h + 1e-9:
                 lt = _grow(lt, nl)
@@ -240,7 +315,6 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
                 dv = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[jv] + crow[jv] * scol[v - jv * nx])))
                 dist[v] = dv
             t_lb = dv / v_top_kn
-            f_lb = dv * fuel_per_nmi_min
             L = elen[ju, k]
             sv = sea_index[v]
             v_j = node_slice(sv, k0, wave, cur, has_cur)
@@ -252,14 +326,33 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
                 if arr + t_lb > deadline_h + 1e-9:
                     continue
                 nf = f + rate[s] * c
-                if nf + f_lb >= incumbent or nf >= best_f[v] and arr >= tmin_b[v]:
+                if nf + fuel_bound(dv, deadline_h - arr, hull_x, hull_y) >= incumbent:
                     continue
+                bnew = int(math.floor((arr - origin) / delta))
+                tq, fq = arr, nf
+                if relax:
+                    tq = origin + bnew * delta
+                    if eps_f > 0.0:
+                        fq = math.floor(nf / eps_f) * eps_f
+                if bnew == last_b[v]:  # the pop rules above, applied early
+                    if tq >= earliest[v] or fq >= prev_f[v] - tol:
+                        continue
+                elif fq >= best_f[v] - tol:
+                    continue
+                if tq < first_t[v]:
+                    first_t[v] = tq
+                elif bnew == tent_b[v] and fq >= tent_f[v] - tol:
+                    continue  # a cheaper label of this bucket exists already: the pop rule would drop this one
+                if _front_dominated(ft, ff, fn, v, tq, fq, tol):
+                    continue
+                if bnew != tent_b[v] or fq < tent_f[v]:
+                    tent_b[v], tent_f[v] = bnew, fq
                 lt = _grow(lt, nl)
                 lf = _grow(lf, nl)
                 lnode = _grow(lnode, nl)
                 lpar = _grow(lpar, nl)
                 lspd = _grow(lspd, nl)
                 lt[nl], lf[nl], lnode[nl], lpar[nl], lspd[nl] = arr, nf, v, lab, s
-                hb, hf, hv, size = _hpush(hb, hf, hv, size, int(math.floor((arr - origin) / delta)), nf, nl)
+                hb, hf, hv, size = _hpush(hb, hf, hv, size, bnew, nf, nl)
                 nl += 1
     return lt, lf, lnode, lpar, lspd, nl, goal_labels, n_goal, settled, status

@@ -1,0 +1,191 @@
+"""The least-fuel part of a plan (:func:`routing.planner.plan_routes` with ``fuel=FuelSpec``).
+
+Adds to the plan, beside the time-optimal and minimum-distance routes:
+
+``least_fuel``                  the least-fuel (= least-CO2) mesh route arriving no later than the
+                                deadline (``FuelSpec.arrive_by``; default the time-optimal route's
+                                arrival), a speed setting per leg (``speed_setting_kn``; 0 on a wait);
+``min_distance_same_arrival``   the fair reference: the minimum-distance route at the one constant
+                                setting that arrives when ``least_fuel`` does.
+
+Every route of the plan gets ``fuel_t`` and ``co2_t``: the plain routes at the service-speed
+setting over their own ETAs (the same :func:`routing.emissions.steam2_legs`). The search's gap
+(:mod:`routing._kernels.fuel`) and the saving against the reference are in ``stats["fuel"]``.
+The start and goal legs off the mesh nodes are sailed at the service speed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from routing.astar import evaluate_path, search
+from routing.fuel import (ARRIVAL_TOL_H, FuelProblem, FuelSpec, InfeasibleArrivalError, at_utc, corridor_edges, earliest_arrival_h,
+                          fuel_summary, least_fuel, legs_fuel, rel_hours, same_arrival_reference, saving_pct)
+from routing.planner_parts import make_route
+from routing.emissions import steam2_totals
+
+FUEL_ROUTE_NAMES = ("least_fuel", "min_distance_same_arrival")
+#: Routes of the time-fuel front reported with ``FuelSpec.pareto``.
+DEFAULT_PARETO_ROUTES = 6
+
+
+def route_fuel(times_h, setting_kn, engine) -> float:
+    """Fuel [t] of a schedule: each leg at its setting over its time (:func:`routing.fuel.legs_fuel`)."""
+    return steam2_totals(legs_fuel(np.diff(np.asarray(times_h, dtype=float)), setting_kn, engine))["fuel_t"]
+
+
+def _tail_h(st, t_h: float) -> float:
+    """Hours of the leg from the goal node to the goal point at the service speed, left at ``t_h``."""
+    if not st.tail:
+        return 0.0
+    g_lat, g_lon = (float(x) for x in st.grid.node_latlon(st.goal_node))
+    times, _ = evaluate_path(st.mesh, st.wx, st.req.ship, [g_lat, st.goal[0]], [g_lon, st.goal[1]], t_start_h=t_h)
+    return float(times[-1] - times[0])
+
+
+def _full_schedule(st, sched):
+    """Polyline, times and settings of a schedule with the off-node start and goal legs (service speed)."""
+    lat, lon = st.polyline(sched.nodes)
+    times = np.asarray(sched.times_h, dtype=float)
+    setting = np.nan_to_num(np.asarray(sched.setting_kn, dtype=float), nan=0.0)
+    v0 = st.req.ship.speed_kn
+    if st.lead:
+        times, setting = np.r_[st.t0_h, times], np.r_[v0, setting]
+    if st.tail:
+        times, setting = np.r_[times, times[-1] + _tail_h(st, times[-1])], np.r_[setting, v0]
+    return lat, lon, times, setting
+
+
+def _deadline_h(st, spec: FuelSpec, routes: dict) -> tuple[float, str]:
+    if spec.arrive_by is not None:
+        return rel_hours(st.wx, spec.arrive_by), "arrive_by"
+    return rel_hours(st.wx, routes["optimal"].time_utc[-1]), "the time-optimal route's arrival"
+
+
+def _candidates(st, routes: dict, md_nodes, opt_nodes, engine, deadline_h: float) -> list:
+    """Known routes arriving by the deadline, as (source, lat, lon, times, setting, fuel): the time-optimal
+    route at the service speed, and the minimum-distance route at the constant setting that arrives at
+    the deadline. The search must beat them (its incumbent); when it cannot, the best of them is the answer."""
+    v0 = st.req.ship.speed_kn
+    out = []
+    opt = routes["optimal"]
+    lat, lon = st.polyline(opt_nodes)
+    t_opt = np.asarray(opt.time_utc.asi8 - opt.time_utc.asi8[0], dtype=float) / 3.6e12 + st.t0_h
+    if t_opt[-1] <= deadline_h + 1e-9:
+        setting = np.full(t_opt.size - 1, v0)
+        out.append(("the time-optimal route at the service speed", lat, lon, t_opt, setting, route_fuel(t_opt, setting, engine)))
+    md_lat, md_lon = st.polyline(md_nodes)
+    ref = same_arrival_reference(st.mesh, st.wx, st.req.ship, md_lat, md_lon, st.t0_h, deadline_h, engine)
+    if ref is not None and ref[1][-1] <= deadline_h + 1e-9:
+        setting = np.full(ref[1].size - 1, ref[0])
+        out.append(("the minimum-distance route at a constant setting", md_lat, md_lon, ref[1], setting, ref[2]))
+    return out
+
+
+def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props) -> dict:
+    """Add ``least_fuel`` and ``min_distance_same_arrival`` to ``routes`` (and ``fuel_t``/``co2_t`` to every
+    route); returns the ``fuel`` stats. Raises :class:`routing.fuel.InfeasibleArrivalError`."""
+    req, mesh, wx, engine = st.req, st.mesh, st.wx, spec.engine
+    prob = FuelProblem.build(mesh, wx, req.ship, spec)
+    v0 = req.ship.speed_kn
+    deadline_h, source = _deadline_h(st, spec, routes)
+    f_lead = route_fuel([st.t0_h, st.t_node_h], [v0], engine) if st.lead else 0.0
+    tail_h = _tail_h(st, deadline_h - _tail_h(st, deadline_h))
+    node_deadline = deadline_h - tail_h
+    f_tail = route_fuel([0.0, tail_h], [v0], engine) if st.tail else 0.0
+
+    def earliest():
+        e = earliest_arrival_h(mesh, wx, prob, st.start_node, st.goal_node, st.t_node_h)
+        return f"{at_utc(wx, e + _tail_h(st, e)).isoformat()} (sailing at {max(spec.speeds_kn):g} kn on every leg)"
+
+    if not node_deadline > st.t_node_h:
+        raise InfeasibleArrivalError(f"no route arrives by {at_utc(wx, deadline_h).isoformat()}: the earliest possible arrival is {earliest()}")
+    cands = _candidates(st, routes, md_nodes, opt_nodes, engine, deadline_h)
+    if spec.corridor is not None:
+        paths = [opt_nodes, md_nodes] + [search(mesh, wx, sh, st.start_node, st.goal_node, t_start_h=st.t_node_h).nodes for sh in prob.ships]
+        prob.allowed = corridor_edges(mesh, paths, spec.corridor)
+    f_upper = min((c[5] for c in cands), default=np.inf) - f_tail
+    try:
+        res = least_fuel(prob, st.start_node, st.goal_node, st.t_node_h, f_lead, node_deadline, spec, earliest=earliest, f_upper=f_upper)
+    except InfeasibleArrivalError as e:
+        raise InfeasibleArrivalError(f"no route arrives by {at_utc(wx, deadline_h).isoformat()}: {str(e).split(': ', 1)[-1]}") from None
+    if res.schedule is not None:
+        lat, lon, times, setting = _full_schedule(st, res.schedule)
+        cands.append(("search", lat, lon, times, setting, route_fuel(times, setting, engine)))
+    found = [c for c in cands if c[3][-1] <= deadline_h + 1e-6]
+    won, lat, lon, times, setting, fuel_t = min(found, key=lambda c: c[5])
+    extra = {"speed_setting_kn": [round(float(s), 6) for s in setting], "objective": spec.objective}
+    routes["least_fuel"] = make_route("least_fuel", mesh, st.mw, lat, lon, times, req.depart_utc, props("fuel", None, times, 0.0, **extra))
+    arrive_h = float(times[-1])
+    lb = res.lower_bound_t + f_tail if res.lower_bound_t == res.lower_bound_t else None
+    stats = {
+        "objective": spec.objective,
+        "speeds_kn": list(spec.speeds_kn),
+        "deadline_utc": at_utc(wx, deadline_h).isoformat(),
+        "deadline_source": source,
+        "least_fuel_from": won,
+        "lower_bound_fuel_t": None if lb is None else round(min(lb, fuel_t), 6),
+        "gap_pct": None if lb is None or fuel_t <= 0 else round(max(0.0, 100.0 * (fuel_t - lb) / fuel_t), 4),
+        "labels": res.labels,
+        "search_s": round(res.seconds, 4),
+        "buckets_per_subslice": spec.buckets_per_subslice,
+        "graph": "the whole mesh" if spec.corridor is None else (
+            f"the corridor of the time-optimal paths at every setting and the minimum-distance path (width {spec.corridor} nodes)"),
+        **fuel_summary(fuel_t, engine),
+    }
+    stats.update(_reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props))
+    for name, r in routes.items():
+        if "fuel_t" in r.properties:
+            continue
+        t = np.asarray((r.time_utc.asi8 - r.time_utc.asi8[0]) / 3.6e12, dtype=float)
+        setting = r.properties.get("speed_setting_kn") or [v0] * (t.size - 1)
+        r.properties.update(fuel_summary(route_fuel(t, setting, engine), engine))
+    if spec.pareto:
+        stats["pareto"] = pareto_front(st, prob, spec, deadline_h, f_lead)
+    return stats
+
+
+def _reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props) -> dict:
+    """The same-arrival reference route (into ``routes``) and the saving against it."""
+    md_lat, md_lon = st.polyline(md_nodes)
+    ref = same_arrival_reference(st.mesh, st.wx, st.req.ship, md_lat, md_lon, st.t0_h, arrive_h, engine)
+    if ref is None:
+        return {"reference": None, "saving_pct": None,
+                "saving_note": "no constant setting sails the minimum-distance route to the same arrival: no saving shown"}
+    s_ref, ref_times, ref_fuel = ref
+    setting = [round(s_ref, 6)] * (ref_times.size - 1)
+    routes["min_distance_same_arrival"] = make_route("min_distance_same_arrival", st.mesh, st.mw, md_lat, md_lon, ref_times, st.req.depart_utc,
+                                                     props("distance", None, ref_times, 0.0, speed_setting_kn=setting))  # fmt: skip
+    routes["min_distance_same_arrival"].properties.update(fuel_summary(ref_fuel, engine))
+    return {"reference": {"route": "min_distance_same_arrival", "setting_kn": round(s_ref, 4), "arrive_utc": at_utc(st.wx, ref_times[-1]).isoformat(),
+                          **fuel_summary(ref_fuel, engine)},
+            "saving_pct": round(saving_pct(ref_fuel, fuel_t), 4), "saving_fuel_t": round(ref_fuel - fuel_t, 6)}  # fmt: skip
+
+
+def pareto_front(st, prob, spec: FuelSpec, deadline_h: float, f_lead: float) -> list:
+    """Up to ``spec.pareto`` non-dominated (arrival, fuel) routes, from the earliest arrival to the least fuel
+    by the latest of the deadline and the slowest setting's time-optimal arrival (each: arrival, time, fuel, CO2)."""
+    slow = min(prob.ships, key=lambda s: s.speed_kn)
+    t_slow = st.t_node_h + search(st.mesh, st.wx, slow, st.start_node, st.goal_node, t_start_h=st.t_node_h).time_h
+    horizon = max(deadline_h, t_slow)
+    res = least_fuel(prob, st.start_node, st.goal_node, st.t_node_h, f_lead, horizon, spec, bound=False)
+    front = res.front
+    if len(front) > spec.pareto:
+        pick = np.unique(np.round(np.linspace(0, len(front) - 1, spec.pareto)).astype(int))
+        front = [front[i] for i in pick]
+    rows = []
+    for sched in front:
+        lat, lon, times, setting = _full_schedule(st, sched)
+        fuel = route_fuel(times, setting, spec.engine)
+        rows.append({"arrive_utc": at_utc(st.wx, times[-1]).isoformat(), "time_h": round(float(times[-1] - st.t0_h), 4),
+                     "dist_nmi": round(float(np.sum(_legs_nmi(lat, lon))), 4), **fuel_summary(fuel, spec.engine)})  # fmt: skip
+    return rows
+
+
+def _legs_nmi(lat, lon):
+    from thresholds.geodesy import haversine_nmi
+
+    return np.asarray(haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]))
+
+
+__all__ = ["FUEL_ROUTE_NAMES", "fuel_routes", "route_fuel", "ARRIVAL_TOL_H"]
