@@ -332,7 +332,13 @@ def evaluate_route(
         leg_loss = np.divide(num, den, out=np.zeros(n_legs), where=den > 0)
     else:
         leg_loss = np.zeros(n_legs)
-    legs = steam2_legs(leg_dt, route.leg_speed_kn, leg_loss, Engine.from_vessel(vessel))
+    setting = route.properties.get("speed_setting_kn")
+    if setting is not None and len(setting) == n_legs:
+        # a route planned with a speed setting per leg (routing.fuel; 0 = a wait): the engine ran that setting, so the
+        # power is P(setting) (leg_power_kw with made + loss = setting), the loss re-evaluated at the setting in the weather met
+        legs = setting_legs(leg_dt, np.asarray(setting, dtype=float), samples, weather, enc, speed_loss_model, vessel)
+    else:
+        legs = steam2_legs(leg_dt, route.leg_speed_kn, leg_loss, Engine.from_vessel(vessel))
     legs.insert(0, "leg", np.arange(n_legs))
     emissions = steam2_totals(legs)
 
@@ -379,6 +385,35 @@ def evaluate_route(
         "weather_vars": sorted(weather),
     }
     return RouteEvaluation(evaluated, samples, legs, summary, events)
+
+
+def setting_legs(leg_dt, setting_kn, samples: pd.DataFrame, weather: dict, enc, model: str, vessel) -> pd.DataFrame:
+    """STEAM2 legs of a route sailed at a known setting per leg (``speed_setting_kn``, 0 on a wait).
+
+    The loss of each sample at its leg's setting (``model`` in the weather met, 0 = calm), averaged over
+    the leg's time; the leg's speed through the water ``setting - loss`` (at least the vessel's floor)
+    and that loss give the power ``P(setting)`` (:func:`routing.emissions.leg_power_kw`: the wave
+    increase restores the setting), over the leg's time: the fuel the planner charged
+    (:mod:`routing.fuel`). A wait burns nothing (speed 0).
+    """
+    from routing.speed_loss import speed_loss
+
+    n_legs = len(setting_kn)
+    loss = np.zeros(n_legs)
+    if len(samples):
+        leg = samples["leg"].to_numpy()
+        s = setting_kn[leg]
+        hs = np.nan_to_num(weather.get("hs_m", np.zeros(len(samples))), nan=0.0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            per = np.where(s > 0, np.asarray(speed_loss(np.maximum(s, 1e-9), hs, np.nan_to_num(enc, nan=0.0), model, vessel=vessel),
+                                             dtype=float).reshape(-1), 0.0)  # fmt: skip
+        w = samples["dt_h"].to_numpy()
+        den = np.bincount(leg, weights=w, minlength=n_legs)
+        loss = np.divide(np.bincount(leg, weights=per * w, minlength=n_legs), den, out=np.zeros(n_legs), where=den > 0)
+    floor = np.minimum(float(vessel.min_speed_kn), setting_kn)  # the speed models never drop below the floor
+    through_water = np.where(setting_kn > 0, np.maximum(setting_kn - loss, floor), 0.0)
+    return steam2_legs(leg_dt, through_water, setting_kn - through_water, Engine.from_vessel(vessel))
 
 
 def land_summary(route: Route) -> dict:

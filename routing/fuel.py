@@ -51,6 +51,8 @@ from thresholds.units import EARTH_RADIUS_NMI
 #: container fleet's 2012-2018 speed reductions reached about 0.6-0.7 of design speed).
 DEFAULT_SPEED_STEPS = 8
 DEFAULT_LOW_FRAC = 0.6
+#: Routes of the time-fuel front reported with ``--pareto``.
+DEFAULT_PARETO_ROUTES = 6
 #: Time buckets per quarter-hour sub-slice of the labels (3 min for hourly weather).
 DEFAULT_BUCKETS_PER_SUBSLICE = 5
 #: Labels the search may create before it stops with an error (about 45 bytes each).
@@ -339,12 +341,13 @@ def rel_hours(wx: WeatherArrays, when) -> float:
 
 
 def at_utc(wx: WeatherArrays, t_h: float) -> pd.Timestamp:
-    return pd.Timestamp(int(round((wx.time0_ns or 0) + t_h * NS_PER_HOUR)), tz="UTC")
+    """The time ``t_h`` hours after the weather's slice 0, to the second."""
+    return pd.Timestamp(int(round((wx.time0_ns or 0) + t_h * NS_PER_HOUR)), tz="UTC").round("s")
 
 
 def fuel_summary(fuel_t: float, engine: Engine) -> dict:
     """Fuel and CO2 of a route [t]."""
-    return {"fuel_t": round(float(fuel_t), 6), "co2_t": round(float(fuel_t) * co2_per_fuel(engine), 6)}
+    return {"fuel_t": round(float(fuel_t), 9), "co2_t": round(float(fuel_t) * co2_per_fuel(engine), 9)}
 
 
 def saving_pct(reference_t: float, value_t: float) -> float:

@@ -17,16 +17,26 @@ The start and goal legs off the mesh nodes are sailed at the service speed.
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 
 from routing.astar import evaluate_path, search
-from routing.fuel import (ARRIVAL_TOL_H, FuelProblem, FuelSpec, InfeasibleArrivalError, at_utc, corridor_edges, earliest_arrival_h,
-                          fuel_summary, least_fuel, legs_fuel, rel_hours, same_arrival_reference, saving_pct)
+from routing.fuel import (FuelProblem, FuelSpec, InfeasibleArrivalError, corridor_edges, earliest_arrival_h, fuel_summary, least_fuel,
+                          legs_fuel, same_arrival_reference, saving_pct)
 from routing.planner_parts import make_route
 from routing.emissions import steam2_totals
+from routing.field import NS_PER_HOUR
 
 FUEL_ROUTE_NAMES = ("least_fuel", "min_distance_same_arrival")
-#: Routes of the time-fuel front reported with ``FuelSpec.pareto``.
-DEFAULT_PARETO_ROUTES = 6
+
+
+def _h(st, when) -> float:
+    """A time as the plan's hours (after the weather's slice 0; after departure in a calm sea)."""
+    return st.t0_h + (pd.Timestamp(when).value - st.req.depart_utc.value) / NS_PER_HOUR
+
+
+def _utc(st, t_h: float) -> pd.Timestamp:
+    """The plan's hours as a time, to the second."""
+    return (st.req.depart_utc + pd.Timedelta(hours=float(t_h) - st.t0_h)).round("s")
 
 
 def route_fuel(times_h, setting_kn, engine) -> float:
@@ -58,28 +68,22 @@ def _full_schedule(st, sched):
 
 def _deadline_h(st, spec: FuelSpec, routes: dict) -> tuple[float, str]:
     if spec.arrive_by is not None:
-        return rel_hours(st.wx, spec.arrive_by), "arrive_by"
-    return rel_hours(st.wx, routes["optimal"].time_utc[-1]), "the time-optimal route's arrival"
+        return _h(st, spec.arrive_by), "arrive_by"
+    return _h(st, routes["optimal"].time_utc[-1]), "the time-optimal route's arrival"
 
 
-def _candidates(st, routes: dict, md_nodes, opt_nodes, engine, deadline_h: float) -> list:
-    """Known routes arriving by the deadline, as (source, lat, lon, times, setting, fuel): the time-optimal
-    route at the service speed, and the minimum-distance route at the constant setting that arrives at
-    the deadline. The search must beat them (its incumbent); when it cannot, the best of them is the answer."""
+def _candidates(st, routes: dict, opt_nodes, spec: FuelSpec, deadline_h: float) -> list:
+    """Known routes of the model arriving by the deadline, as (source, lat, lon, times, setting, fuel): the
+    time-optimal route at the service speed when that is one of the settings. The search must beat it (its
+    incumbent); when it cannot, it is the answer (so least fuel never exceeds the time-optimal route's)."""
     v0 = st.req.ship.speed_kn
-    out = []
     opt = routes["optimal"]
-    lat, lon = st.polyline(opt_nodes)
     t_opt = np.asarray(opt.time_utc.asi8 - opt.time_utc.asi8[0], dtype=float) / 3.6e12 + st.t0_h
-    if t_opt[-1] <= deadline_h + 1e-9:
-        setting = np.full(t_opt.size - 1, v0)
-        out.append(("the time-optimal route at the service speed", lat, lon, t_opt, setting, route_fuel(t_opt, setting, engine)))
-    md_lat, md_lon = st.polyline(md_nodes)
-    ref = same_arrival_reference(st.mesh, st.wx, st.req.ship, md_lat, md_lon, st.t0_h, deadline_h, engine)
-    if ref is not None and ref[1][-1] <= deadline_h + 1e-9:
-        setting = np.full(ref[1].size - 1, ref[0])
-        out.append(("the minimum-distance route at a constant setting", md_lat, md_lon, ref[1], setting, ref[2]))
-    return out
+    if not (any(abs(s - v0) < 1e-9 for s in spec.speeds_kn) and t_opt[-1] <= deadline_h + 1e-9):
+        return []
+    lat, lon = st.polyline(opt_nodes)
+    setting = np.full(t_opt.size - 1, v0)
+    return [("the time-optimal route at the service speed", lat, lon, t_opt, setting, route_fuel(t_opt, setting, spec.engine))]
 
 
 def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props) -> dict:
@@ -96,11 +100,11 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props) ->
 
     def earliest():
         e = earliest_arrival_h(mesh, wx, prob, st.start_node, st.goal_node, st.t_node_h)
-        return f"{at_utc(wx, e + _tail_h(st, e)).isoformat()} (sailing at {max(spec.speeds_kn):g} kn on every leg)"
+        return f"{_utc(st, e + _tail_h(st, e)).isoformat()} (sailing at {max(spec.speeds_kn):g} kn on every leg)"
 
     if not node_deadline > st.t_node_h:
-        raise InfeasibleArrivalError(f"no route arrives by {at_utc(wx, deadline_h).isoformat()}: the earliest possible arrival is {earliest()}")
-    cands = _candidates(st, routes, md_nodes, opt_nodes, engine, deadline_h)
+        raise InfeasibleArrivalError(f"no route arrives by {_utc(st, deadline_h).isoformat()}: the earliest possible arrival is {earliest()}")
+    cands = _candidates(st, routes, opt_nodes, spec, deadline_h)
     if spec.corridor is not None:
         paths = [opt_nodes, md_nodes] + [search(mesh, wx, sh, st.start_node, st.goal_node, t_start_h=st.t_node_h).nodes for sh in prob.ships]
         prob.allowed = corridor_edges(mesh, paths, spec.corridor)
@@ -108,7 +112,7 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props) ->
     try:
         res = least_fuel(prob, st.start_node, st.goal_node, st.t_node_h, f_lead, node_deadline, spec, earliest=earliest, f_upper=f_upper)
     except InfeasibleArrivalError as e:
-        raise InfeasibleArrivalError(f"no route arrives by {at_utc(wx, deadline_h).isoformat()}: {str(e).split(': ', 1)[-1]}") from None
+        raise InfeasibleArrivalError(f"no route arrives by {_utc(st, deadline_h).isoformat()}: {str(e).split(': ', 1)[-1]}") from None
     if res.schedule is not None:
         lat, lon, times, setting = _full_schedule(st, res.schedule)
         cands.append(("search", lat, lon, times, setting, route_fuel(times, setting, engine)))
@@ -121,11 +125,12 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props) ->
     stats = {
         "objective": spec.objective,
         "speeds_kn": list(spec.speeds_kn),
-        "deadline_utc": at_utc(wx, deadline_h).isoformat(),
+        "deadline_utc": _utc(st, deadline_h).isoformat(),
         "deadline_source": source,
         "least_fuel_from": won,
         "lower_bound_fuel_t": None if lb is None else round(min(lb, fuel_t), 6),
         "gap_pct": None if lb is None or fuel_t <= 0 else round(max(0.0, 100.0 * (fuel_t - lb) / fuel_t), 4),
+        "search_fuel_t": None if res.schedule is None else round(res.schedule.fuel_t + f_tail, 9),  # the kernel's sum of rate x time
         "labels": res.labels,
         "search_s": round(res.seconds, 4),
         "buckets_per_subslice": spec.buckets_per_subslice,
@@ -157,7 +162,7 @@ def _reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props) -> dict:
     routes["min_distance_same_arrival"] = make_route("min_distance_same_arrival", st.mesh, st.mw, md_lat, md_lon, ref_times, st.req.depart_utc,
                                                      props("distance", None, ref_times, 0.0, speed_setting_kn=setting))  # fmt: skip
     routes["min_distance_same_arrival"].properties.update(fuel_summary(ref_fuel, engine))
-    return {"reference": {"route": "min_distance_same_arrival", "setting_kn": round(s_ref, 4), "arrive_utc": at_utc(st.wx, ref_times[-1]).isoformat(),
+    return {"reference": {"route": "min_distance_same_arrival", "setting_kn": round(s_ref, 4), "arrive_utc": _utc(st, ref_times[-1]).isoformat(),
                           **fuel_summary(ref_fuel, engine)},
             "saving_pct": round(saving_pct(ref_fuel, fuel_t), 4), "saving_fuel_t": round(ref_fuel - fuel_t, 6)}  # fmt: skip
 
@@ -177,7 +182,7 @@ def pareto_front(st, prob, spec: FuelSpec, deadline_h: float, f_lead: float) -> 
     for sched in front:
         lat, lon, times, setting = _full_schedule(st, sched)
         fuel = route_fuel(times, setting, spec.engine)
-        rows.append({"arrive_utc": at_utc(st.wx, times[-1]).isoformat(), "time_h": round(float(times[-1] - st.t0_h), 4),
+        rows.append({"arrive_utc": _utc(st, times[-1]).isoformat(), "time_h": round(float(times[-1] - st.t0_h), 4),
                      "dist_nmi": round(float(np.sum(_legs_nmi(lat, lon))), 4), **fuel_summary(fuel, spec.engine)})  # fmt: skip
     return rows
 
@@ -188,4 +193,4 @@ def _legs_nmi(lat, lon):
     return np.asarray(haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]))
 
 
-__all__ = ["FUEL_ROUTE_NAMES", "fuel_routes", "route_fuel", "ARRIVAL_TOL_H"]
+__all__ = ["FUEL_ROUTE_NAMES", "fuel_routes", "route_fuel"]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 from test_routing_optimality import SUBSTEP_H, build, random_weather, ship_for, slice_costs
 
@@ -86,3 +87,128 @@ def test_least_fuel_equals_brute_force_and_lies_within_its_gap(model):
             assert res.schedule.times_h[-1] <= deadline + 1e-9
             fine = least_fuel(prob, start, goal, t0, 0.0, deadline, FuelSpec(SPEEDS, ENGINE, buckets_per_subslice=100_000, fuel_resolution_frac=0.0))
             assert fine.schedule.fuel_t == pytest.approx(ref, rel=1e-9), (seed, slack)
+
+
+# ------------------------------------------------------------------ plans: same functions, same fuel; Zermelo; monotone
+
+
+def zermelo_field(cur_east_kn=2.0, cur_north_kn=2.0, hs=0.0):
+    """A uniform current and a uniform sea over 0-1 N, 0-3 E (hourly, 2 days)."""
+    from routing.field import WeatherField
+    from thresholds.units import MS_PER_KN
+
+    lat = np.round(np.arange(-0.5, 1.51, 0.25), 6)
+    lon = np.round(np.arange(-0.5, 3.51, 0.25), 6)
+    times = pd.date_range("2024-01-01", periods=49, freq="1h", tz="UTC")
+    shape = (times.size, lat.size, lon.size)
+    return WeatherField(times.asi8, lat, lon, {"hs_m": np.full(shape, hs), "wave_from_deg": np.full(shape, 90.0),
+                                               "current_u_ms": np.full(shape, cur_east_kn * MS_PER_KN),
+                                               "current_v_ms": np.full(shape, cur_north_kn * MS_PER_KN)})  # fmt: skip
+
+
+def zermelo_plan(spec=None, speed_kn=12.0, **kw):
+    from pipelines.config import load_vessel
+    from routing.astar import ShipModel
+    from routing.planner import RouteRequest, plan_routes
+
+    v = load_vessel("container-feeder")
+    req = RouteRequest((0.0, 0.0), (0.0, 3.0), pd.Timestamp("2024-01-01T00:00Z"), ShipModel.from_vessel(v, "bowditch", speed_kn=speed_kn),
+                       spacing_deg=0.05, bbox=(-0.25, -0.25, 3.25, 0.25), edges=16, ignore_land=True, vessel_name=v.name)  # fmt: skip
+    return plan_routes(req, zermelo_field(**kw), fuel=spec), v
+
+
+def test_zermelo_uniform_current_time_and_fuel_match_the_closed_form():
+    """Zermelo's problem with a uniform current (2 kn east + 2 kn north) on the equator: the ship holds
+    its course by crabbing, over ground sqrt(v^2 - c_cross^2) + c_along (E. Zermelo, "Uber das
+    Navigationsproblem bei ruhender oder veranderlicher Windverteilung," Z. Angew. Math. Mech. 11,
+    114-124, 1931). Time: d / that speed. Least fuel by a deadline T with settings s_i: T phi(d / T),
+    phi the lower convex envelope of (0, 0) and (sog(s_i), rate(s_i)) (mixing two settings; Jensen), a
+    lower bound the mesh route meets within its discretisation."""
+    from routing.emissions import Engine
+    from routing.fuel import lower_envelope
+    from thresholds.geodesy import haversine_nmi
+
+    d = float(haversine_nmi(0.0, 0.0, 0.0, 3.0))
+    plan, v = zermelo_plan()
+    sog = math.sqrt(12.0**2 - 2.0**2) + 2.0
+    assert plan.routes["optimal"].time_h == pytest.approx(d / sog, rel=1e-9)
+    eng = Engine.from_vessel(v)
+    speeds = (8.0, 10.0, 12.0, 14.0)
+    T = d / (math.sqrt(11.0**2 - 4.0) + 2.0)  # between the 10 and 12 kn settings
+    spec = FuelSpec(speeds, eng, arrive_by=pd.Timestamp("2024-01-01T00:00Z") + pd.Timedelta(hours=T), buckets_per_subslice=20)
+    plan, _ = zermelo_plan(spec)
+    hx, hy = lower_envelope([math.sqrt(s * s - 4.0) + 2.0 for s in speeds], fuel_rates_t_per_h(speeds, eng))
+    analytic = T * float(np.interp(d / T, hx, hy))
+    f = plan.stats["fuel"]
+    lf = plan.routes["least_fuel"]
+    assert lf.time_h <= T + 1e-9
+    assert analytic <= f["fuel_t"] + 1e-9 and f["fuel_t"] <= analytic * 1.01
+    assert f["lower_bound_fuel_t"] <= f["fuel_t"]
+    assert set(np.round(lf.properties["speed_setting_kn"], 6)) <= {10.0, 12.0}  # the two settings around 11 kn (no waits needed)
+
+
+def test_planned_fuel_equals_evaluated_fuel_and_the_kernels_sum():
+    """The least-fuel route's fuel (routing.emissions.steam2_legs over its legs at their settings) equals the
+    search kernel's sum of rate x time, and routing.evaluate.evaluate_route's STEAM2 fuel of the same route
+    in the same weather (a uniform sea: the loss the evaluation samples is the planner's)."""
+    from routing.emissions import Engine
+    from routing.evaluate import evaluate_route
+
+    from pipelines.config import load_vessel
+
+    v = load_vessel("container-feeder")
+    eng = Engine.from_vessel(v)
+    spec = FuelSpec((9.0, 12.0, 15.0, 17.0), eng, arrive_by=pd.Timestamp("2024-01-01T17:00Z"))
+    plan, _ = zermelo_plan(spec, speed_kn=17.0, cur_east_kn=0.0, cur_north_kn=0.0, hs=3.0)
+    f = plan.stats["fuel"]
+    lf = plan.routes["least_fuel"]
+    assert f["search_fuel_t"] == pytest.approx(f["fuel_t"], rel=1e-9)
+    assert lf.properties["fuel_t"] == pytest.approx(f["fuel_t"], rel=1e-6)
+
+    def uniform(times, lat, lon):
+        n = np.size(lat)
+        return {"hs_m": np.full(n, 3.0), "wave_from_deg": np.full(n, 90.0)}
+
+    ev = evaluate_route(lf, uniform, v, speed_loss_model="bowditch")
+    assert ev.summary["fuel_t"] == pytest.approx(f["fuel_t"], rel=1e-9)
+    # the reference arrives with the least-fuel route; in a uniform sea nothing beats the shortest route at the one
+    # constant speed that meets the arrival (the fuel rate is convex in the speed: Jensen), so the 'saving' is <= 0
+    ref = plan.routes["min_distance_same_arrival"]
+    assert abs((ref.time_utc[-1] - lf.time_utc[-1]) / pd.Timedelta(hours=1)) <= 1.0 / 60.0
+    assert -5.0 < f["saving_pct"] <= 1e-6
+
+
+def test_later_arrival_never_costs_more_and_least_fuel_beats_the_time_optimal_route():
+    """On rough random weather and the whole mesh with exact dominance: fuel falls (weakly) as the deadline
+    moves later, and at the time-optimal route's arrival it is no more than that route's fuel."""
+    mesh, wx, ship, spec, prob, costs, rng = setup(7, ny=4, nx=4, n_times=6)
+    start, goal = 0, mesh.n_nodes - 1
+    exact = FuelSpec(SPEEDS, ENGINE, corridor=None, buckets_per_subslice=100_000, fuel_resolution_frac=0.0)
+    fast = search(mesh, wx, prob.ships[-1], start, goal, t_start_h=0.2).time_h
+    fuels = [least_fuel(prob, start, goal, 0.2, 0.0, 0.2 + m * fast, exact, bound=False).schedule.fuel_t for m in (1.0, 1.2, 1.5, 2.0, 3.0)]
+    assert all(b <= a + 1e-12 for a, b in zip(fuels, fuels[1:])), fuels
+    opt = search(mesh, wx, prob.ships[1], start, goal, t_start_h=0.2)  # the time-optimal route at 12 kn
+    lf = least_fuel(prob, start, goal, 0.2, 0.0, 0.2 + opt.time_h, exact, bound=False).schedule.fuel_t
+    assert lf <= prob.rate[1] * opt.time_h + 1e-12
+
+
+def test_cli_fuel_objective_json_and_errors(capsys):
+    from cli_runner import run_cli
+
+    base = ["route", "--from", "10,0", "--to", "10,2", "--depart", "2021-03-01T06:00Z", "--mesh-deg", "0.25", "--ignore-land",
+            "--vessel", "container-feeder"]
+    code, out, err = run_cli(capsys, *base, "--objective", "fuel", "--speeds", "10,14,17", "--arrive-by", "2021-03-02T06:00Z", "--json")
+    assert code == 0, err
+    import json
+
+    data = json.loads(out)
+    f = data["fuel"]
+    assert data["least_fuel"]["fuel_t"] == pytest.approx(f["fuel_t"])
+    assert set(data["least_fuel"]["speed_setting_kn"]) <= {0.0, 10.0}  # calm sea, a day to spare: the slowest setting, and waits
+    assert f["reference"]["route"] == "min_distance_same_arrival" and f["saving_pct"] >= -1e-9
+    code, out, err = run_cli(capsys, *base, "--objective", "co2", "--arrive-by", "2021-03-01T08:00Z")
+    assert code == 2 and err.startswith("error: no route arrives by 2021-03-01T08:00:00+00:00: the earliest possible arrival is 2021-03-01T1")
+    code, out, err = run_cli(capsys, *base, "--objective", "fuel", "--speeds", "10,30")
+    assert code == 2 and "above vessel container-feeder's maximum-power speed 21.46 kn" in err
+    code, out, err = run_cli(capsys, *base, "--arrive-by", "2021-03-01T08:00Z")
+    assert code == 2 and "apply with --objective fuel|co2" in err

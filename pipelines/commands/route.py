@@ -6,6 +6,7 @@ from pathlib import Path
 
 import typer
 
+from pipelines.commands._route_fuel import echo_fuel, fuel_spec
 from pipelines.commands._common import (VESSEL_WITHOUT_AIS, JsonOption, ProfileOption, SpeedLossOption, check_output_file, emit_json,
                                         note, vessel_option, weather_option, xarray_without_dask_arrays)
 
@@ -64,6 +65,19 @@ def register(app: typer.Typer) -> None:
         safety_penalty: float = typer.Option(
             10.0, "--safety-penalty", min=0.0, metavar="H", show_default=True, help="Soft safety: extra hours of cost per hour sailed over the limits."
         ),
+        objective: str = typer.Option("time", "--objective", metavar="time|fuel|co2", show_default=True,
+                                      help="What the extra route minimises: time (the time-optimal route only), fuel or co2 (least_fuel: a speed "
+                                           "setting per leg, arriving by --arrive-by, default the time-optimal arrival; CO2 is proportional to fuel)."),
+        speeds: str = typer.Option(None, "--speeds", metavar="KN,KN,...", help="Calm-water speed settings to choose from on every leg (fuel/co2)."),
+        speed_range: str = typer.Option(None, "--speed-range", metavar="MIN,MAX", help="Speed settings evenly over MIN..MAX kn (with --speed-steps); "
+                                        "default 60 % of the service speed up to the speed at the engine's maximum power, plus the service speed."),
+        speed_steps: int = typer.Option(None, "--speed-steps", min=1, metavar="K", help="Number of settings over --speed-range (default 8)."),
+        arrive_by: str = typer.Option(None, "--arrive-by", "--eta", metavar="ISO", help="Latest arrival (fuel/co2): least fuel among routes arriving no later."),
+        pareto: bool = typer.Option(False, "--pareto", help="Also the time-fuel front: a handful of non-dominated (arrival, fuel) routes (fuel/co2)."),
+        fuel_buckets: int = typer.Option(5, "--fuel-buckets", min=1, metavar="K", show_default=True, help="Time buckets per quarter-hour of the least-fuel labels (finer: smaller gap, slower)."),
+        fuel_corridor: str = typer.Option("0", "--fuel-corridor", metavar="W|full", show_default=True,
+                                          help="Graph of the least-fuel search: W mesh nodes around the time-optimal paths of every setting and the "
+                                               "minimum-distance path, or full (the whole mesh; exact but slow on large meshes)."),
         json_out: bool = JsonOption,
         out: Path = typer.Option(None, "--out", metavar="FILE.geojson|gpx|rtz", callback=lambda v: check_output_file(v, "--out"),
                                  help="Also write the routes to this file (the format from the suffix)."),
@@ -73,6 +87,8 @@ def register(app: typer.Typer) -> None:
         The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time); a route that arrives after the last weather time (whose last field is then held) also has weather_held_after_h; "speed_loss" names the model with its convention or range; "notes" lists what the table prints as note: lines, first the speed-loss model and what it rests on (a wave direction the weather lacks is taken as head seas; Kwon reads the wind; an antimeridian crossing), then points moved to sea and weather held.
 
 A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 000 dwt and 9-20 kn; Kwon: Cb 0.55-0.85, a positive speed-reduction coefficient), and a model whose variable the weather lacks is refused naming it and the files (waves for bowditch, aertssen, khokhlov; the 10 m wind for kwon). The ship may wait or slow down where that arrives earlier (the optimum under weather whose sailing times jump with time). Routes may cross the antimeridian (--bbox 170,30,-160,50 or 170,30,200,50).
+
+        With --objective fuel|co2 two more routes: least_fuel (a speed setting per leg out of --speeds or --speed-range/--speed-steps, each leg slowed by the speed-loss model at its setting, never above the engine's maximum power; STEAM2 fuel; waits allowed; the least fuel arriving by --arrive-by, default the time-optimal route's arrival; an arrival no route can meet is refused with the earliest possible one) and min_distance_same_arrival (the minimum-distance route at the one constant setting that arrives at the same time: the reference of the saving); every route reports fuel_t and co2_t, and a "fuel" object gives the search's lower bound and gap, the reference and the saving (and with --pareto the time-fuel front).
 
         With --safety soft|hard two more routes respect the vessel's limits (safe_optimal, safe_optimal_smoothed), every route reports hours_over_limits (operator + IMO rules at its own ETAs), hours_by_rule and unsafe_cell_h, and a "safety" object says which mode ran (hard falls back to soft when no route keeps within the limits).
 
@@ -89,7 +105,7 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
         from pipelines.times import utc_or_none
         from pipelines.vessels import DEFAULT_VESSEL
         from routing.astar import ShipModel
-        from routing.planner import RouteRequest, plan_routes
+        from routing.planner import FUEL_ROUTE_NAMES, RouteRequest, plan_routes
         from routing.speed_loss import AERTSSEN_BANDS, MODELS
 
         if mesh_nmi is not None and mesh_deg is not None:
@@ -118,6 +134,7 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
         ship_vessel = load_vessel(vessel or DEFAULT_VESSEL)
         ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn, aertssen_bands=aertssen_bands)
+        fspec = fuel_spec(ship_vessel, objective, speeds, speed_range, speed_steps, arrive_by, pareto, fuel_buckets, fuel_corridor)
         limits = None
         if safety != "none":
             from pipelines.config import load_operator_profile
@@ -141,8 +158,8 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
             start, goal, t, ship, spacing_deg=spacing, bbox=box, edges=edges, ignore_land=ignore_land,
             snap_limit_nmi=snap_nmi, vessel_name=ship_vessel.name,
         )  # fmt: skip
-        plan = plan_routes(req, field, safety=safety, vessel=ship_vessel, limits=limits, penalty_per_h=safety_penalty)
-        names = ROUTE_NAMES + (SAFE_ROUTE_NAMES if safety != "none" else ())
+        plan = plan_routes(req, field, safety=safety, vessel=ship_vessel, limits=limits, penalty_per_h=safety_penalty, fuel=fspec)
+        names = ROUTE_NAMES + (SAFE_ROUTE_NAMES if safety != "none" else ()) + tuple(n for n in FUEL_ROUTE_NAMES if n in plan.routes)
         notes = list(plan.notes)  # the model and what it rests on, said in every output
         for what, key in (("start", "start_snap_nmi"), ("goal", "goal_snap_nmi")):
             moved = plan.routes["optimal"].properties.get(key, 0.0)
@@ -177,13 +194,19 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
             typer.echo(f"safety {sf['requested']}" + (f" (ran {sf['mode']}: no route keeps within the limits)" if sf["fallback"] else "")
                        + f"; limits {sf['operator_limits'] or 'none'}, IMO rules {'on' if sf['imo_rules'] else 'off'}"
                        + (f"; not evaluated: {'; '.join(sf['rules_not_evaluated'])}" if sf["rules_not_evaluated"] else ""))
-        typer.echo(f"{'route':<22}{'time_h':>9}{'dist_nmi':>10}{'max_hs_m':>10}{'waypoints':>11}" + (f"{'over_limits_h':>15}" if over else ""))
+        fuel_cols = fspec is not None
+        typer.echo(f"{'route':<26}{'time_h':>9}{'dist_nmi':>10}{'max_hs_m':>10}{'waypoints':>11}" + (f"{'over_limits_h':>15}" if over else "")
+                   + (f"{'fuel_t':>10}{'co2_t':>10}" if fuel_cols else ""))
         for name in names:
             r = plan.routes[name]
             hs = "" if r.max_hs_m != r.max_hs_m else f"{r.max_hs_m:.2f}"
-            line = f"{name:<22}{r.time_h:>9.2f}{r.dist_nmi:>10.2f}{hs:>10}{r.n_waypoints:>11d}"
-            if over and "hours_over_limits" in r.properties:
-                line += f"{r.properties['hours_over_limits']:>15.2f}"
+            line = f"{name:<26}{r.time_h:>9.2f}{r.dist_nmi:>10.2f}{hs:>10}{r.n_waypoints:>11d}"
+            if over:
+                line += f"{r.properties['hours_over_limits']:>15.2f}" if "hours_over_limits" in r.properties else f"{'':>15}"
+            if fuel_cols:
+                line += f"{r.properties['fuel_t']:>10.3f}{r.properties['co2_t']:>10.3f}"
             typer.echo(line)
+        if fuel_cols:
+            echo_fuel(plan)
         if held:
             typer.echo(f"note: {notes[-1]}")

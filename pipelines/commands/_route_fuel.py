@@ -1,0 +1,80 @@
+"""The fuel objective of `stormlane route`: options -> :class:`routing.fuel.FuelSpec`, and the lines
+the table prints about the least-fuel route, its reference and the time-fuel front."""
+
+from __future__ import annotations
+
+import typer
+
+OBJECTIVES = ("time", "fuel", "co2")
+
+
+def _float_list(text: str, option: str) -> list[float]:
+    try:
+        return [float(p) for p in str(text).split(",") if p.strip()]
+    except ValueError:
+        raise typer.BadParameter(f"expected comma-separated speeds in knots, got {text!r}", param_hint=option) from None
+
+
+def fuel_spec(vessel, objective: str, speeds: str | None, speed_range: str | None, speed_steps: int | None, arrive_by: str | None,
+              pareto: bool, buckets: int, corridor: str):
+    """The FuelSpec of the options, or None for ``--objective time`` (which refuses the fuel options)."""
+    from pipelines.times import utc_or_none
+    from routing.emissions import Engine
+    from routing.fuel import DEFAULT_PARETO_ROUTES, FuelSpec, speed_settings
+
+    if objective not in OBJECTIVES:
+        raise typer.BadParameter(f"{objective!r} is not one of {', '.join(OBJECTIVES)}", param_hint="--objective")
+    if objective == "time":
+        given = [name for name, v in (("--speeds", speeds), ("--speed-range", speed_range), ("--speed-steps", speed_steps),
+                                      ("--arrive-by/--eta", arrive_by), ("--pareto", pareto or None)) if v is not None]  # fmt: skip
+        if given:
+            raise typer.BadParameter(f"{', '.join(given)} apply with --objective fuel|co2", param_hint="--objective")
+        return None
+    if speeds is not None and (speed_range is not None or speed_steps is not None):
+        raise typer.BadParameter("give either --speeds or --speed-range/--speed-steps, not both", param_hint="--speeds")
+    rng = None
+    if speed_range is not None:
+        rng = _float_list(speed_range, "--speed-range")
+        if len(rng) != 2 or not 0 < rng[0] <= rng[1]:
+            raise typer.BadParameter(f"expected MIN,MAX in knots with 0 < MIN <= MAX, got {speed_range!r}", param_hint="--speed-range")
+    engine = Engine.from_vessel(vessel)
+    try:
+        settings = speed_settings(vessel, engine, _float_list(speeds, "--speeds") if speeds is not None else None, rng, speed_steps)
+    except ValueError as e:
+        raise typer.BadParameter(str(e), param_hint="--speeds/--speed-range") from None
+    when = None
+    if arrive_by is not None:
+        when = utc_or_none(arrive_by)
+        if when is None:
+            raise typer.BadParameter(f"{arrive_by!r} is not an ISO 8601 time", param_hint="--arrive-by")
+    width = None if corridor == "full" else _corridor(corridor)
+    return FuelSpec(settings, engine, when, objective, buckets_per_subslice=buckets, pareto=DEFAULT_PARETO_ROUTES if pareto else 0,
+                    corridor=width)  # fmt: skip
+
+
+def _corridor(text: str) -> int:
+    try:
+        w = int(text)
+    except ValueError:
+        w = -1
+    if w < 0:
+        raise typer.BadParameter(f"expected a width in mesh nodes (0, 1, 2 ...) or 'full', got {text!r}", param_hint="--fuel-corridor")
+    return w
+
+
+def echo_fuel(plan) -> None:
+    """The least-fuel summary under the route table: the deadline, the search's gap, the reference and the saving, the front."""
+    f = plan.stats["fuel"]
+    first, second = ("co2_t", "fuel_t") if f["objective"] == "co2" else ("fuel_t", "co2_t")
+    typer.echo(f"least {first[:-2]}: {f[first]:.3f} t ({second[:-2]} {f[second]:.3f} t), arriving by {f['deadline_utc']} "
+               f"({f['deadline_source']}); settings {', '.join(f'{s:g}' for s in f['speeds_kn'])} kn; from {f['least_fuel_from']}")
+    if f.get("lower_bound_fuel_t") is not None:
+        typer.echo(f"search: {f['graph']}; lower bound {f['lower_bound_fuel_t']:.3f} t fuel (gap {f['gap_pct']:.2f} %)")
+    ref = f.get("reference")
+    if ref is None:
+        typer.echo(f"note: {f.get('saving_note')}")
+    else:
+        typer.echo(f"saving {f['saving_pct']:.2f} % ({f['saving_fuel_t']:.3f} t fuel) against {ref['route']}: the minimum-distance route "
+                   f"at a constant {ref['setting_kn']:g} kn arriving at the same time ({ref['arrive_utc']})")
+    for row in f.get("pareto", []):
+        typer.echo(f"front: arrive {row['arrive_utc']}  time {row['time_h']:.2f} h  fuel {row['fuel_t']:.3f} t  CO2 {row['co2_t']:.3f} t")
