@@ -212,3 +212,26 @@ def test_cli_fuel_objective_json_and_errors(capsys):
     assert code == 2 and "above vessel container-feeder's maximum-power speed 21.46 kn" in err
     code, out, err = run_cli(capsys, *base, "--arrive-by", "2021-03-01T08:00Z")
     assert code == 2 and "apply with --objective fuel|co2" in err
+
+
+def test_departure_window_routes_every_departure_and_marks_the_least_fuel(capsys):
+    """--depart-window: one row per departure (arrival by the fixed --arrive-by), the least fuel marked; in a
+    uniform sea and current every departure costs the same, so the earliest (the tie-break) is best; a
+    departure that cannot make the arrival is a row with its error, not dropped."""
+    import json
+
+    from cli_runner import run_cli
+
+    base = ["route", "--from", "10,0", "--to", "10,2", "--mesh-deg", "0.25", "--ignore-land", "--vessel", "container-feeder", "--json"]
+    code, out, err = run_cli(capsys, *base, "--depart-window", "2021-03-01T06:00Z/2021-03-01T12:00Z", "--step", "3",
+                             "--objective", "fuel", "--speeds", "8,12,17", "--arrive-by", "2021-03-01T18:00Z")
+    assert code == 0, err
+    res = json.loads(out)
+    rows = res["rows"]
+    assert [r["depart_utc"][:16] for r in rows] == ["2021-03-01T06:00", "2021-03-01T09:00", "2021-03-01T12:00"]
+    assert res["best"] == 0 and rows[0]["best"] and not rows[1]["best"]
+    assert all(pd.Timestamp(r["arrive_utc"]) <= pd.Timestamp("2021-03-01T18:00Z") for r in rows[:2])
+    assert rows[0]["fuel_t"] <= rows[1]["fuel_t"] + 1e-9  # more time to spare never costs more (calm sea)
+    assert rows[2]["route"] is None and rows[2]["error"].startswith("no route arrives by 2021-03-01T18:00:00+00:00")
+    code, out, err = run_cli(capsys, *base, "--depart-window", "2021-03-01T06:00Z", "--step", "3")
+    assert code == 2 and "START/END" in err

@@ -3,6 +3,7 @@ the table prints about the least-fuel route, its reference and the time-fuel fro
 
 from __future__ import annotations
 
+import pandas as pd
 import typer
 
 OBJECTIVES = ("time", "fuel", "co2")
@@ -78,3 +79,40 @@ def echo_fuel(plan) -> None:
                    f"at a constant {ref['setting_kn']:g} kn arriving at the same time ({ref['arrive_utc']})")
     for row in f.get("pareto", []):
         typer.echo(f"front: arrive {row['arrive_utc']}  time {row['time_h']:.2f} h  fuel {row['fuel_t']:.3f} t  CO2 {row['co2_t']:.3f} t")
+
+
+def window_times(text: str, step_h: float | None):
+    """``--depart-window START/END`` and ``--step H`` -> the departures (UTC)."""
+    from pipelines.times import utc_or_none
+    from routing.planner_window import departures
+
+    parts = str(text).split("/")
+    ends = [utc_or_none(p) for p in parts] if len(parts) == 2 else [None]
+    if len(parts) != 2 or None in ends:
+        raise typer.BadParameter(f"expected START/END as two ISO 8601 times, got {text!r}", param_hint="--depart-window")
+    if step_h is None:
+        raise typer.BadParameter("--depart-window needs --step H (hours between departures)", param_hint="--step")
+    try:
+        return departures(ends[0], ends[1], float(step_h))
+    except ValueError as e:
+        raise typer.BadParameter(str(e), param_hint="--depart-window") from None
+
+
+def echo_window(result: dict) -> None:
+    """The departure table, best first marked with '*', in departure order."""
+    fuel = result["objective"] != "time"
+    typer.echo(f"departure window: {len(result['rows'])} departures, objective {result['objective']}, best marked *")
+    typer.echo(f"  {'depart_utc':<27}{'arrive_utc':<27}{'time_h':>8}{'dist_nmi':>10}{'fuel_t':>9}{'co2_t':>9}{'max_hs_m':>9}{'over_lim_h':>11}")
+    for r in result["rows"]:
+        mark = "*" if r["best"] else " "
+        if r.get("route") is None:
+            typer.echo(f"{mark} {r['depart_utc']:<27}error: {r['error']}")
+            continue
+        hs = "" if r["max_hs_m"] is None else f"{r['max_hs_m']:.2f}"
+        over = "" if r.get("hours_over_limits") is None else f"{r['hours_over_limits']:.2f}"
+        f_t = f"{r['fuel_t']:.3f}" if r.get("fuel_t") is not None else ""
+        c_t = f"{r['co2_t']:.3f}" if r.get("co2_t") is not None else ""
+        typer.echo(f"{mark} {r['depart_utc']:<27}{r['arrive_utc']:<27}{r['time_h']:>8.2f}{r['dist_nmi']:>10.2f}{f_t:>9}{c_t:>9}{hs:>9}{over:>11}")
+    arrivals = [pd.Timestamp(r["arrive_utc"]) for r in result["rows"] if r.get("arrive_utc")]
+    if fuel and arrivals and max(arrivals) - min(arrivals) > pd.Timedelta(minutes=1):
+        typer.echo("note: the departures arrive at different times: their fuel differences are not savings")

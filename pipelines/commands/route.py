@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._route_fuel import echo_fuel, fuel_spec
+from pipelines.commands._route_fuel import echo_fuel, echo_window, fuel_spec, window_times
 from pipelines.commands._common import (VESSEL_WITHOUT_AIS, JsonOption, ProfileOption, SpeedLossOption, check_output_file, emit_json,
                                         note, vessel_option, weather_option, xarray_without_dask_arrays)
 
@@ -39,7 +39,10 @@ def register(app: typer.Typer) -> None:
     def route(
         from_: str = typer.Option(..., "--from", metavar="LAT,LON", help="Start position, decimal degrees."),
         to: str = typer.Option(..., "--to", metavar="LAT,LON", help="Goal position, decimal degrees."),
-        depart: str = typer.Option(..., "--depart", metavar="ISO", help="Departure time, ISO 8601 (UTC if no offset is given)."),
+        depart: str = typer.Option(None, "--depart", metavar="ISO", help="Departure time, ISO 8601 (UTC if no offset is given); or --depart-window."),
+        depart_window: str = typer.Option(None, "--depart-window", metavar="START/END", help="Route every departure START, START + --step, ... END "
+                                          "with --objective and rank them (arrival, time, fuel, CO2, max Hs, hours over limits), the best marked."),
+        step_h: float = typer.Option(None, "--step", min=0.01, metavar="H", help="Hours between the departures of --depart-window."),
         weather: list[Path] = weather_option("the sea is calm"),
         vessel: str = vessel_option(VESSEL_WITHOUT_AIS),
         speed_kn: float = typer.Option(None, "--speed-kn", min=0.1, metavar="KN", help="Calm-water speed in knots; default the vessel's service speed."),
@@ -127,7 +130,10 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
         start = _latlon(from_, "--from")
         goal = _latlon(to, "--to")
         box = _floats(bbox, 4, "LONMIN,LATMIN,LONMAX,LATMAX", "--bbox") if bbox else None
-        t = utc_or_none(depart)
+        if (depart is None) == (depart_window is None):
+            raise typer.BadParameter("give --depart ISO or --depart-window START/END --step H", param_hint="--depart")
+        window = window_times(depart_window, step_h) if depart_window is not None else None
+        t = window[0] if window else utc_or_none(depart)
         if t is None:
             raise typer.BadParameter(f"{depart!r} is not an ISO 8601 time", param_hint="--depart")
 
@@ -158,6 +164,17 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
             start, goal, t, ship, spacing_deg=spacing, bbox=box, edges=edges, ignore_land=ignore_land,
             snap_limit_nmi=snap_nmi, vessel_name=ship_vessel.name,
         )  # fmt: skip
+        if window is not None:
+            from routing.planner_window import plan_window
+
+            from pipelines.config import load_operator_profile
+
+            result = plan_window(req, field, window, objective=objective, fuel=fspec, vessel=ship_vessel, limits=load_operator_profile(profile))
+            if json_out:
+                emit_json(result)
+            else:
+                echo_window(result)
+            return
         plan = plan_routes(req, field, safety=safety, vessel=ship_vessel, limits=limits, penalty_per_h=safety_penalty, fuel=fspec)
         names = ROUTE_NAMES + (SAFE_ROUTE_NAMES if safety != "none" else ()) + tuple(n for n in FUEL_ROUTE_NAMES if n in plan.routes)
         notes = list(plan.notes)  # the model and what it rests on, said in every output

@@ -1,0 +1,102 @@
+"""Every departure of a window routed with one objective, on one mesh (``--depart-window``).
+
+:func:`plan_window` builds the mesh and the weather on it once (from the window's first departure,
+so every later one reads the same slices), finds the minimum-distance path once (it does not
+depend on the departure), and for each departure runs the time-optimal search and, with a fuel
+objective, the least-fuel search of :mod:`routing.planner_fuel` (with ``FuelSpec.arrive_by`` a
+fixed arrival for every departure; without it each departure's own time-optimal arrival). Each row
+gives the route's arrival, time, distance, fuel, CO2, max Hs and (with ``vessel``) the hours over
+the vessel's limits at its own ETAs (:func:`routing.safety.limits_exposure`, operator profile +
+IMO rules); the best departure (least time for ``time``, least fuel otherwise; ties: the earlier) is
+marked. A departure no route serves (an arrival it cannot meet) is a row with its error, never
+dropped.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time as _time
+
+import numpy as np
+import pandas as pd
+
+from routing.astar import evaluate_path, search
+from routing.errors import NoRouteError
+from routing.field import NS_PER_HOUR
+from routing.fuel import FuelSpec
+from routing.planner import RouteRequest, _Stage, _props_maker, place_ends, plain_routes, prepare_mesh
+from routing.planner_fuel import fuel_routes
+from routing.planner_parts import sample_weather
+from routing.mesh import global_land_mask_window
+
+
+def departures(start: pd.Timestamp, end: pd.Timestamp, step_h: float) -> list:
+    """START, START + step, ... up to END (inclusive)."""
+    if not step_h > 0:
+        raise ValueError(f"the departure step must be positive hours, got {step_h!r}")
+    if end < start:
+        raise ValueError(f"the window ends ({end.isoformat()}) before it starts ({start.isoformat()})")
+    n = int(np.floor((end - start) / pd.Timedelta(hours=step_h) + 1e-9)) + 1
+    return [start + pd.Timedelta(hours=step_h * i) for i in range(n)]
+
+
+def plan_window(req: RouteRequest, weather, times: list, *, objective: str = "time", fuel: FuelSpec | None = None, vessel=None,
+                limits=None, land_mask_fn=global_land_mask_window) -> dict:
+    """Route every departure of ``times`` (see the module docstring); returns ``{"rows": [...], "best": i, "seconds": s}``."""
+    t_all = _time.perf_counter()
+    first = dataclasses.replace(req, depart_utc=min(times))
+    base = _Stage(first, {})
+    prepare_mesh(first, weather, land_mask_fn, base)
+    place_ends(base)
+    md = search(base.mesh, base.wx, req.ship, base.start_node, base.goal_node, cost="distance")
+    exposure = _exposure(vessel, limits, base) if vessel is not None else None
+    rows = []
+    for when in times:
+        st = dataclasses.replace(base, req=dataclasses.replace(req, depart_utc=pd.Timestamp(when)), timings={}, notes=list(base.notes))
+        st.t0_h = st.wx.rel_h(int(st.req.depart_utc.value))
+        st.t_node_h = st.t0_h
+        if st.lead:
+            s_lat, s_lon = (float(x) for x in st.grid.node_latlon(st.start_node))
+            st.t_node_h = float(evaluate_path(st.mesh, st.wx, req.ship, [st.start[0], s_lat], [st.start[1], s_lon], t_start_h=st.t0_h)[0][-1])
+        row = {"depart_utc": st.req.depart_utc.isoformat()}
+        try:
+            opt = search(st.mesh, st.wx, req.ship, st.start_node, st.goal_node, t_start_h=st.t_node_h, cost="time")
+            routes = plain_routes(st, {"time": opt, "distance": md})
+            name = "optimal_smoothed"
+            if objective != "time":
+                fuel_routes(st, routes, opt.nodes, md.nodes, fuel, _props_maker(st))
+                name = "least_fuel"
+            r = routes[name]
+            row.update(_row(r, exposure))
+        except NoRouteError as e:
+            row.update({"route": None, "error": str(e)})
+        rows.append(row)
+    key = "time_h" if objective == "time" else "fuel_t"
+    ok = [i for i, r in enumerate(rows) if r.get(key) is not None]
+    best = min(ok, key=lambda i: (rows[i][key], i)) if ok else None
+    for i, r in enumerate(rows):
+        r["best"] = i == best
+    return {"objective": objective, "rows": rows, "best": best, "seconds": round(_time.perf_counter() - t_all, 4)}
+
+
+def _row(r, exposure) -> dict:
+    out = {"route": r.name, "arrive_utc": r.time_utc[-1].round("s").isoformat(), "time_h": round(r.time_h, 4),
+           "dist_nmi": round(r.dist_nmi, 4), "fuel_t": r.properties.get("fuel_t"), "co2_t": r.properties.get("co2_t"),
+           "max_hs_m": None if np.isnan(r.max_hs_m) else round(r.max_hs_m, 4)}  # fmt: skip
+    if exposure is not None:
+        out["hours_over_limits"] = round(exposure(r)["hours_over_limits"], 4)
+    return out
+
+
+def _exposure(vessel, limits, st):
+    """Hours over the vessel's limits of a route at its own ETAs, in the plan's weather on the mesh."""
+    from routing.safety import SafetySpec, limits_exposure
+
+    spec = SafetySpec("soft", vessel, limits)
+    mesh, mw, wx = st.mesh, st.mw, st.wx
+
+    def weather_at(times, lat, lon):
+        t_h = (pd.DatetimeIndex(times).asi8 - (wx.time0_ns or 0)) / NS_PER_HOUR
+        return sample_weather(mesh, mw, lat, lon, t_h)
+
+    return lambda route: limits_exposure(route, weather_at, spec)
