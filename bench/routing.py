@@ -275,6 +275,56 @@ def run_r6_feeder(st: dict) -> dict:
     return info
 
 
+# --------------------------------------------------------------------------- fuel objective (issue 20)
+
+#: R6 with 8 speed settings (9.66 .. 26.93 kn: 60 % of service to maximum power) and a fixed arrival.
+R6_FUEL_ARGS = ["--objective", "fuel", "--speed-range", "9.66,26.93", "--speed-steps", "8", "--arrive-by", "2020-01-21T02:00Z"]
+
+
+def setup_r6_window(objective: str) -> dict:
+    from pipelines.config import load_operator_profile
+
+    req, v = cases.r6_request()
+    return {"req": req, "vessel": v, "files": [str(f) for f in cases.r6_files()], "objective": objective,
+            "limits": load_operator_profile(None)}
+
+
+def run_r6_window(st: dict) -> dict:
+    """16 departures (09:00 .. 00:00 next day, hourly) from the NetCDF files, ranked."""
+    import pandas as pd
+
+    from pipelines.routing_weather import load_weather
+    from routing.emissions import Engine
+    from routing.fuel import FuelSpec, speed_settings
+    from routing.planner_window import departures, plan_window
+
+    field, _ = load_weather(st["files"])
+    t0 = pd.Timestamp(cases.R6_DEPART)
+    times = departures(t0, t0 + pd.Timedelta(hours=15), 1.0)
+    eng = Engine.from_vessel(st["vessel"])
+    spec = FuelSpec(speed_settings(st["vessel"], eng, speed_range=(9.66, 26.93), steps=8), eng, pd.Timestamp("2020-01-21T12:00Z"))
+    res = plan_window(st["req"], field, times, objective=st["objective"], fuel=spec, vessel=st["vessel"], limits=st["limits"])
+    key = "time_h" if st["objective"] == "time" else "fuel_t"
+    return {"departures": len(res["rows"]), "best": res["rows"][res["best"]]["depart_utc"], key: res["rows"][res["best"]][key]}
+
+
+def run_medsea_fuel(st: dict) -> dict:
+    """The MEDSEA-size plan with the least-fuel route (8 settings, arrival by 3.5 days after departure)."""
+    import pandas as pd
+
+    from routing.emissions import Engine
+    from routing.fuel import FuelSpec, speed_settings
+    from routing.planner import plan_routes
+
+    v = st["vessel"]
+    eng = Engine.from_vessel(v)
+    spec = FuelSpec(speed_settings(v, eng, speed_range=(0.6 * v.speed_kn, v.speed_kn * 1.15), steps=8), eng,
+                    st["req"].depart_utc + pd.Timedelta(hours=84))
+    plan = plan_routes(st["req"], st["field"], fuel=spec)
+    f = plan.stats["fuel"]
+    return {"fuel_t": round(f["fuel_t"], 3), "gap_pct": f["gap_pct"], "saving_pct": f.get("saving_pct"), "labels": f["labels"]}
+
+
 # --------------------------------------------------------------------------- the groups
 
 
@@ -372,11 +422,41 @@ def build(cfg):
         measures=[Measure("r6_safe", "R6 safe mode, NetCDF to all routes", "r6_safe", "r6_plain",
                           relation="the same case without safety: the ratio is what safe mode costs",
                           targets=[Target("warm < 0.5 s", "warm.wall_s", "<", 0.5, "s", "README (safe mode)")])])
+    fuel_route = _stormlane() + cases.r6_route_args() + R6_FUEL_ARGS
+    g_fuel = Group(
+        "fuel", "Least-fuel routes (issue 20), each beside the time objective in the same run", needs=r6,
+        sides=[
+            Side("r6_fuel_cli", "`stormlane route` R6 --objective fuel, 8 settings, --arrive-by 02:00 (NetCDF to every route and "
+                 "the fuel search's bound)", argv=fuel_route, parse=f"{here}:parse_route_json", warm_setup=f"{here}:setup_cli",
+                 warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args() + R6_FUEL_ARGS}),
+            Side("r6_time_cli", "`stormlane route` R6 (time objective), the same process", argv=route, parse=f"{here}:parse_route_json",
+                 warm_setup=f"{here}:setup_cli", warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args()}),
+            Side("r6_window_fuel", "R6, 16 hourly departures with the fuel objective (arrival by 2020-01-21T12:00), ranked, hours over "
+                 "limits", setup=f"{here}:setup_r6_window", kwargs={"objective": "fuel"}, run=f"{here}:run_r6_window"),
+            Side("r6_window_time", "R6, the same 16 departures with the time objective", setup=f"{here}:setup_r6_window",
+                 kwargs={"objective": "time"}, run=f"{here}:run_r6_window"),
+            Side("medsea_fuel", "MEDSEA-size plan with the least-fuel route (8 settings, arrival 84 h after departure)",
+                 setup=f"{here}:setup_medsea", run=f"{here}:run_medsea_fuel"),
+            Side("medsea_time", "MEDSEA-size plan, time objective (the medsea group's medsea_plan)", setup=f"{here}:setup_medsea",
+                 run=f"{here}:run_medsea"),
+        ],
+        measures=[
+            Measure("r6_fuel", "R6 least fuel, 8 settings, fixed arrival", "r6_fuel_cli", "r6_time_cli",
+                    relation="the same command with the time objective: the ratio is what the fuel objective costs",
+                    targets=[Target("warm <= 1 s", "warm.wall_s", "<=", 1.0, "s", "issue 20")]),
+            Measure("r6_window", "R6 departure window, 16 departures", "r6_window_fuel", "r6_window_time",
+                    relation="the same departures with the time objective",
+                    targets=[Target("warm <= 5 s", "warm.wall_s", "<=", 5.0, "s", "issue 20")]),
+            Measure("medsea_fuel", "MEDSEA-size least-fuel route", "medsea_fuel", "medsea_time",
+                    relation="the same plan with the time objective",
+                    targets=[Target("warm <= 10 s", "warm.wall_s", "<=", 10.0, "s", "issue 20"),
+                             Target("peak <= 1 GB", "warm.peak_mb", "<=", 1024.0, "MB", "issue 20")]),
+        ])
     notes = ["SIMROUTE's figures are external (ANCHORS.md): measured by a coordinator on these machines, not in this run; "
              "compared cold with cold only.",
              "Throughput counts edges whose cost was computed (routing._kernels.astar's counter): edges to settled nodes "
              "are scanned and skipped, and not counted."]
-    return [g_r6, g_safe, g_ref, g_med], notes
+    return [g_r6, g_safe, g_ref, g_med, g_fuel], notes
 
 
 if __name__ == "__main__":
