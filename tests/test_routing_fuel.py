@@ -223,7 +223,7 @@ def test_departure_window_routes_every_departure_and_marks_the_least_fuel(capsys
     from cli_runner import run_cli
 
     base = ["route", "--from", "10,0", "--to", "10,2", "--mesh-deg", "0.25", "--ignore-land", "--vessel", "container-feeder", "--json"]
-    code, out, err = run_cli(capsys, *base, "--depart-window", "2021-03-01T06:00Z/2021-03-01T12:00Z", "--step", "3",
+    code, out, err = run_cli(capsys, *base, "--depart-window", "2021-03-01T06:00Z/2021-03-01T12:00Z", "--step-h", "3",
                              "--objective", "fuel", "--speeds", "8,12,17", "--arrive-by", "2021-03-01T18:00Z")
     assert code == 0, err
     res = json.loads(out)
@@ -233,5 +233,5 @@ def test_departure_window_routes_every_departure_and_marks_the_least_fuel(capsys
     assert all(pd.Timestamp(r["arrive_utc"]) <= pd.Timestamp("2021-03-01T18:00Z") for r in rows[:2])
     assert rows[0]["fuel_t"] <= rows[1]["fuel_t"] + 1e-9  # more time to spare never costs more (calm sea)
     assert rows[2]["route"] is None and rows[2]["error"].startswith("no route arrives by 2021-03-01T18:00:00+00:00")
-    code, out, err = run_cli(capsys, *base, "--depart-window", "2021-03-01T06:00Z", "--step", "3")
+    code, out, err = run_cli(capsys, *base, "--depart-window", "2021-03-01T06:00Z", "--step-h", "3")
     assert code == 2 and "START/END" in err

@@ -82,7 +82,7 @@ def echo_fuel(plan) -> None:
 
 
 def window_times(text: str, step_h: float | None):
-    """``--depart-window START/END`` and ``--step H`` -> the departures (UTC)."""
+    """``--depart-window START/END`` and ``--step-h H`` -> the departures (UTC)."""
     from pipelines.times import utc_or_none
     from routing.planner_window import departures
 
@@ -91,7 +91,7 @@ def window_times(text: str, step_h: float | None):
     if len(parts) != 2 or None in ends:
         raise typer.BadParameter(f"expected START/END as two ISO 8601 times, got {text!r}", param_hint="--depart-window")
     if step_h is None:
-        raise typer.BadParameter("--depart-window needs --step H (hours between departures)", param_hint="--step")
+        raise typer.BadParameter("--depart-window needs --step-h H (hours between departures)", param_hint="--step-h")
     try:
         return departures(ends[0], ends[1], float(step_h))
     except ValueError as e:

@@ -41,8 +41,8 @@ def register(app: typer.Typer) -> None:
         to: str = typer.Option(..., "--to", metavar="LAT,LON", help="Goal position, decimal degrees."),
         depart: str = typer.Option(None, "--depart", metavar="ISO", help="Departure time, ISO 8601 (UTC if no offset is given); or --depart-window."),
         depart_window: str = typer.Option(None, "--depart-window", metavar="START/END", help="Route every departure START, START + --step, ... END "
-                                          "with --objective and rank them (arrival, time, fuel, CO2, max Hs, hours over limits), the best marked."),
-        step_h: float = typer.Option(None, "--step", min=0.01, metavar="H", help="Hours between the departures of --depart-window."),
+                                          "with --objective (every --step-h hours) and rank them (arrival, time, fuel, CO2, max Hs, hours over limits), the best marked."),
+        step_h: float = typer.Option(None, "--step-h", min=0.01, metavar="H", help="Hours between the departures of --depart-window."),
         weather: list[Path] = weather_option("the sea is calm"),
         vessel: str = vessel_option(VESSEL_WITHOUT_AIS),
         speed_kn: float = typer.Option(None, "--speed-kn", min=0.1, metavar="KN", help="Calm-water speed in knots; default the vessel's service speed."),
@@ -131,7 +131,7 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
         goal = _latlon(to, "--to")
         box = _floats(bbox, 4, "LONMIN,LATMIN,LONMAX,LATMAX", "--bbox") if bbox else None
         if (depart is None) == (depart_window is None):
-            raise typer.BadParameter("give --depart ISO or --depart-window START/END --step H", param_hint="--depart")
+            raise typer.BadParameter("give --depart ISO or --depart-window START/END --step-h H", param_hint="--depart")
         window = window_times(depart_window, step_h) if depart_window is not None else None
         t = window[0] if window else utc_or_none(depart)
         if t is None:
