@@ -30,14 +30,12 @@ References
 from __future__ import annotations
 
 import dataclasses
-import math
 import time as _time
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from routing import _kernels
 from routing._kernels.fuel import fuel_search
 from routing.astar import ShipModel, WeatherArrays, evaluate_path, heuristic_speed_kn, search
 from routing.emissions import M_C_G_MOL, M_CO2_G_MOL, Engine, steam2_legs, steam2_totals
@@ -355,5 +353,3 @@ def saving_pct(reference_t: float, value_t: float) -> float:
     return float(100.0 * (reference_t - value_t) / reference_t) if reference_t > 0 else float("nan")
 
 
-__all__ = ["FuelSpec", "FuelProblem", "FuelResult", "InfeasibleArrivalError", "Schedule", "least_fuel", "same_arrival_reference",
-           "speed_settings", "max_power_speed_kn", "fuel_rates_t_per_h", "legs_fuel", "math", "_kernels"]

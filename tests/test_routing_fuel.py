@@ -18,7 +18,7 @@ from test_routing_optimality import SUBSTEP_H, build, random_weather, ship_for, 
 
 from routing.astar import search
 from routing.emissions import Engine
-from routing.fuel import FuelProblem, FuelSpec, InfeasibleArrivalError, fuel_rates_t_per_h, legs_fuel, least_fuel
+from routing.fuel import FuelProblem, FuelSpec, fuel_rates_t_per_h, least_fuel
 
 ENGINE = Engine(installed_power_kw=9000.0, design_speed_kn=16.0, engine_load_frac=0.8, sfoc_g_kwh=185.0)
 SPEEDS = (8.0, 12.0, 16.0)
