@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         results["load_1min"] = {"before": round(load0[0], 2), "after": round(load1[0], 2)}
         note = _report.load_note(load0[0], load1[0], results["benchmarks"].values())
         results["load_note"] = note + (f"; {waited}" if waited else "")
-    _report.write_results(results, path)
+    _report.write_results(_report.stamp_scripts(results), path)
     if not args.quick:
         _report.regenerate(results)
     print(f"wrote {path.relative_to(_report.ROOT)}" + ("" if args.quick else ", README.md's table and docs/benchmarks.md")

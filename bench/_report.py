@@ -38,6 +38,40 @@ def scripts() -> list[str]:
     return [n for n in SCRIPT_ORDER if n in found] + sorted(found - set(SCRIPT_ORDER))
 
 
+def unmeasured_cases(results: dict) -> dict[str, list[str]]:
+    """Per script with a section in ``results``: the groups (``group``) and measures
+    (``group/measure``) it declares now without figures in its section (added after it was
+    measured). A group skipped for missing input is not listed again."""
+    import importlib
+
+    from bench import _harness
+
+    out = {}
+    for name, sec in results["benchmarks"].items():
+        if name not in scripts() or sec.get("error"):
+            continue
+        groups, _ = importlib.import_module(f"bench.{name}").build(_harness.Config())
+        have = {g["key"]: g for g in sec["groups"]}
+        missing = []
+        for g in groups:
+            if g.key not in have:
+                missing.append(g.key)
+            elif not have[g.key].get("skipped"):
+                keys = {m["key"] for m in have[g.key].get("measures", [])}
+                missing += [f"{g.key}/{m.key}" for m in g.measures if m.key not in keys]
+        if missing:
+            out[name] = missing
+    return out
+
+
+def stamp_scripts(results: dict) -> dict:
+    """Record the scripts present now and the cases they declare without figures (what the table
+    and the page list as *not run yet*)."""
+    results["scripts"] = scripts()
+    results["unmeasured"] = unmeasured_cases(results)
+    return results
+
+
 def not_run_yet(results: dict) -> list[str]:
     """Scripts the result file knows of (``results["scripts"]``, the scripts present when it was
     last written) that have no section in it yet."""
@@ -133,11 +167,10 @@ def merge_section(section: dict, quick: bool = False, results: dict | None = Non
     name = Path(section["script"]).stem
     section["run_alone_utc"] = section.get("started_utc") or time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     results["benchmarks"][name] = section
-    results["scripts"] = scripts()
     results.setdefault("sections_run_alone", [])
     if name not in results["sections_run_alone"]:
         results["sections_run_alone"].append(name)
-    write_results(results, path)
+    write_results(stamp_scripts(results), path)
     if not quick:
         regenerate(results)
     return results
@@ -319,12 +352,14 @@ def render_table(results: dict) -> str:
     skipped = [(name, g) for name in results["benchmarks"] for g in results["benchmarks"][name]["groups"] if g.get("skipped")]
     failed = [(name, sec["error"]) for name, sec in results["benchmarks"].items() if sec.get("error")]
     pending = not_run_yet(results)
-    if skipped or failed or pending:
+    if skipped or failed or pending or results.get("unmeasured"):
         lines.append("")
         lines += [f"Skipped: {name} / {g['title']}: {g['skipped']}" for name, g in skipped]
         lines += [f"**Failed**: bench/{name}.py: {err}" for name, err in failed]
         lines += [f"Not run yet: bench/{name}.py (no figures in bench/results.json; `python -m bench --only {name}` "
                   "measures it and merges it in)" for name in pending]
+        lines += [f"Not run yet: bench/{name}.py {', '.join(cases)} (declared after the script's figures were measured)"
+                  for name, cases in results.get("unmeasured", {}).items()]
     return "\n".join(lines) + "\n"
 
 
@@ -456,8 +491,9 @@ def render_page(results: dict) -> str:
                     out += [f"- target ({t['source']}): {t['name']} — `{t['metric']}` {t['op']} {t['value']:g} {t['unit']}: "
                             f"measured {meas}: {state}{cpu_check(t, g['sides'])}"]
                 out.append("")
-    pending = not_run_yet(results)
-    if pending:
+    pending, cases = not_run_yet(results), results.get("unmeasured", {})
+    if pending or cases:
         out += ["## Not run yet", ""] + [f"- `bench/{n}.py`: no figures in bench/results.json yet (`python -m bench --only {n}` "
                                           "measures it and merges it in)" for n in pending]
+        out += [f"- `bench/{n}.py`: {', '.join(c)} declared after the script's figures were measured" for n, c in cases.items()]
     return "\n".join(out).rstrip() + "\n"
