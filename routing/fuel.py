@@ -276,9 +276,11 @@ def least_fuel(prob: FuelProblem, start: int, goal: int, t_h: float, f0: float, 
     front = [schedule_of(out, int(lab), prob_speeds(prob)) for lab in goal_labels] if spec.pareto else []
     lb = float("nan")
     if bound:
-        rel = prob.run(start, goal, t_h, f0, deadline_h, k, True, spec.max_labels, f_upper, eps_f=eps)
-        if rel[9] == 0:  # nothing below f_upper in the relaxation: f_upper is the bound
-            lb = float(rel[1][rel[6][rel[7] - 1]]) if rel[7] > 0 else float(f_upper)
+        # the relaxation only needs to look below the best known fuel: when it finds nothing there, that fuel is optimal
+        known = min(f_upper, best.fuel_t) if best is not None else f_upper
+        rel = prob.run(start, goal, t_h, f0, deadline_h, k, True, spec.max_labels, known, eps_f=eps)
+        if rel[9] == 0:
+            lb = float(rel[1][rel[6][rel[7] - 1]]) if rel[7] > 0 else float(known)
     return FuelResult(best, lb, front, int(out[5]), _time.perf_counter() - t0)
 
 
