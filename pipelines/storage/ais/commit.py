@@ -12,6 +12,7 @@ import pandas as pd
 
 from ais import clean as C
 from pipelines.storage.ais._sql import _NORM, _VALUES, _drop_temp, _line_index, _norm, _prepare, _stage_kind
+from pipelines.storage.ais import parquet
 from pipelines.storage.ais.files import file_record
 from pipelines.storage.ais.vessels import _upsert_vessels
 from thresholds.units import EARTH_RADIUS_NMI
@@ -214,15 +215,18 @@ def _outcomes_with_stored(con, max_speed_kn: float, scan_fixes: dict) -> tuple[n
 
     from ais._tracks import first_load_rules
 
+    # Each MMSI's latest stored fix (``ais_track_ends``) says both things: a stored fix at or
+    # after the file's first one exists iff the latest does, and otherwise the latest is the
+    # last stored fix before the file (the context). No stored history is read.
     d = con.execute(f"""
-        WITH span AS (SELECT mmsi, min(time_utc) AS t0 FROM ais_stage WHERE {_OK} GROUP BY mmsi),
-        p AS (SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS pt, p.lat_deg, p.lon_deg
-              FROM ais_positions p SEMI JOIN span USING (mmsi))
-        SELECT span.mmsi, bool_or(p.pt >= span.t0) AS later,
-               coalesce(epoch_us(max(p.pt) FILTER (WHERE p.pt < span.t0)), 0) AS t_us,
-               coalesce(arg_max(p.lat_deg, p.pt) FILTER (WHERE p.pt < span.t0), 0.0) AS lat,
-               coalesce(arg_max(p.lon_deg, p.pt) FILTER (WHERE p.pt < span.t0), 0.0) AS lon
-        FROM span JOIN p USING (mmsi) GROUP BY span.mmsi""").fetchnumpy()
+        WITH span AS (SELECT mmsi, min(time_utc) AS t0 FROM ais_stage WHERE {_OK} GROUP BY mmsi)
+        SELECT span.mmsi, e.time_utc >= span.t0 AS later,
+               CASE WHEN e.time_utc < span.t0 THEN epoch_us(e.time_utc) ELSE 0 END AS t_us,
+               CASE WHEN e.time_utc < span.t0 THEN e.lat_deg ELSE 0.0 END AS lat,
+               CASE WHEN e.time_utc < span.t0 THEN e.lon_deg ELSE 0.0 END AS lon
+        FROM span JOIN (SELECT mmsi, make_timestamp(epoch_us(time_utc)) AS time_utc, lat_deg, lon_deg
+                        FROM ais_track_ends) e USING (mmsi)
+        ORDER BY span.mmsi""").fetchnumpy()
     context = {"mmsi": np.asarray(d["mmsi"], dtype=np.int64), "skip": np.asarray(d["later"], dtype=bool),
                "t_us": np.asarray(d["t_us"], dtype=np.int64), "lat": np.asarray(d["lat"], dtype=float),
                "lon": np.asarray(d["lon"], dtype=float)}
@@ -354,6 +358,17 @@ def _write_file_row(ws, meta: dict, fingerprint: str, file_id: int, counts: dict
         ws.con.execute("INSERT INTO ais_file_keys VALUES (?, ?)", [file_id, meta["quick_key"]])
 
 
+def _update_track_ends(con, file_id: int) -> None:
+    """Each MMSI's latest stored fix, after the file's positions were inserted (same transaction)."""
+    con.execute(
+        """INSERT INTO ais_track_ends
+           SELECT mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc)
+           FROM ais_positions WHERE file_id = ? GROUP BY mmsi
+           ON CONFLICT (mmsi) DO UPDATE SET time_utc = excluded.time_utc, lat_deg = excluded.lat_deg,
+               lon_deg = excluded.lon_deg
+           WHERE excluded.time_utc > ais_track_ends.time_utc""", [int(file_id)])
+
+
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
@@ -376,7 +391,11 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         timings[name] = now - clock[0]
         clock[0] = now
 
-    with ws.transaction():
+    # The transaction by hand (not ws.transaction()): the Parquet parts written inside it are
+    # published after its commit, or removed after its rollback.
+    parts: list = []
+    con.execute("BEGIN TRANSACTION")
+    try:
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
         _rules_7_8(con, meta, max_speed_kn)
         lap("rules_7_8")
@@ -386,6 +405,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             FROM ais_stage ANTI JOIN ais_out USING (line) WHERE {_OK}""",
             [file_id],
         ).fetchone()[0]
+        _update_track_ends(con, file_id)
         lap("insert")
         reasons, read, static, ignored = _write_quarantine(con, meta, file_id)
         lap("quarantine")
@@ -409,8 +429,20 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             fingerprint = fingerprint.result()
         lap("fingerprint_wait")
         _write_file_row(ws, meta, fingerprint, file_id, counts, max_speed_kn)
+        parts = parquet.write_file_parts(ws, file_id)
+        lap("parquet")
         if before_commit is not None:
             before_commit()
+    except BaseException:
+        con.execute("ROLLBACK")
+        parquet.discard(parts)
+        raise
+    try:
+        con.execute("COMMIT")
+    except BaseException:
+        parquet.discard(parts)
+        raise
+    parquet.publish(parts)
     lap("commit")
     _drop_temp(con)
     return counts

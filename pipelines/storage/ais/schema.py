@@ -68,4 +68,28 @@ MIGRATIONS = [
             quick_key VARCHAR NOT NULL
         )""",
     ],
+    # v3 (issue 23): each MMSI's latest stored fix, so that a file is checked against the stored
+    # tracks without reading their history (the per-file cost stays bounded as the workspace
+    # grows), and the days of each file's rows in the positions Parquet dataset beside the
+    # workspace (what must exist there: see pipelines.storage.ais.parquet).
+    [
+        """CREATE TABLE ais_track_ends (
+            mmsi     BIGINT PRIMARY KEY,
+            time_utc TIMESTAMPTZ NOT NULL,
+            lat_deg  DOUBLE NOT NULL,
+            lon_deg  DOUBLE NOT NULL
+        )""",
+        """INSERT INTO ais_track_ends
+           SELECT mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc)
+           FROM ais_positions GROUP BY mmsi""",
+        """CREATE TABLE ais_parquet_parts (
+            file_id INTEGER NOT NULL,
+            day     DATE NOT NULL,
+            n_rows  BIGINT NOT NULL,
+            PRIMARY KEY (file_id, day)
+        )""",
+        """INSERT INTO ais_parquet_parts
+           SELECT file_id, CAST(timezone('UTC', time_utc) AS DATE) AS day, count(*)
+           FROM ais_positions GROUP BY file_id, day""",
+    ],
 ]
