@@ -71,3 +71,13 @@ def prefect_harness():
 @pytest.fixture
 def workspace_path(tmp_path) -> Path:
     return tmp_path / "ws.duckdb"
+
+
+@pytest.fixture(scope="session")
+def dask_address(tmp_path_factory):
+    """A Dask cluster of separate processes (``dask scheduler`` + ``dask worker --nworkers 2
+    --nthreads 1``), shared by the session's scale-out tests; yields the scheduler address."""
+    from pipelines.dask_processes import dask_cluster_processes
+
+    with dask_cluster_processes(tmp_path_factory.mktemp("dask"), n_workers=2) as address:
+        yield address

@@ -137,22 +137,22 @@ def test_cli_rejects_a_bad_task_runner_before_any_work(tmp_path):
 
 
 @pytest.mark.slow
-def test_ingest_flow_on_a_two_worker_dask_cluster_equals_the_sequential_run(tmp_path, batch, prefect_harness):
-    from distributed import Client, LocalCluster, get_task_stream
+def test_ingest_flow_on_a_two_worker_dask_cluster_equals_the_sequential_run(tmp_path, batch, prefect_harness,
+                                                                            dask_address):
+    from distributed import Client, get_task_stream
 
     from pipelines.ingest import flow_with_runner
 
     seq = ingest_paths(batch, tmp_path / "seq.duckdb")
     spool = tmp_path / "spool"
     spool.mkdir()
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
-        with Client(cluster) as client, get_task_stream(client) as stream:
-            addresses = set(client.scheduler_info()["workers"])
-            out = flow_with_runner(f"dask:{cluster.scheduler_address}")(
-                paths=batch, db=str(tmp_path / "dask.duckdb"), spool_dir=str(spool))
-            # a rerun of the flow stages nothing and adds nothing
-            again = flow_with_runner(f"dask:{cluster.scheduler_address}")(
-                paths=batch, db=str(tmp_path / "dask.duckdb"), spool_dir=str(spool))
+    with Client(dask_address) as client, get_task_stream(client) as stream:
+        addresses = set(client.scheduler_info()["workers"])
+        out = flow_with_runner(f"dask:{dask_address}")(
+            paths=batch, db=str(tmp_path / "dask.duckdb"), spool_dir=str(spool))
+        # a rerun of the flow stages nothing and adds nothing
+        again = flow_with_runner(f"dask:{dask_address}")(
+            paths=batch, db=str(tmp_path / "dask.duckdb"), spool_dir=str(spool))
     workers = {t["worker"] for t in stream.data}
     _assert_same_workspace(tmp_path / "dask.duckdb", tmp_path / "seq.duckdb")
     for k in ("files", "read", "loaded", "quarantined", "duplicates", "reasons", "static", "ignored", "already_loaded"):

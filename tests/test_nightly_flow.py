@@ -526,11 +526,10 @@ def test_a_60_lane_night_renders_in_the_browser_within_10_s_and_under_5_mb(world
 
 
 @pytest.mark.slow
-def test_rerun_on_a_two_worker_dask_cluster_is_identical_and_adds_no_rows(world, night):
+def test_rerun_on_a_two_worker_dask_cluster_is_identical_and_adds_no_rows(world, night, dask_address):
     """Four of the night's lanes, run sequentially, then again (same inputs, same run id) with the
-    per-lane work on a 2-worker ``distributed.LocalCluster`` through the Dask task runner."""
-    from distributed import LocalCluster
-
+    per-lane work on a 2-worker Dask cluster of separate processes (``dask scheduler`` + ``dask
+    worker``) through the Dask task runner."""
     from pipelines.nightly import flow_with_runner
 
     _, t = night
@@ -540,8 +539,7 @@ def test_rerun_on_a_two_worker_dask_cluster_is_identical_and_adds_no_rows(world,
     first = flow_with_runner("sequential")(**kwargs)
     before = _tables(world["db"], first["run_id"])
     assert first["adverse"] == (d[d["path_id"].isin(lanes)]["status"] == "adverse").sum() > 0
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
-        again = flow_with_runner(f"dask:{cluster.scheduler_address}")(**kwargs)
+    again = flow_with_runner(f"dask:{dask_address}")(**kwargs)
     assert again["run_id"] == first["run_id"] != night[0]["run_id"]
     after = _tables(world["db"], first["run_id"])
     assert after["counts"] == before["counts"]  # a rerun adds no rows
