@@ -19,7 +19,9 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
+import numpy as np
 import pandas as pd
 
 from lanes.extract import LaneParams, LaneResult, extract_lanes, lane_voyage_table
@@ -75,39 +77,85 @@ class PreparedChain:
     timings: dict
 
 
+def _clean_track_points(positions: pd.DataFrame, params: ChainParams) -> tuple[pd.DataFrame, int]:
+    """Step 1 on canonical positions: sorted by track and time, jumps dropped."""
+    cols = [c for c in (params.id_col, "time_utc", "lat_deg", "lon_deg", "sog_kn") if c in positions.columns]
+    pts = sort_track_points(positions[cols], params.id_col)
+    return drop_position_jumps(pts, params.max_jump_speed_kn, id_col=params.id_col)
+
+
 def prepare_chain(positions: pd.DataFrame, known_ports: pd.DataFrame | None = None,
                   params: ChainParams | None = None) -> PreparedChain:
     """Steps 1-5 of the chain (jump filter, stops, ports, voyages, resampling); see :func:`build_lanes`."""
+    return prepare_chain_in_buckets(lambda k: positions, 1, known_ports, params)
+
+
+def prepare_chain_in_buckets(read_bucket: Callable[[int], pd.DataFrame], n_buckets: int,
+                             known_ports: pd.DataFrame | None = None, params: ChainParams | None = None) -> PreparedChain:
+    """Steps 1-5 over the tracks in ``n_buckets`` buckets, in two passes, holding one bucket's
+    positions at a time.
+
+    ``read_bucket(k)`` returns the canonical positions of bucket ``k``: whole tracks, the
+    buckets' track ids in ascending, disjoint ranges (e.g. MMSI ranges). Every step but the
+    ports works track by track, so pass 1 (clean, stops) and pass 2 (clean again, voyages,
+    resampling) run bucket by bucket; the ports are detected once, from every bucket's stops
+    (few: one row per stop episode). The result equals :func:`prepare_chain` of all positions
+    (stops, ports, voyages and points in the same order; tested), except that the voyages'
+    and stops' ``first_row``/``last_row`` index their own bucket's points. Memory: one bucket's
+    positions plus the stops, voyages and resampled points of all (the resampled points grow
+    with the fleet's time at sea divided by the step, not with the AIS cadence).
+    """
     params = params or ChainParams()
-    timings: dict[str, float] = {}
-    t = time.perf_counter()
-    cols = [c for c in (params.id_col, "time_utc", "lat_deg", "lon_deg", "sog_kn") if c in positions.columns]
-    pts = sort_track_points(positions[cols], params.id_col)
-    pts, n_jumps = drop_position_jumps(pts, params.max_jump_speed_kn, id_col=params.id_col)
-    timings["clean_s"] = time.perf_counter() - t
+    timings = {k: 0.0 for k in ("clean_s", "stops_s", "ports_s", "voyages_s", "resample_s")}
+    n_positions = n_jumps = 0
+    stops_per_bucket, kept = [], None
+
+    def clean(k: int) -> tuple[pd.DataFrame, int, int]:
+        positions = read_bucket(k)
+        t = time.perf_counter()
+        pts, jumps = _clean_track_points(positions, params)
+        timings["clean_s"] += time.perf_counter() - t
+        return pts, int(jumps), int(len(positions))
+
+    for k in range(n_buckets):  # pass 1: stops
+        pts, jumps, n = clean(k)
+        n_positions += n
+        n_jumps += jumps
+        t = time.perf_counter()
+        stops_per_bucket.append(detect_stops(pts, params.stops, id_col=params.id_col))
+        timings["stops_s"] += time.perf_counter() - t
+        kept = pts if n_buckets == 1 else None  # one bucket: pass 2 needs no second read
+        del pts
 
     t = time.perf_counter()
-    stops = detect_stops(pts, params.stops, id_col=params.id_col)
-    timings["stops_s"] = time.perf_counter() - t
-
-    t = time.perf_counter()
+    offsets = np.cumsum([0] + [len(s) for s in stops_per_bucket])
+    stops = pd.concat([s.assign(stop_id=s["stop_id"] + offsets[k]) for k, s in enumerate(stops_per_bucket)],
+                      ignore_index=True) if n_buckets > 1 else stops_per_bucket[0]
     ports, stop_port_id = detect_ports(stops, known_ports, params.ports)
     stops = stops.assign(port_id=stop_port_id)
-    timings["ports_s"] = time.perf_counter() - t
-
-    t = time.perf_counter()
     places = [ports[["lat_deg", "lon_deg"]]] if len(ports) else []
     if known_ports is not None and len(known_ports):
         places.append(known_ports[["lat_deg", "lon_deg"]])
     places_df = pd.concat(places, ignore_index=True).astype(float) if places else None
-    voyages = segment_voyages(pts, stops, stop_port_id, places_df, params.voyages, id_col=params.id_col,
-                              ports=ports if len(ports) else None)
-    timings["voyages_s"] = time.perf_counter() - t
+    timings["ports_s"] += time.perf_counter() - t
 
-    t = time.perf_counter()
-    points = resample_voyages(pts, voyages, params.resample)
-    timings["resample_s"] = time.perf_counter() - t
-    return PreparedChain(ports, stops, voyages, points, int(len(positions)), int(n_jumps), timings)
+    voyages, points = [], []
+    for k in range(n_buckets):  # pass 2: voyages and resampling
+        pts = kept if kept is not None else clean(k)[0]
+        kept = None
+        t = time.perf_counter()
+        ids = stop_port_id[offsets[k]:offsets[k + 1]]
+        v = segment_voyages(pts, stops_per_bucket[k], ids, places_df, params.voyages, id_col=params.id_col,
+                            ports=ports if len(ports) else None)
+        timings["voyages_s"] += time.perf_counter() - t
+        t = time.perf_counter()
+        points.append(resample_voyages(pts, v, params.resample))
+        voyages.append(v)
+        timings["resample_s"] += time.perf_counter() - t
+        del pts
+    voyages_df = voyages[0] if n_buckets == 1 else pd.concat(voyages, ignore_index=True)
+    points_df = points[0] if n_buckets == 1 else pd.concat(points, ignore_index=True)
+    return PreparedChain(ports, stops, voyages_df, points_df, n_positions, n_jumps, timings)
 
 
 def finish_chain(prep: PreparedChain, lanes: LaneResult, lanes_s: float) -> ChainResult:
@@ -178,4 +226,5 @@ def voyages_as_table(voyages: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-__all__ = ["ChainParams", "ChainResult", "PreparedChain", "build_lanes", "finish_chain", "prepare_chain", "voyages_as_table"]
+__all__ = ["ChainParams", "ChainResult", "PreparedChain", "build_lanes", "finish_chain", "prepare_chain",
+           "prepare_chain_in_buckets", "voyages_as_table"]

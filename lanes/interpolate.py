@@ -232,8 +232,14 @@ def resample_voyages(pts: pd.DataFrame, voyages: pd.DataFrame, params: ResampleP
 
     step_d = np.r_[0.0, haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:])]
     step_d[voyage_start] = 0.0
-    cum = np.cumsum(step_d)
-    along = cum - np.maximum.accumulate(np.where(voyage_start, cum, 0.0))
+    # distance along each voyage, summed voyage by voyage (not one running sum over every
+    # voyage minus its start): the same bits whichever other tracks were read with it (the
+    # lanes chain reads tracks in buckets); a loop over voyages, not over points
+    cum = np.empty(m)
+    starts = np.flatnonzero(voyage_start)
+    for a, b in zip(starts, np.r_[starts[1:], m]):
+        cum[a:b] = np.cumsum(step_d[a:b])
+    along = cum
 
     h = max(1, int(round(params.course_window_s / 2.0 / params.step_s)))
     idx = np.arange(m)

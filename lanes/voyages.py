@@ -235,8 +235,9 @@ def segment_voyages(pts: pd.DataFrame, stops: pd.DataFrame, stop_port_id: np.nda
 
     # Lengths, gaps and filters.
     step_d = np.r_[haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]), 0.0] if n > 1 else np.zeros(1)
-    cum_d = np.r_[0.0, np.cumsum(step_d[:-1])]
-    dist = cum_d[seg_last] - cum_d[seg_first]
+    # each voyage's own sum (not a difference of one running sum over every track): the same
+    # bits whichever other tracks were read with it (the lanes chain reads tracks in buckets)
+    dist = np.array([step_d[a:b].sum() if b > a else 0.0 for a, b in zip(seg_first, seg_last)], dtype=float)
     n_fix = seg_last - seg_first + 1
     step_dt_full = np.r_[step_dt, 0.0]
     max_gap = np.array([step_dt_full[a:b].max() if b > a else 0.0 for a, b in zip(seg_first, seg_last)]) if seg_first.size else np.empty(0)

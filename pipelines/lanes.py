@@ -1,18 +1,19 @@
 """Prefect flow: traffic lanes from the ingested AIS positions (after ``ingest``).
 
-reader task (``ais_positions`` + ``data/ports.csv``) -> :func:`lanes.chain.prepare_chain` (jump
-filter, stops, ports, voyages, resampling: serial) -> one task per origin-destination partition
+port lists -> :func:`prepare_from_workspace` (:func:`lanes.chain.prepare_chain_in_buckets`: jump
+filter, stops, ports, voyages, resampling; serial, reading ``ais_positions`` one bucket of whole
+tracks at a time, :data:`BUCKET_ROWS`) -> one task per origin-destination partition
 (:func:`lanes.extract.extract_lanes_for_pair`, submitted to the flow's task runner) ->
 :func:`lanes.extract.merge_lane_results` -> :func:`lanes.chain.finish_chain` -> writer task (tables
 ``ports``, ``voyages``, ``lanes``, ``lane_centroids``, ``lane_voyages``).
 
 ``run_lanes`` runs the same steps without Prefect, every partition in this process
-(:func:`lanes.chain.build_lanes`, whose :func:`lanes.extract.extract_lanes` is the same partitions
-and the same merge): what ``stormlane lanes`` calls by default, so a one-off command does not start
-a Prefect API. ``lanes_flow`` is the flow the demo runs; :func:`flow_with_runner` gives it a task
-runner (``--task-runner dask[:ADDRESS]``: the partitions run on a Dask cluster, each worker
-receiving only its partition's resampled points). Both paths give identical tables (tested on a
-2-worker ``distributed.LocalCluster``). Prefect is imported only when the flow is first used.
+(:func:`lanes.extract.extract_lanes` is the same partitions and the same merge): what ``stormlane
+lanes`` calls by default, so a one-off command does not start a Prefect API. ``lanes_flow`` is
+the flow the demo runs; :func:`flow_with_runner` gives it a task runner (``--task-runner
+dask[:ADDRESS]``: the partitions run on a Dask cluster, each worker receiving only its
+partition's resampled points). Both paths give identical tables (tested on a 2-worker cluster of
+separate ``dask scheduler``/``dask worker`` processes). Prefect is imported only when the flow is first used.
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field
 
-from lanes.chain import ChainParams, ChainResult, build_lanes, voyages_as_table
+from lanes.chain import (ChainParams, ChainResult, PreparedChain, finish_chain, prepare_chain_in_buckets,
+                         voyages_as_table)
+from lanes.extract import extract_lanes
 from lanes.extract import LaneParams
 from lanes.interpolate import ResampleParams
 from lanes.ports import PortParams
@@ -83,11 +86,16 @@ def default_port_lists() -> list[Path]:
     return [p for p in (data_dir() / "ports.csv", data_dir() / "ports_terminals.csv") if p.exists()]
 
 
-def load_inputs(db: str | Path, ports_csv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """AIS positions of the workspace and the port lists (one path, several, or the defaults)."""
+#: Positions the lanes chain reads at once: one bucket of whole tracks (ascending MMSI ranges),
+#: about 0.3 GB in pandas with the chain's working copies (measured: bench/scale.py, docs/scale.md).
+BUCKET_ROWS = 4_000_000
+
+
+def load_port_lists(db: str | Path, ports_csv=None) -> pd.DataFrame:
+    """The port lists (one path, several, or the defaults), after checking that the workspace
+    holds positions to extract lanes from."""
     from lanes.io.portlist import read_port_lists
     from pipelines.storage import open_workspace
-    from pipelines.storage.ais import read_positions
 
     if ports_csv is None:
         paths = default_port_lists()
@@ -99,10 +107,39 @@ def load_inputs(db: str | Path, ports_csv=None) -> tuple[pd.DataFrame, pd.DataFr
     if not Path(db).exists():
         raise LanesInputError(f"workspace {db} does not exist; run `stormlane ingest-ais PATH --db {db}` first")
     with open_workspace(db) as ws:
-        positions = read_positions(ws)
-    if len(positions) == 0:
-        raise LanesInputError(f"workspace {db} has no AIS positions; run `stormlane ingest-ais PATH --db {db}` first")
-    return positions, known
+        if ws.con.execute("SELECT count(*) FROM (SELECT 1 FROM ais_positions LIMIT 1)").fetchone()[0] == 0:
+            raise LanesInputError(f"workspace {db} has no AIS positions; run `stormlane ingest-ais PATH --db {db}` first")
+    return known
+
+
+def mmsi_buckets(per_mmsi: pd.DataFrame, bucket_rows: int = BUCKET_ROWS) -> list[tuple[int, int]]:
+    """Ascending, disjoint ``(lo, hi)`` MMSI ranges of at most ``bucket_rows`` positions each
+    (a vessel with more is a bucket of its own), from :func:`pipelines.storage.ais.positions_per_mmsi`."""
+    mmsi = per_mmsi["mmsi"].to_numpy(dtype=np.int64)
+    n = per_mmsi["n"].to_numpy(dtype=np.int64)
+    out, start, rows = [], 0, 0
+    for i in range(len(mmsi)):
+        if rows and rows + n[i] > bucket_rows:
+            out.append((int(mmsi[start]), int(mmsi[i - 1])))
+            start, rows = i, 0
+        rows += int(n[i])
+    if len(mmsi):
+        out.append((int(mmsi[start]), int(mmsi[-1])))
+    return out
+
+
+def prepare_from_workspace(db: str | Path, known: pd.DataFrame, params: ChainParams,
+                           bucket_rows: int = BUCKET_ROWS) -> PreparedChain:
+    """Steps 1-5 of the chain on the workspace's positions, read bucket by bucket of whole
+    tracks (:func:`lanes.chain.prepare_chain_in_buckets`): the positions held at once are one
+    bucket's, whatever the workspace holds."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import positions_per_mmsi, read_positions
+
+    with open_workspace(db) as ws:
+        buckets = mmsi_buckets(positions_per_mmsi(ws), bucket_rows)
+        return prepare_chain_in_buckets(lambda k: read_positions(ws, mmsi_range=buckets[k]), len(buckets), known,
+                                        params)
 
 
 def store_result(db: str | Path, result: ChainResult, settings: LanesSettings) -> dict:
@@ -123,9 +160,13 @@ def summary_counts(summary: dict) -> dict:
 
 def run_lanes(db: str | Path, ports_csv=None, settings: LanesSettings | None = None) -> dict:
     """Reader -> chain -> writer without Prefect; returns the summary (counts, run id, details)."""
+    import time
+
     settings = settings or LanesSettings()
-    positions, known = load_inputs(db, ports_csv)
-    result = build_lanes(positions, known, settings.chain_params())
+    params = settings.chain_params()
+    prep = prepare_from_workspace(db, load_port_lists(db, ports_csv), params)
+    t = time.perf_counter()
+    result = finish_chain(prep, extract_lanes(prep.points, params.lanes), time.perf_counter() - t)
     out = store_result(db, result, settings)
     return {**out, "details": result.summary}
 
@@ -171,13 +212,14 @@ def _build_flow() -> dict:
     from prefect import flow, task
     from prefect.cache_policies import NO_CACHE
 
-    from lanes.chain import finish_chain, prepare_chain
     from lanes.extract import extract_lanes_for_pair, merge_lane_results
     from pipelines.runners import make_task_runner, retry_transient
 
-    read_task = task(load_inputs, name="read positions and port lists", retries=3, retry_delay_seconds=[2, 5, 15],
+    read_task = task(load_port_lists, name="read port lists", retries=3, retry_delay_seconds=[2, 5, 15],
                      cache_policy=NO_CACHE, retry_condition_fn=retry_transient)
-    prepare_task = task(prepare_chain, name="stops, ports, voyages, resampling", cache_policy=NO_CACHE)
+    prepare_task = task(prepare_from_workspace, name="stops, ports, voyages, resampling (by MMSI bucket)",
+                        retries=3, retry_delay_seconds=[2, 5, 15], cache_policy=NO_CACHE,
+                        retry_condition_fn=retry_transient)
     partition_task = task(extract_lanes_for_pair, name="lanes of one O-D pair", cache_policy=NO_CACHE,
                           task_run_name="lanes-{key[0]}-{key[1]}")
     store_task = task(store_result, name="store lanes", retries=3, retry_delay_seconds=[2, 5, 15],
@@ -189,9 +231,8 @@ def _build_flow() -> dict:
     def lanes_flow(db: str, ports_csv: Optional[list[str]] = None, settings: LanesSettings = LanesSettings()) -> dict:
         """Ports, voyages and traffic lanes from the workspace's AIS positions, one task per O-D pair."""
         params = settings.chain_params()
-        positions, known = read_task(db, ports_csv)
-        prep = prepare_task(positions, known, params)
-        del positions
+        known = read_task(db, ports_csv)
+        prep = prepare_task(db, known, params)
         t = time.perf_counter()
         jobs = partition_jobs(prep.points, params.lanes)
         futures = [partition_task.submit(pts, params.lanes, key) for key, _, pts in jobs]

@@ -4,7 +4,8 @@ The workspace holds the demo scenario's positions (seed 0, 30 days; the fixes it
 as ``tests/test_lanes_demo.py`` builds them) ingested through the real ingest. The sequential
 reference is ``run_lanes`` (the default ``stormlane lanes`` path: no Prefect, every partition in
 this process); the scale-out run is the Prefect lanes flow with one task per partition on a
-2-worker ``distributed.LocalCluster``. Both write the workspace tables, which must be identical.
+2-worker Dask cluster of separate processes (``dask scheduler`` + ``dask worker``, the
+``dask_address`` fixture). Both write the workspace tables, which must be identical.
 """
 
 from __future__ import annotations
@@ -61,8 +62,8 @@ def demo_workspace(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_lanes_on_a_two_worker_dask_cluster_equal_the_sequential_run(demo_workspace, prefect_harness):
-    from distributed import LocalCluster, get_task_stream
+def test_lanes_on_a_two_worker_dask_cluster_equal_the_sequential_run(demo_workspace, prefect_harness, dask_address):
+    from distributed import Client, get_task_stream
 
     from pipelines.lanes import LanesSettings, flow_with_runner, run_lanes
 
@@ -72,12 +73,9 @@ def test_lanes_on_a_two_worker_dask_cluster_equal_the_sequential_run(demo_worksp
     # the demo has many port pairs (issue 3: at least 12 sailed pairs), so the fan-out is real
     assert expected["counts"]["lanes"] >= 12 and seq["details"]["resampled_points"] > 0
 
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
-        from distributed import Client
-
-        with Client(cluster) as client, get_task_stream(client) as stream:
-            out = flow_with_runner(f"dask:{cluster.scheduler_address}")(db=str(db), settings=LanesSettings())
-        workers = {t["worker"] for t in stream.data}
+    with Client(dask_address) as client, get_task_stream(client) as stream:
+        out = flow_with_runner(f"dask:{dask_address}")(db=str(db), settings=LanesSettings())
+    workers = {t["worker"] for t in stream.data}
 
     got = _tables(db)
     assert out["run_id"] == seq["run_id"] + 1  # the flow really wrote its own result
@@ -154,3 +152,27 @@ def test_a_bad_task_runner_spec_is_one_line_and_exit_code_2(tmp_path, capsys):
         assert exc.value.code == 2, spec
         assert "\n" not in err and "--task-runner" in err and "sequential, dask or dask:ADDRESS" in err, err
         assert (db.stat().st_size, db.stat().st_mtime_ns) == before  # rejected before anything started
+
+
+def test_the_chain_read_in_mmsi_buckets_equals_one_read(demo_workspace):
+    """Steps 1-5 on the workspace read in buckets of whole tracks (5 or more) give the stops,
+    ports, voyages and resampled points of the single read, in the same order."""
+    from pipelines.lanes import LanesSettings, load_port_lists, mmsi_buckets, prepare_from_workspace
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import positions_per_mmsi
+
+    params = LanesSettings().chain_params()
+    known = load_port_lists(demo_workspace)
+    with open_workspace(demo_workspace) as ws:
+        per = positions_per_mmsi(ws)
+    rows = int(per["n"].sum()) // 5
+    assert len(mmsi_buckets(per, rows)) >= 5 and len(mmsi_buckets(per, 10 * rows)) == 1
+    one = prepare_from_workspace(demo_workspace, known, params, bucket_rows=10 * rows)
+    many = prepare_from_workspace(demo_workspace, known, params, bucket_rows=rows)
+    local = ["first_row", "last_row"]  # each bucket's own row numbers
+    assert (many.n_positions, many.n_jumps) == (one.n_positions, one.n_jumps)
+    pd.testing.assert_frame_equal(many.ports, one.ports, check_exact=True)
+    pd.testing.assert_frame_equal(many.stops.drop(columns=local), one.stops.drop(columns=local), check_exact=True)
+    pd.testing.assert_frame_equal(many.voyages.drop(columns=local), one.voyages.drop(columns=local), check_exact=True)
+    pd.testing.assert_frame_equal(many.points, one.points, check_exact=True)
+    assert len(one.points) > 10_000 and len(one.voyages) > 100

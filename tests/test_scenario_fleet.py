@@ -78,3 +78,41 @@ def test_fleet_files_are_the_same_whatever_the_workers_and_match_the_truth(tmp_p
     assert s["loaded"] == a["expected_ingest"]["loaded"]
     assert s["quarantined"] + s["duplicates"] == a["expected_ingest"]["rejected"]
     assert s["reasons"]["speed_jump"] == a["dirty_rows"]["counts"]["speed_jump"]
+
+
+_PEAK = """
+import json, resource, sys
+from pipelines.scenario_fleet import build_fleet_scenario
+s = build_fleet_scenario(sys.argv[1], vessels=int(sys.argv[2]), seed=1, start="2025-03-01T00:00Z",
+                         days=float(sys.argv[3]), workers=1)
+ru = resource.getrusage
+print(json.dumps({"rows": s["expected_ingest"]["position_records"], "parent_kb": ru(resource.RUSAGE_SELF).ru_maxrss,
+                  "worker_kb": ru(resource.RUSAGE_CHILDREN).ru_maxrss}))
+"""
+
+
+def test_fleet_memory_does_not_hold_the_fleet_period(tmp_path, spec):
+    """Peak RSS (getrusage) of a 2-ship x 2-day and a 10-ship x 10-day fleet (32 times the rows),
+    each in a fresh process: the parent holds no records (its peak stays within 15 MB), and the
+    worker's peak grows by well under what holding the extra records would take (their pandas
+    size, measured here): it holds one ship's period or one day of the fleet at a time."""
+    import subprocess
+    import sys
+
+    from scenario.fleet import fleet_spec, sail_ship
+    from scenario.spec import ScenarioSettings
+
+    def peak(vessels, days):
+        out = subprocess.run([sys.executable, "-c", _PEAK, str(tmp_path / f"{vessels}x{days}"), str(vessels), str(days)],
+                             capture_output=True, text=True, check=True)
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    small, big = peak(2, 2), peak(10, 10)
+    assert big["rows"] > 30 * small["rows"]
+    recs = sail_ship(fleet_spec(spec, 2), ScenarioSettings(seed=1, start_utc=pd.Timestamp("2025-03-01T00:00Z"), days=2),
+                     0)["records"]
+    held_mb = (big["rows"] - small["rows"]) * recs.memory_usage(deep=True).sum() / len(recs) / 1e6
+    parent_mb = (big["parent_kb"] - small["parent_kb"]) / 1e3
+    worker_mb = (big["worker_kb"] - small["worker_kb"]) / 1e3
+    assert held_mb > 40 and parent_mb < 15, (held_mb, parent_mb)
+    assert worker_mb < 0.6 * held_mb, (worker_mb, held_mb)

@@ -21,7 +21,7 @@ def _utc(df: pd.DataFrame, cols=("time_utc",)) -> pd.DataFrame:
     return df
 
 
-def read_positions(ws, mmsi=None, start=None, end=None) -> pd.DataFrame:
+def read_positions(ws, mmsi=None, start=None, end=None, mmsi_range=None) -> pd.DataFrame:
     """Canonical positions sorted by ``mmsi``, ``time_utc``.
 
     Parameters
@@ -30,12 +30,17 @@ def read_positions(ws, mmsi=None, start=None, end=None) -> pd.DataFrame:
         Only these vessels.
     start, end : datetime-like, optional
         Only ``start <= time_utc < end`` (naive values are taken as UTC).
+    mmsi_range : (int, int), optional
+        Only ``lo <= mmsi <= hi`` (a bucket of whole tracks).
     """
     where, params = [], []
     if mmsi is not None:
         ids = [int(m) for m in (mmsi if np.ndim(mmsi) else [mmsi])]
         where.append("list_contains(?, mmsi)")
         params.append(ids)
+    if mmsi_range is not None:
+        where.append("mmsi BETWEEN ? AND ?")
+        params += [int(mmsi_range[0]), int(mmsi_range[1])]
     for bound, op in ((start, ">="), (end, "<")):
         if bound is not None:
             ts = pd.Timestamp(bound)
@@ -94,3 +99,8 @@ def open_for_reading(path, wait_s: float = 60.0, poll_s: float = 0.2):
             if time.monotonic() >= deadline:
                 raise
             time.sleep(poll_s)
+
+
+def positions_per_mmsi(ws) -> pd.DataFrame:
+    """``mmsi``, ``n`` (stored positions) per vessel, by ``mmsi``: what bucketing by vessel needs."""
+    return ws.con.execute("SELECT mmsi, count(*) AS n FROM ais_positions GROUP BY mmsi ORDER BY mmsi").fetchdf()
