@@ -1,0 +1,263 @@
+"""Scale benchmark (issue 23 item 5): where the time, the memory and the disk go at N AIS rows.
+
+``python bench/scale.py --rows N`` generates a fleet year-scale scenario of about N rows
+(``stormlane scenario --vessels V --days D``: gzip daily files in the DMA layout), then runs
+every stage twice, side by side in the same run, interleaved (sequential, then cluster, stage by
+stage, so both see the same machine load):
+
+* ``ingest``: ``stormlane ingest-ais DIR/ais --db NEW`` (sequential), and the same with
+  ``--task-runner dask:ADDRESS`` (file staging on the workers, commits in order here);
+* ``lanes``: ``stormlane lanes`` on that workspace, and the Prefect lanes flow with the
+  origin-destination partitions on the workers;
+* ``nightly``: one night (``stormlane nightly``) at the end of the AIS period with the demo's
+  storm weather for its last two days, sequentially and with the per-lane work on the workers.
+
+The cluster is a real one: ``dask scheduler`` and ``dask worker --nworkers W --nthreads 1`` as
+separate processes (:mod:`pipelines.dask_processes`), started fresh for each stage so that the
+workers' peak memory is that stage's; Prefect's temporary API server is started before the
+timed run too (a no-op flow), so neither start-up is counted in a stage's wall time. Every stage runs in a fresh process of the benchmark
+harness (:func:`bench._harness._child`: ``getrusage`` peak RSS, wall and CPU seconds, load
+average before and after). Printed per stage and runner: rows, wall seconds, rows/s, CPU
+seconds of the stage's process, peak RSS of that process, of its process pools (the
+generator's) and of the largest and all Dask workers, and the disk written (workspace file +
+Parquet dataset beside it, against the gzip input). The figures go to
+``bench/results-scale.json`` (one entry per ``--rows``), kept apart from ``bench/results.json``
+(``make bench`` does not run this script: one 100 M-row run takes hours on 2 cores).
+"""
+
+from __future__ import annotations
+
+if __name__ == "__main__":  # run as a file: import `bench` from the repository root
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import json
+import os
+import resource
+import time
+from pathlib import Path
+
+from bench._harness import ROOT, Config, _child
+
+#: AIS rows per ship-day of the fleet scenario (measured: 73,684 rows for 20 ships x 4 days,
+#: seed 5): N rows are about N / (vessels x this) days.
+ROWS_PER_SHIP_DAY = 921
+START_UTC = "2025-01-01T00:00Z"
+RESULTS = ROOT / "bench" / "results-scale.json"
+
+
+def _peaks_mb() -> dict:
+    """Peak RSS of this process and of its largest reaped child (a process pool's worker)."""
+    to_mb = 1024 / 1e6
+    return {"peak_mb_self": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * to_mb,
+            "peak_mb_children": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * to_mb}
+
+
+def _tree_bytes(path: Path) -> int:
+    path = Path(path)
+    if path.is_file():
+        return path.stat().st_size
+    return sum(p.stat().st_size for p in path.rglob("*") if p.is_file()) if path.exists() else 0
+
+
+# ------------------------------------------------------------------ stages (run in fresh processes)
+def generate(folder: str, vessels: int, days: float, seed: int, workers: int) -> dict:
+    from pipelines.scenario_fleet import build_fleet_scenario
+
+    if not (Path(folder) / "scenario.json").exists():
+        build_fleet_scenario(Path(folder), vessels=vessels, seed=seed, start=START_UTC, days=days, workers=workers)
+    truth = json.loads((Path(folder) / "scenario.json").read_text())
+    return {"work": int(truth["expected_ingest"]["position_records"]), "gzip_bytes": _tree_bytes(Path(folder) / "ais"),
+            **_peaks_mb()}
+
+
+def stage_setup(runner: str, workdir: str, **kwargs) -> dict:
+    """Untimed: a fresh cluster of separate processes for a ``cluster`` run (stopped at exit)."""
+    import atexit
+    import contextlib
+
+    os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
+    state = {"runner": "sequential", **kwargs}
+    if runner == "cluster":
+        from pipelines.dask_processes import dask_cluster_processes
+
+        stack = contextlib.ExitStack()
+        address = stack.enter_context(dask_cluster_processes(Path(workdir) / "dask", n_workers=int(kwargs["workers"])))
+        atexit.register(stack.close)
+        state.update(runner=f"dask:{address}", address=address)
+    if runner == "cluster" or kwargs.get("stage") == "nightly":
+        _start_prefect()
+    return state
+
+
+def _start_prefect() -> None:
+    """Untimed: a no-op flow, so that Prefect's temporary API server (started once per process,
+    about a minute on 2 loaded cores) is not counted in the stage's time."""
+    from prefect import flow
+
+    flow(name="scale-bench-warmup")(lambda: None)()
+
+
+def _worker_peaks(st: dict) -> dict:
+    if "address" not in st:
+        return {}
+    from distributed import Client
+
+    def peak():
+        import resource as r
+
+        return r.getrusage(r.RUSAGE_SELF).ru_maxrss * 1024 / 1e6
+
+    with Client(st["address"]) as client:
+        per = list(client.run(peak).values())
+    return {"peak_mb_worker_max": max(per), "peak_mb_workers_sum": sum(per)}
+
+
+def _cli(argv: list[str], runner: str) -> dict:
+    import contextlib
+    import io
+
+    from pipelines.cli import main
+
+    if runner != "sequential":
+        argv = [*argv, "--task-runner", runner]
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = main([*argv, "--json"])
+    if rc not in (None, 0):
+        raise RuntimeError(f"stormlane {' '.join(argv)}: exit {rc}")
+    return json.loads(buf.getvalue())
+
+
+def ingest(st: dict) -> dict:
+    db = Path(st["db"])
+    out = _cli(["ingest-ais", st["ais"], "--db", str(db)], st["runner"])
+    parquet = db.parent / f"{db.stem}.parquet"
+    return {"work": int(out["read"]), "loaded": int(out["loaded"]), "disk_db_bytes": _tree_bytes(db),
+            "disk_parquet_bytes": _tree_bytes(parquet), **_peaks_mb(), **_worker_peaks(st)}
+
+
+def lanes(st: dict) -> dict:
+    out = _cli(["lanes", "--db", st["db"]], st["runner"])
+    return {"work": int(st["rows"]), **{k: out[k] for k in ("ports", "voyages", "lanes", "noise_points")},
+            **_peaks_mb(), **_worker_peaks(st)}
+
+
+def nightly(st: dict) -> dict:
+    import pandas as pd
+
+    from weather.io.scenario_files import write_scenario_weather
+    from weather.scenario import generate_weather
+    from pipelines.weather import FORECAST_TAIL_H
+
+    end = pd.Timestamp(json.loads(Path(st["scenario_json"]).read_text())["scenario"]["end_utc"])
+    wx = Path(st["weather_dir"])
+    if not (wx / "weather").exists():
+        write_scenario_weather(wx, seed=0, weather=generate_weather(0, start=end - pd.Timedelta(days=2),
+                                                                     end=end + pd.Timedelta(hours=FORECAST_TAIL_H)))
+    out = _cli(["nightly", "--db", st["db"], "--weather", str(wx / "weather"), "--now", end.isoformat(),
+                "--out", str(Path(st["db"]).parent / f"night-{st['side']}"), "--max-detail", "3"], st["runner"])
+    return {"work": int(out["departures_checked"]), "lanes_checked": int(out["lanes_checked"]),
+            "adverse": int(out["adverse"]), **_peaks_mb(), **_worker_peaks(st)}
+
+
+# ------------------------------------------------------------------ driver
+def _row(stage: str, side: str, rec: dict) -> dict:
+    run = (rec.get("runs") or [{}])[0]
+    info = run.get("info", {})
+    wall = run.get("wall_s")
+    row = {"stage": stage, "side": side, "failed": rec.get("failed"), "wall_s": wall, "cpu_s": run.get("cpu_s"),
+           "process_peak_mb": rec.get("process_peak_mb"), "load_before": run.get("load_before"),
+           "load_after": run.get("load_after"), **info}
+    if wall and info.get("work"):
+        row["per_s"] = info["work"] / wall
+    return row
+
+
+def _fmt(v, spec="{:,.0f}") -> str:
+    return "-" if v is None else spec.format(v)
+
+
+def print_table(rows: list[dict], gzip_bytes: int) -> None:
+    print(f"{'stage':<9}{'side':<12}{'work':>13}{'wall s':>9}{'work/s':>12}{'cpu s':>9}{'peak MB':>9}"
+          f"{'pool MB':>9}{'wrk max':>9}{'wrk sum':>9}{'disk MB':>9}{'x gzip':>8}{'load':>6}")
+    for r in rows:
+        disk = (r.get("disk_db_bytes") or 0) + (r.get("disk_parquet_bytes") or 0)
+        print(f"{r['stage']:<9}{r['side']:<12}{_fmt(r.get('work')):>13}{_fmt(r.get('wall_s'), '{:,.1f}'):>9}"
+              f"{_fmt(r.get('per_s')):>12}{_fmt(r.get('cpu_s'), '{:,.1f}'):>9}{_fmt(r.get('peak_mb_self')):>9}"
+              f"{_fmt(r.get('peak_mb_children')):>9}{_fmt(r.get('peak_mb_worker_max')):>9}"
+              f"{_fmt(r.get('peak_mb_workers_sum')):>9}{_fmt(disk / 1e6 if disk else None):>9}"
+              f"{_fmt(disk / gzip_bytes if disk and gzip_bytes else None, '{:.2f}'):>8}"
+              f"{_fmt(r.get('load_before'), '{:.1f}'):>6}" + (f"  FAILED: {r['failed']}" if r.get("failed") else ""))
+
+
+def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, seed: int = 23,
+              stages: tuple = ("ingest", "lanes", "nightly"), cluster: bool = True) -> dict:
+    cfg = Config(runs=1, timeout_s=12 * 3600.0)
+    days = max(1.0, round(rows / (vessels * ROWS_PER_SHIP_DAY), 2))
+    workdir.mkdir(parents=True, exist_ok=True)
+    tmp = workdir / "harness"
+    tmp.mkdir(exist_ok=True)
+    scen = workdir / f"scenario-{vessels}x{days:g}d-s{seed}"
+    print(f"scale run: {vessels} ships x {days:g} days (target {rows:,} rows), {workers}-worker cluster; "
+          f"load {os.getloadavg()[0]:.1f}", flush=True)
+    gen = _child(cfg, tmp, None, "bench.scale:generate", {"folder": str(scen), "vessels": vessels, "days": days,
+                                                           "seed": seed, "workers": workers}, 1, {},
+                 call_with_kwargs=True)
+    table = [_row("generate", f"{workers} procs", gen)]
+    gzip_bytes = int(table[0].get("gzip_bytes") or 0)
+    n_rows = int(table[0].get("work") or 0)
+    print_table(table, gzip_bytes)
+    sides = ["sequential"] + (["cluster"] if cluster else [])
+    for stage in stages:
+        for side in sides:
+            db = workdir / side / "ws.duckdb"
+            db.parent.mkdir(exist_ok=True)
+            if stage == "ingest":
+                for old in (db, Path(f"{db}.wal")):
+                    old.unlink(missing_ok=True)
+                import shutil
+
+                shutil.rmtree(db.parent / "ws.parquet", ignore_errors=True)
+            kw = {"runner": side, "workdir": str(workdir / side), "workers": workers, "db": str(db),
+                  "ais": str(scen / "ais"), "rows": n_rows, "scenario_json": str(scen / "scenario.json"),
+                  "weather_dir": str(workdir / "weather"), "side": side, "stage": stage}
+            rec = _child(cfg, tmp, "bench.scale:stage_setup", f"bench.scale:{stage}", kw, 1, {})
+            table.append(_row(stage, side, rec))
+            print_table(table[-1:], gzip_bytes)
+    out = {"rows_target": rows, "rows": n_rows, "vessels": vessels, "days": days, "workers": workers,
+           "gzip_bytes": gzip_bytes, "cores": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%dT%H:%MZ", time.gmtime()),
+           "stages": table}
+    print("\nsummary")
+    print_table(table, gzip_bytes)
+    return out
+
+
+def main(argv=None) -> dict:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rows", type=int, required=True, help="AIS rows to generate (about)")
+    ap.add_argument("--vessels", type=int, default=300)
+    ap.add_argument("--workers", type=int, default=2, help="Dask worker processes of the cluster side")
+    ap.add_argument("--workdir", type=Path, default=None, help="default: $TMPDIR/stormlane-scale-ROWS")
+    ap.add_argument("--stages", default="ingest,lanes,nightly")
+    ap.add_argument("--no-cluster", action="store_true", help="the sequential side only")
+    ap.add_argument("--no-write", action="store_true", help="do not record in bench/results-scale.json")
+    a = ap.parse_args(argv)
+    import tempfile
+
+    workdir = a.workdir or Path(tempfile.gettempdir()) / f"stormlane-scale-{a.rows}"
+    out = run_scale(a.rows, workdir, a.vessels, a.workers, stages=tuple(s for s in a.stages.split(",") if s),
+                    cluster=not a.no_cluster)
+    if not a.no_write:
+        prev = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+        prev[str(a.rows)] = out
+        RESULTS.write_text(json.dumps(prev, indent=1, default=float) + "\n")
+    return out
+
+
+if __name__ == "__main__":
+    main()
