@@ -30,6 +30,13 @@ from dashboards.sections import (DASH, chips, events_section, exports_section, f
 
 #: Short names of the proposed roles in the matrix cells (the legend spells them out).
 ROLE_SHORT = {"safe_optimal": "SO", "optimal": "TO", "deviation": "DV", "min_distance": "MD"}
+
+
+def role_short(role: str) -> str:
+    """A role's letters in a matrix cell; a role the table does not know (a new one a run
+    proposes) gets the initials of its words (``least_fuel`` -> ``LF``)."""
+    return ROLE_SHORT.get(role) or "".join(w[:1] for w in str(role).split("_")).upper() or "?"
+
 #: Hours at risk avoided: upper bounds of the matrix's colour classes (m1 .. m4).
 AVOIDED_BOUNDS_H = (1.0, 3.0, 6.0, math.inf)
 #: Rows of the ranked list of top cases.
@@ -121,7 +128,11 @@ def fleet_map(model: NightlyReport, rows: list[dict]) -> Markup:
     return img_png(plots.fleet_map_png(lanes), "fleet map: every lane checked, coloured by its worst hours at risk", class_="fig fleet")
 
 
-def _avoided_class(h) -> str:
+def _avoided_class(h, proposed: bool = True) -> str:
+    """Colour class of an adverse cell: no proposal (``m-na``), a proposal that avoids no hour at
+    risk (``m0``: proposed for fewer IMO events, or time and fuel), else by hours avoided."""
+    if not proposed:
+        return "m-na"
     if h is None or not math.isfinite(h) or h <= 0:
         return "m0"
     return f"m{next(k for k, b in enumerate(AVOIDED_BOUNDS_H, start=1) if h < b)}"
@@ -138,10 +149,16 @@ def _cell(rec) -> Markup:
         return el("td", inner, class_="m-fail", title=f"{when}: failed")
     h = rec["risk_avoided_h"]
     role = rec["proposed"] if isinstance(rec["proposed"], str) else None
-    text = ROLE_SHORT.get(role, role or "\u2013")
+    text = role_short(role) if role else "\u2013"
     tip = f"{when}: {rec['rules']}; " + (f"{role}, {fmt(h, 1)} h at risk avoided" if role else "no safer alternative")
     inner = el("a", text, href=f"#{_anchor(k)}") if k else text
-    return el("td", inner, class_=_avoided_class(h if role else None), title=tip)
+    return el("td", inner, class_=_avoided_class(h, proposed=role is not None), title=tip)
+
+
+def _roles_shown(model: NightlyReport) -> list:
+    """The roles the matrix's legend spells out: the known ones, then any other the night proposed."""
+    proposed = {p for p in model.grid["proposed"] if isinstance(p, str)} if model.grid is not None else set()
+    return list(ROLE_SHORT) + sorted(proposed - set(ROLE_SHORT))
 
 
 def matrix(model: NightlyReport, rows: list[dict]) -> Markup:
@@ -162,9 +179,9 @@ def matrix(model: NightlyReport, rows: list[dict]) -> Markup:
                        el("td", fmt(r["worst_h"], 1), class_="num"), *cells))
     legend = el("p", "Cells: hours at risk avoided by the proposed route (",
                 *(el("span", label, class_=f"key {c}") for c, label in (("m1", "< 1 h"), ("m2", "1\u20133 h"), ("m3", "3\u20136 h"),
-                                                                       ("m4", "\u2265 6 h"), ("m0", "no safer route"),
+                                                                       ("m4", "\u2265 6 h"), ("m0", "0 h (other gains)"), ("m-na", "\u2013 no safer route"),
                                                                        ("m-ok", "no rule fired"), ("m-fail", "failed"))),
-                "); letters: the proposed route, ", "; ".join(f"{v} = {plots.label_for(k)}" for k, v in ROLE_SHORT.items()),
+                "); letters: the proposed route, ", "; ".join(f"{role_short(k)} = {plots.label_for(k)}" for k in _roles_shown(model)),
                 ". Departure times UTC (day, hour). Worst at risk: the lane as planned, worst departure.", class_="muted small")
     return join([el("table", el("thead", head), el("tbody", *body), class_="matrix"), legend])
 

@@ -140,16 +140,21 @@ def metrics_section(routes: RouteSet, compact: bool = False, notes: bool = True)
     columns = routes.value_columns()
     if compact:
         columns = [c for c in COMPACT_COLUMNS if c in columns]
+    # plain dicts: one lookup per cell, not a pandas .loc (a night renders thousands of cells)
+    values = {c: dict(zip(roles, metrics[c].tolist())) for c in columns}
+    given = {c: dict(zip(deltas.index, deltas[c].tolist())) for c in columns if c in deltas.columns}
+    pct = {c: dict(zip(roles, pd.to_numeric(metrics[f"d_{c}_pct"], errors="coerce").tolist()))
+           for c in columns if f"d_{c}_pct" in metrics.columns}
     for col in columns:
         cells = [METRIC_COLUMNS.get(col) or _header(col)]
         for role in roles:
-            value = metrics.loc[role, col]
+            value = values[col][role]
             if isinstance(value, (float, np.floating, int, np.integer)) and not isinstance(value, (bool, np.bool_)):
                 d = _decimals(col)
                 shown = value if not col.startswith("n_") or not math.isfinite(float(value)) else int(round(float(value)))
                 cell = Markup(escape(fmt(shown, d)))
-                if role != ref and role in deltas.index and col in deltas.columns:
-                    cell = cell + _delta_span(col, float(deltas.loc[role, col]), routes.delta_pct(col, role))
+                if role != ref and role in given.get(col, {}):
+                    cell = cell + _delta_span(col, float(given[col][role]), pct.get(col, {}).get(role, float("nan")))
                 cells.append(cell)
             else:
                 cells.append(fmt(value))
@@ -265,17 +270,19 @@ def provenance_section(prov: Provenance) -> Markup:
     rows = [
         ["weather source", prov.weather_source or "\u2013"],
         ["weather products", ", ".join(map(str, prov.weather_products)) or "\u2013"],
-        ["weather span", span],
+        ["weather span" + (" used" if prov.weather_spans else ""), span],
         ["weather files", ", ".join(map(str, prov.weather_files)) or "\u2013"],
         ["AIS sources", ", ".join(map(str, prov.ais_sources)) or "\u2013"],
         ["speed-loss model", prov.speed_loss_model or "\u2013"],
-        ["thresholds profile", prov.thresholds_profile or "\u2013"],
-        ["limits", ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}" for k, v in prov.limits.items()) or "\u2013"],
     ]
+    if not prov.vessels:  # else every vessel's limit set is in its own table below
+        rows += [["thresholds profile", prov.thresholds_profile or "\u2013"],
+                 ["limits", ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}"
+                                      for k, v in prov.limits.items()) or "\u2013"]]
     parts = [el("h2", "Methods and provenance"), table(["item", "value"], rows)]
     if prov.weather_spans:
         parts.append(el("h4", "Weather products"))
-        parts.append(table(["product", "variables", "from", "to", "step [h]"],
+        parts.append(table(["product", "variables", "its files from", "to", "step [h]"],
                            [[w.get("product") or DASH, w.get("variables") or DASH, fmt_time(_ts(w.get("start_utc"))),
                              fmt_time(_ts(w.get("end_utc"))), fmt(w.get("step_h"), 2)] for w in prov.weather_spans], numeric={4}))
     if prov.vessels:

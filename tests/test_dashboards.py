@@ -204,6 +204,16 @@ def test_nightly_overview_ranked_list_matrix_and_chips(nightly_page):
     assert "Methods and provenance" in text and "container<200m" in text and "bowditch" in text
 
 
+def test_a_role_the_page_does_not_know_gets_its_initials_and_a_legend_entry():
+    """New roles (a run may propose e.g. ``least_fuel``) reach the matrix and its legend."""
+    model = fx.nightly()
+    model.grid.loc[model.grid["proposed"] == "optimal", "proposed"] = "least_fuel"
+    page = parse(nightly_html(model))
+    m = _table(page, ["#", "lane", "route", "worst at risk [h]"])
+    assert m[1][4] == "LF"
+    assert "LF = least fuel" in " ".join(" ".join(page.text).split())
+
+
 def test_print_style_unfolds_the_cases(nightly_page):
     style = nightly_page.split("<style>", 1)[1].split("</style>", 1)[0]
     printed = style.split("@media print", 1)[1]

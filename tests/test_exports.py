@@ -345,3 +345,46 @@ def test_export_alternatives_only_proposed_writes_gpx_and_rtz_of_that_route(tmp_
     # nothing proposed: the comparison GeoJSON only
     none = export_alternatives(routes, tmp_path / "y", "L2_20250131T0900Z", relative_to=tmp_path, only_proposed=True)
     assert list(none) == ["GeoJSON (all routes)"]
+
+
+def _case(rank, lane, proposed, roles=("lane", "deviation", "optimal")):
+    t0 = pd.Timestamp("2025-01-31T03:00Z") + pd.Timedelta(hours=3 * rank)
+    routes = {r: Route(r, LAT, [x + 0.01 * k for x in LON], pd.DatetimeIndex(pd.to_datetime(TIMES)) + pd.Timedelta(hours=3 * rank),
+                       SPEEDS, {"hs_m": np.array(HS)}, {"origin": "Barcelona", "destination": "Palma"})
+              for k, r in enumerate(roles)}
+    return {"rank": rank, "lane_id": lane, "origin": "Barcelona", "destination": "Palma", "depart_utc": t0, "proposed": proposed,
+            "risk_avoided_h": 2.5 if proposed else None, "routes": routes}
+
+
+def test_exports_zip_holds_the_proposed_routes_by_default_and_every_route_on_request(tmp_path):
+    """Issue 22: one archive per night with index.csv; proposed routes only unless asked for all."""
+    import zipfile
+
+    from dashboards.archive import read_index, write_exports_zip
+    from dashboards.errors import ReportError
+
+    cases = [_case(1, "L1", "optimal"), _case(2, "L/2", None)]  # the second: no safer alternative
+    out = write_exports_zip(cases, tmp_path / "exports.zip", when=pd.Timestamp("2025-01-31T00:00Z"))
+    index = read_index(tmp_path / "exports.zip")
+    # 3 formats of the one proposed route; the case without a proposal exports nothing
+    assert out["files"] == len(index) == 3 and out["members"] == {1: list(index["file"])}
+    assert list(index["file"]) == ["L1_20250131T0600Z_optimal.rtz", "L1_20250131T0600Z_optimal.gpx", "L1_20250131T0600Z_optimal.geojson"]
+    assert set(index["proposed"]) == {"yes"} and set(index["risk_avoided_h"]) == {2.5} and set(index["rank"]) == {1}
+    with zipfile.ZipFile(tmp_path / "exports.zip") as zf:
+        (tmp_path / "x.rtz").write_bytes(zf.read("L1_20250131T0600Z_optimal.rtz"))
+        assert all(i.date_time == (2025, 1, 31, 0, 0, 0) for i in zf.infolist())
+    back = read_rtz(tmp_path / "x.rtz")
+    assert np.allclose(back.lat_deg, LAT, atol=1e-6) and np.allclose(back.lon_deg, [x + 0.02 for x in LON], atol=1e-6)
+    # the same inputs give the same bytes
+    again = write_exports_zip(cases, tmp_path / "again.zip", when=pd.Timestamp("2025-01-31T00:00Z"))
+    assert (tmp_path / "again.zip").read_bytes() == (tmp_path / "exports.zip").read_bytes() and again["bytes"] == out["bytes"]
+    # every route of every adverse case: per case one GeoJSON of all, RTZ and GPX per route (a lane id with "/" made safe)
+    full = write_exports_zip(cases, tmp_path / "all.zip", mode="all")
+    index = read_index(tmp_path / "all.zip")
+    assert full["files"] == len(index) == 2 * (1 + 2 * 3)
+    assert "L_2_20250131T0900Z_all.geojson" in set(index["file"])
+    assert list(index.loc[index["role"] == "optimal", "proposed"]) == ["yes", "yes", "no", "no"]
+    geo = json.loads(zipfile.ZipFile(tmp_path / "all.zip").read("L1_20250131T0600Z_all.geojson"))
+    assert {f["properties"].get("route") for f in geo["features"]} == {"lane", "deviation", "optimal"}
+    with pytest.raises(ReportError, match="exports mode 'some'"):
+        write_exports_zip(cases, tmp_path / "x.zip", mode="some")
