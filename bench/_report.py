@@ -324,9 +324,13 @@ def render_table(results: dict) -> str:
     ]
     if results.get("load_note"):
         lines += [f"Load: {results['load_note']}", ""]
-    for name in results.get("sections_run_alone", []):
+    alone = results.get("sections_run_alone", [])
+    for name in alone:
         sec = results["benchmarks"].get(name) or {}
         lines += [f"Re-run alone after the full run: bench/{name}.py, {_when(sec)}.", ""]
+    if alone:
+        full = [n for n in results["benchmarks"] if n not in alone]
+        lines += [f"From the full run (commit {results['git']['commit'][:10]}): {', '.join(full) or 'none'}.", ""]
     lines += ["| bench | measure | ours cold | ours warm | baseline (same run) | baseline cold | baseline warm | "
               "baseline ÷ ours, cold | baseline ÷ ours, warm | peak MB ours / baseline | load (1 min) | targets |",
               "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | --- | --- |"]
