@@ -77,6 +77,7 @@ class ScenarioContext:
     truth: dict
     gzip: bool = False
     options: dict = field(default_factory=dict)
+    weather: object = None  # the generated weather the fleet sailed through (weather.scenario.ScenarioWeather)
 
 
 ScenarioWriter = Callable[[ScenarioContext], "dict | None"]
@@ -299,9 +300,14 @@ def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | 
     out_dir = make_out_dir(out_dir)
     spec = load_scenario_spec(config, ports)
     st = ScenarioSettings(seed=int(seed), start_utc=start_ts, days=float(days), **settings)
-    scenario = generate_scenario(spec, st)
+    from pipelines.weather import scenario_weather
+    from scenario.performance_law import describe as describe_law
+
+    weather = scenario_weather(st.seed, iso(st.start_s), iso(st.end_s))
+    scenario = generate_scenario(spec, st, seaway=weather.sampler())
     truth = describe(scenario)
-    ctx = ScenarioContext(out_dir=out_dir, scenario=scenario, truth=truth, gzip=gzip)
+    truth["performance"] = describe_law()
+    ctx = ScenarioContext(out_dir=out_dir, scenario=scenario, truth=truth, gzip=gzip, weather=weather)
     for name, writer in (SCENARIO_WRITERS if writers is None else writers):
         extra = writer(ctx) or {}
         clash = set(extra) & set(truth)

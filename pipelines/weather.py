@@ -104,6 +104,16 @@ def lane_points(ws) -> pd.DataFrame:
     return df.rename(columns={"lane_id": "path_id"})[["path_id", "seq", "lat_deg", "lon_deg", "speed_kn"]]
 
 
+def scenario_weather(seed: int, start_utc, end_utc):
+    """The scenario's weather from its AIS start to :data:`FORECAST_TAIL_H` hours after its end
+    (:func:`weather.scenario.generate_weather`; the fleet sails through it, the files hold it)."""
+    from weather.scenario import generate_weather
+
+    start = pd.Timestamp(start_utc)
+    end = pd.Timestamp(end_utc) + pd.Timedelta(hours=FORECAST_TAIL_H)
+    return generate_weather(int(seed), start=start, end=end)
+
+
 def write_scenario_weather_files(ctx) -> dict:
     """Scenario writer hook (``pipelines.scenario.SCENARIO_WRITERS``): storm weather under ``DIR/weather/``.
 
@@ -111,13 +121,10 @@ def write_scenario_weather_files(ctx) -> dict:
     forecast window), with the same seed as the AIS.
     """
     from weather.io.scenario_files import write_scenario_weather
-    from weather.scenario import generate_weather
 
     sc = ctx.truth["scenario"]
     seed = int(sc["seed"])
-    start = pd.Timestamp(sc["start_utc"])
-    end = pd.Timestamp(sc["end_utc"]) + pd.Timedelta(hours=FORECAST_TAIL_H)
-    sw = generate_weather(seed, start=start, end=end)
+    sw = ctx.weather if ctx.weather is not None else scenario_weather(seed, sc["start_utc"], sc["end_utc"])
     info = write_scenario_weather(ctx.out_dir, seed=seed, weather=sw)
     out_dir = Path(ctx.out_dir)
     info["files"] = [Path(f).relative_to(out_dir).as_posix() for f in info["files"]]

@@ -13,6 +13,9 @@ How the traffic is made
   harbour leg -> the service route between the two approach points -> harbour leg -> berth,
   then stays alongside (ro-pax lines wait for the next timetable slot; cargo ships stay a
   random time; tankers sometimes wait at an anchorage before berthing).
+* Given the weather (``seaway``), each ship answers to the waves and wind it meets by the
+  generator's own performance law (:mod:`scenario.performance_law`: wave and wind resistance,
+  a voluntary slow-down above its class's sea state, surge), which the learning code never sees.
 * Each voyage sails the route with a lateral offset (a keep-right bias plus a random offset
   per voyage, and a small jitter per waypoint), checked against the land mask and shrunk when it
   would touch land, and with a voyage speed drawn around the vessel's service speed plus a
@@ -59,7 +62,7 @@ from scenario.spec import (  # noqa: F401 (the configuration and result types, r
 )
 
 
-def generate_scenario(spec: ScenarioSpec, settings: ScenarioSettings | None = None) -> Scenario:
+def generate_scenario(spec: ScenarioSpec, settings: ScenarioSettings | None = None, seaway=None) -> Scenario:
     """Sail the fleet of ``spec`` over the period of ``settings``; deterministic by seed.
 
     Parameters
@@ -68,6 +71,11 @@ def generate_scenario(spec: ScenarioSpec, settings: ScenarioSettings | None = No
         Ports, routes, services and fleet (:func:`parse_scenario_spec`).
     settings : ScenarioSettings, optional
         Seed, period, cadences, noise and dirty-row rates; defaults make the demo scenario.
+    seaway : callable(time_s, lat, lon) -> dict, optional
+        The weather the fleet sails through: arrays ``hs_m``, ``wave_from_deg``, ``tp_s``,
+        ``wind_u_ms``, ``wind_v_ms`` at Unix times and positions. Ships then answer to it by
+        :mod:`scenario.performance_law` (wave and wind resistance, voluntary slow-down, surge);
+        ``None`` sails in calm water.
 
     Returns
     -------
@@ -94,7 +102,7 @@ def generate_scenario(spec: ScenarioSpec, settings: ScenarioSettings | None = No
     st = settings or ScenarioSettings()
     all_fixes, all_voyages, all_stays, all_gaps = [], [], [], []
     for i, (v, rank) in enumerate(zip(spec.vessels, service_ranks(spec))):
-        fx, voy, stays, gaps = _sail_vessel(i, v, rank, spec, st)
+        fx, voy, stays, gaps = _sail_vessel(i, v, rank, spec, st, seaway)
         all_fixes.append(fx)
         all_voyages += voy
         all_stays += stays

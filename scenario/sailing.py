@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from scenario.performance_law import ship_traits, speed_factor, surge_sd_kn
 from scenario.spec import NAV_AT_ANCHOR, NAV_UNDER_WAY, Port, ScenarioSettings, ScenarioSpec, VesselSpec
 from thresholds.geodesy import destination_point, haversine_nmi, initial_bearing_deg, intermediate_point
 from thresholds.units import METRES_PER_NMI, wrap_deg
@@ -172,12 +173,17 @@ def _stationary(rng, st: ScenarioSettings, frames: _Frames, t0: float, t1: float
 
 
 def _speed_profile(length: float, d_h1: float, d_h2: float, v_sea: float, v_h: float,
-                   rng, sd_frac: float) -> tuple[np.ndarray, np.ndarray]:
+                   rng, sd_frac: float) -> tuple[np.ndarray, tuple]:
     """Speed (kn) over arc length (nmi): slow at both ends, harbour speed in the harbour legs,
-    ramps of up to 3 nmi, and the voyage speed with a slow fluctuation at sea."""
+    ramps of up to 3 nmi, and the voyage speed with a slow fluctuation at sea.
+
+    Returns the arc lengths and the parts :func:`_compose_speed` puts together with the seaway's
+    speed factor: ``(v_h, w, sea_v, cap)``, the harbour speed, the weight of the sea speed (0 in
+    the harbour legs, 1 at sea, ramps between), the set speed at sea, the berth approach cap."""
     ds = min(0.05, length / 50.0) if length > 0 else 0.05
     s = np.linspace(0.0, length, max(3, int(math.ceil(length / ds)) + 1))
-    v = np.full_like(s, v_h)
+    w = np.zeros_like(s)
+    sea_v = np.full_like(s, v_h)
     sea0, sea1 = d_h1, length - d_h2
     if sea1 > sea0:
         ramp = min(3.0, (sea1 - sea0) / 4.0)
@@ -187,17 +193,77 @@ def _speed_profile(length: float, d_h1: float, d_h2: float, v_sea: float, v_h: f
         up = np.clip((s - sea0) / ramp, 0.0, 1.0) if ramp > 0 else (s >= sea0).astype(float)
         down = np.clip((sea1 - s) / ramp, 0.0, 1.0) if ramp > 0 else (s <= sea1).astype(float)
         w = np.minimum(up, down)
-        v = v_h + w * (sea_v - v_h)
     # leaving and reaching the berth (or the anchor) slowly
-    v = np.minimum(v, 2.5 + np.minimum(s, length - s) * 20.0)
-    return s, np.maximum(v, 1.0)
+    cap = 2.5 + np.minimum(s, length - s) * 20.0
+    return s, (v_h, w, sea_v, cap)
+
+
+def _compose_speed(parts: tuple, factor) -> np.ndarray:
+    """Speed over arc length from :func:`_speed_profile`'s parts and the seaway's speed factor
+    (applied to the set speed at sea; the harbour legs are sheltered)."""
+    v_h, w, sea_v, cap = parts
+    v = v_h + w * (sea_v * factor - v_h)
+    return np.maximum(np.minimum(v, cap), 1.0)
+
+
+@dataclass
+class _Seaway:
+    """The weather a ship sails through and how it answers to it (:mod:`scenario.performance_law`)."""
+
+    sample: object  # callable(time_s, lat, lon) -> dict of hs_m, wave_from_deg, tp_s, wind_u_ms, wind_v_ms
+    vessel_class: str
+    traits: object
+    length_m: float
+    rng: np.random.Generator
+
+    def factor(self, t_s, lat, lon, course):
+        wx = self.sample(np.asarray(t_s, float), lat, lon)
+        f, _ = speed_factor(self.vessel_class, self.traits, self.length_m, course, wx["hs_m"], wx["wave_from_deg"],
+                            wx["tp_s"], wx["wind_u_ms"], wx["wind_v_ms"])
+        return f, np.nan_to_num(np.asarray(wx["hs_m"], float))
+
+
+#: Arc-length step at which a voyage samples the weather (the speed factor is interpolated
+#: between), and the fixed-point passes that settle times and weather. [nmi]
+SEAWAY_STEP_NMI = 0.5
+SEAWAY_PASSES = 3
+
+
+def _timeline(s: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Seconds from the start to each arc length of a speed profile (trapezoidal pace)."""
+    return np.r_[0.0, np.cumsum(np.diff(s) / (0.5 * (v[:-1] + v[1:])))] * 3600.0
+
+
+def _sail_profile(path: _Path, t0: float, s: np.ndarray, parts: tuple, sea: _Seaway | None):
+    """Speed and time over arc length through the seaway, and Hs along it.
+
+    The speed at a point depends on the weather at the time the ship gets there, which depends
+    on the speeds before it: a few fixed-point passes (weather sampled every
+    :data:`SEAWAY_STEP_NMI` at the times of the previous pass) settle it; the weather moves over
+    hours, a pass changes times by minutes."""
+    factor = np.ones_like(s)
+    hs = np.zeros_like(s)
+    v = _compose_speed(parts, factor)
+    dt = _timeline(s, v)
+    if sea is None:
+        return v, dt, hs
+    k = max(1, int(round(SEAWAY_STEP_NMI / max(s[1] - s[0], 1e-9)))) if len(s) > 1 else 1
+    idx = np.unique(np.r_[np.arange(0, len(s), k), len(s) - 1])
+    la, lo, course = path.at(s[idx])
+    for _ in range(SEAWAY_PASSES):
+        f, h = sea.factor(t0 + dt[idx], la, lo, course)
+        factor = np.interp(s, s[idx], f)
+        hs = np.interp(s, s[idx], h)
+        v = _compose_speed(parts, factor)
+        dt = _timeline(s, v)
+    return v, dt, hs
 
 
 def _move(rng, st: ScenarioSettings, frames: _Frames, path: _Path, t0: float, d_h1: float, d_h2: float,
-          v_sea: float, voyage: str) -> tuple[float, float]:
+          v_sea: float, voyage: str, sea: _Seaway | None = None) -> tuple[float, float]:
     """Sail ``path`` from time ``t0``; returns (arrival time, time at sea start offset)."""
-    s, v = _speed_profile(path.length, d_h1, d_h2, v_sea, st.harbour_speed_kn, rng, st.along_track_speed_sd_frac)
-    dt = np.r_[0.0, np.cumsum(np.diff(s) / (0.5 * (v[:-1] + v[1:])))] * 3600.0
+    s, parts = _speed_profile(path.length, d_h1, d_h2, v_sea, st.harbour_speed_kn, rng, st.along_track_speed_sd_frac)
+    v, dt, hs = _sail_profile(path, t0, s, parts, sea)
     t_arrive = t0 + dt[-1]
     t = _sample_times(rng, t0, t_arrive, st.underway_interval_s, st.interval_jitter_s)
     n = len(t)
@@ -207,6 +273,8 @@ def _move(rng, st: ScenarioSettings, frames: _Frames, path: _Path, t0: float, d_
         la, lo, cog = path.at(sk)
         dlat, dlon = _noise_offsets_m(rng, n, st.gps_noise_m, la)
         sog = np.maximum(0.0, vk + rng.normal(0.0, st.sog_noise_kn, n))
+        if sea is not None:  # surge in a seaway, from the law's own random stream
+            sog = np.maximum(0.0, sog + sea.rng.normal(0.0, 1.0, n) * surge_sd_kn(vk, np.interp(sk, s, hs)))
         drift = rng.normal(0.0, 1.5)  # leeway/current: heading differs from COG by a voyage constant
         hdg = cog + drift + rng.normal(0.0, st.heading_noise_deg, n)
         cogn = cog + rng.normal(0.0, st.cog_noise_deg, n)
@@ -247,13 +315,20 @@ def _next_departure(t_ready: float, hours: tuple[int, ...]) -> float:
     return t_ready  # pragma: no cover - hours is non-empty so a slot always exists
 
 
-def _sail_vessel(index: int, v: VesselSpec, rank: int, spec: ScenarioSpec, st: ScenarioSettings):
-    """All fixes, voyages, port stays and gaps of one ship over the scenario period."""
+def _sail_vessel(index: int, v: VesselSpec, rank: int, spec: ScenarioSpec, st: ScenarioSettings, seaway=None):
+    """All fixes, voyages, port stays and gaps of one ship over the scenario period.
+
+    ``seaway`` (``callable(time_s, lat, lon) -> dict``) is the weather the ship sails through;
+    ``None`` is calm water everywhere."""
     # Long by design: a vessel's whole timetable (berth, harbour legs, sea passage, anchorage,
     # gaps) in sailing order, on one random stream so that the same seed gives the same rows.
     rng = np.random.default_rng([st.seed, 1, index])
     svc = spec.services[v.service]
     rot = svc.rotation
+    sea = None
+    if seaway is not None:  # the law draws from its own stream, so calm runs keep their numbers
+        law_rng = np.random.default_rng([st.seed, 5, index])
+        sea = _Seaway(seaway, svc.vessel_class, ship_traits(law_rng, svc.vessel_class), v.length_m, law_rng)
     frames = _Frames()
     voyages, stays = [], []
     start, end = st.start_s, st.end_s
@@ -299,13 +374,13 @@ def _sail_vessel(index: int, v: VesselSpec, rank: int, spec: ScenarioSpec, st: S
             pts = np.vstack([[lat_b, lon_b], sea_wp, [lat_d, lon_d]])
             path = _Path(pts[:, 0], pts[:, 1])
             d_h2 = haversine_nmi(p_d.approach_lat_deg, p_d.approach_lon_deg, lat_d, lon_d)
-            t_in, (t_sea0, t_sea1) = _move(rng, st, frames, path, t_dep, d_h1, d_h2, v_sea, vid)
+            t_in, (t_sea0, t_sea1) = _move(rng, st, frames, path, t_dep, d_h1, d_h2, v_sea, vid, sea)
             sea_len = path.length - d_h1 - d_h2
         else:
             pts = np.vstack([[lat_b, lon_b], sea_wp, [anchorage[0], anchorage[1]]])
             path = _Path(pts[:, 0], pts[:, 1])
             d_h2 = haversine_nmi(p_d.approach_lat_deg, p_d.approach_lon_deg, *anchorage)
-            t_anchor, (t_sea0, t_sea1) = _move(rng, st, frames, path, t_dep, d_h1, d_h2, v_sea, vid)
+            t_anchor, (t_sea0, t_sea1) = _move(rng, st, frames, path, t_dep, d_h1, d_h2, v_sea, vid, sea)
             sea_len = path.length - d_h1 - d_h2
             _stationary(rng, st, frames, t_anchor, min(t_anchor + wait_s, end), anchorage[0], anchorage[1],
                         rng.uniform(0, 360), NAV_AT_ANCHOR, "anchor", vid, swing_nmi=0.05)

@@ -1,4 +1,4 @@
-"""Demo weather: a deterministic Western-Mediterranean month with two generated storms.
+"""Demo weather: a deterministic Western-Mediterranean month with three generated storms.
 
 Pure (no files): :func:`generate_weather` returns canonical datasets on the two native grids the
 demo writes — CMEMS GLOBAL waves (1/12°, 3-hourly: ``hs_m``, ``wave_from_deg``, ``tp_s``,
@@ -9,7 +9,9 @@ Writers in :mod:`weather.io.cmems` / :mod:`weather.io.era5` put them in the prod
 The fields are **synthetic** (COMMON.md "Demo scenario"): bbox lon −1.5…11.5, lat 35.5…45.0;
 2025-01-01T00Z → 2025-02-02T06Z. Storm A crosses the Balearic Sea on 2025-01-14…16 (the AIS
 voyages sail through it, for audits); storm B crosses the Gulf of Lion → Sardinia channel in the
-forecast window 2025-01-31T00Z…2025-02-02T00Z (for the nightly run). ``seed`` moves the tracks by
+forecast window 2025-01-31T00Z…2025-02-02T00Z (for the nightly run); storm C, a gale from the Gulf
+of Lion to the Sardinia channel on 2025-01-07…10, puts the container and tanker routes in heavy
+seas too (for the learned performance model, which needs every class in rough weather). ``seed`` moves the tracks by
 up to ±0.3°, the timing by up to ±3 h and the intensity by up to ±5 %, and sets the background.
 
 Model (simple, documented, not a forecast):
@@ -108,12 +110,75 @@ class ScenarioWeather:
         }
 
 
+    def sampler(self):
+        """The weather at any time and place, as the demo fleet meets it:
+        ``f(time_s, lat_deg, lon_deg) -> dict`` of ``hs_m``, ``wave_from_deg``, ``tp_s``,
+        ``wind_u_ms``, ``wind_v_ms`` (Unix seconds; arrays of one shape).
+
+        Linear in time and bilinear in space between the generated grid points (the wave
+        direction through its cos/sin components); land points of the wave grid are left out of
+        the weights, and a point with no sea neighbour (or outside the period or box) is NaN."""
+        w, a = self.waves, self.wind
+        d = np.deg2rad(w.wave_from_deg.values.astype(np.float64))
+        wave_vars = [w.hs_m.values, w.tp_s.values, np.cos(d), np.sin(d)]
+        wind_vars = [a.wind_u_ms.values, a.wind_v_ms.values]
+        wave_axes = (_seconds(w.time_utc.values), w.lat.values, w.lon.values)
+        wind_axes = (_seconds(a.time_utc.values), a.lat.values, a.lon.values)
+
+        def sample(time_s, lat_deg, lon_deg) -> dict:
+            hs, tp, c, s_ = _trilinear(wave_vars, wave_axes, time_s, lat_deg, lon_deg)
+            u, v = _trilinear(wind_vars, wind_axes, time_s, lat_deg, lon_deg)
+            return {"hs_m": hs, "tp_s": tp, "wave_from_deg": np.mod(np.rad2deg(np.arctan2(s_, c)), 360.0),
+                    "wind_u_ms": u, "wind_v_ms": v}
+
+        return sample
+
+
+def _seconds(times) -> np.ndarray:
+    return np.asarray(times, dtype="datetime64[ns]").astype(np.int64) / 1e9
+
+
+def _trilinear(arrays, axes, t, lat, lon) -> list[np.ndarray]:
+    """Values of ``arrays`` (each (time, lat, lon) on the regular ``axes``) at points, linear in
+    each axis; NaN corners (land) get no weight, points with no valid corner are NaN."""
+    t, lat, lon = (np.asarray(x, dtype=np.float64) for x in (t, lat, lon))
+    idx, frac, inside = [], [], np.ones(t.shape, bool)
+    for axis, x in zip(axes, (t, lat, lon)):
+        axis = np.asarray(axis, dtype=np.float64)
+        step = (axis[-1] - axis[0]) / max(axis.size - 1, 1)
+        pos = (x - axis[0]) / step if axis.size > 1 else np.zeros_like(x)
+        inside &= (pos >= 0) & (pos <= axis.size - 1)
+        i0 = np.clip(np.floor(pos).astype(np.int64), 0, max(axis.size - 2, 0))
+        idx.append(i0)
+        frac.append(np.clip(pos - i0, 0.0, 1.0))
+    num = [np.zeros(t.shape) for _ in arrays]
+    den = np.zeros(t.shape)
+    for dt_ in (0, 1):
+        wt = frac[0] if dt_ else 1.0 - frac[0]
+        it = np.minimum(idx[0] + dt_, axes[0].size - 1)
+        for dy in (0, 1):
+            wy = frac[1] if dy else 1.0 - frac[1]
+            iy = np.minimum(idx[1] + dy, axes[1].size - 1)
+            for dx in (0, 1):
+                wx = frac[2] if dx else 1.0 - frac[2]
+                ix = np.minimum(idx[2] + dx, axes[2].size - 1)
+                weight = wt * wy * wx
+                vals = [np.asarray(a[it, iy, ix], dtype=np.float64) for a in arrays]
+                ok = np.isfinite(vals[0])
+                den += np.where(ok, weight, 0.0)
+                for k, val in enumerate(vals):
+                    num[k] += np.where(ok, weight * np.nan_to_num(val), 0.0)
+    good = inside & (den > 1e-9)
+    return [np.where(good, n / np.where(good, den, 1.0), np.nan) for n in num]
+
+
 def _iso(t: pd.Timestamp) -> str:
     return t.tz_convert("UTC").strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 def make_storms(seed: int = 0) -> list[Storm]:
-    """The two demo storms, perturbed deterministically by ``seed``."""
+    """The three demo storms, perturbed deterministically by ``seed`` (A and B draw first, so
+    adding C left their tracks as they were)."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 4]))
     base = [
         ("A", "historical storm crossed by the AIS voyages (audits)",
@@ -122,6 +187,9 @@ def make_storms(seed: int = 0) -> list[Storm]:
         ("B", "forecast-window storm crossing several lanes (nightly run)",
          ["2025-01-31T00:00Z", "2025-01-31T18:00Z", "2025-02-01T09:00Z", "2025-02-01T23:00Z"],
          [43.2, 41.6, 39.9, 38.0], [3.6, 5.4, 7.3, 9.6], "2025-02-01T03:00Z", 25.0, 50.0, 18.0),
+        ("C", "gale across the container and tanker routes (the learned performance model's heavy seas)",
+         ["2025-01-07T00:00Z", "2025-01-07T18:00Z", "2025-01-08T12:00Z", "2025-01-09T06:00Z", "2025-01-10T00:00Z"],
+         [44.0, 42.6, 41.0, 39.2, 37.6], [3.0, 4.6, 6.0, 7.6, 9.4], "2025-01-08T09:00Z", 25.0, 70.0, 30.0),
     ]
     storms = []
     for name, purpose, times, lats, lons, peak, vmax, rmw, env in base:
@@ -236,7 +304,7 @@ def sea_state_from_wind(u, v, swell_hs, swell_from):
 
 
 def generate_weather(seed: int = 0, *, land_mask=None, start=None, end=None) -> ScenarioWeather:
-    """Generate the demo's waves (1/12°, 3-hourly) and wind (0.25°, hourly) with the two storms.
+    """Generate the demo's waves (1/12°, 3-hourly) and wind (0.25°, hourly) with the three storms.
 
     Parameters
     ----------
