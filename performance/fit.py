@@ -15,7 +15,8 @@ JMSE 2025). Two forms of the point model are fitted and compared by
   data make it.
 
 The band comes from two quantile models of the ratio (pinball loss at 0.1 and 0.9, the same
-constraints); at prediction P10 <= P50 <= P90 is enforced by ordering.
+constraints), widened by the conformal scale :mod:`performance.validate` finds on held-out
+vessels; at prediction P10 <= P50 <= P90 is enforced by ordering.
 
 Training rows: AIS fixes a minute apart share their weather cell and time and are strongly
 correlated, so each model is fitted on at most ``max_train_rows`` fixes drawn at random (seeded);
@@ -82,6 +83,7 @@ class PerformanceModel:
     bands: dict = field(default_factory=dict)  # quantile -> estimator
     settings: FitSettings = field(default_factory=FitSettings)
     features: tuple = FEATURES
+    band_scale: float = 0.0  # the conformal widening, in band widths (performance.validate.band_scale)
 
     def predict(self, df: pd.DataFrame, prior_ratio=None) -> pd.DataFrame:
         """``p50`` (the point model), and ``p10``/``p90`` (the bands) of the speed ratio per row.
@@ -96,8 +98,10 @@ class PerformanceModel:
             p50 = p50 + np.asarray(prior_ratio, dtype=float)
         out = pd.DataFrame({"p50": p50}, index=df.index)
         (q_lo, lo), (q_hi, hi) = sorted(self.bands.items())
-        out["p10"] = np.minimum(lo.predict(X), p50)
-        out["p90"] = np.maximum(hi.predict(X), p50)
+        low, high = lo.predict(X), hi.predict(X)
+        width = np.maximum(high - low, 1e-6)
+        out["p10"] = np.minimum(low - self.band_scale * width, p50)
+        out["p90"] = np.maximum(high + self.band_scale * width, p50)
         return out
 
     def to_state(self) -> dict:
@@ -105,7 +109,8 @@ class PerformanceModel:
         return {"kind": self.kind, "prior": self.prior or "", "point": self.point,
                 "band_quantiles": [float(q) for q in sorted(self.bands)],
                 "band_models": [self.bands[q] for q in sorted(self.bands)],
-                "settings": self.settings.to_dict(), "features": list(self.features)}
+                "settings": self.settings.to_dict(), "features": list(self.features),
+                "band_scale": float(self.band_scale)}
 
     @classmethod
     def from_state(cls, state: dict) -> "PerformanceModel":
@@ -114,7 +119,8 @@ class PerformanceModel:
         if tuple(state["features"]) != FEATURES:
             raise ValueError(f"the model was fitted on features {state['features']}, this code uses {list(FEATURES)}")
         return cls(kind=state["kind"], prior=state["prior"] or None, point=state["point"],
-                   bands=dict(zip(state["band_quantiles"], state["band_models"])), settings=FitSettings(**s))
+                   bands=dict(zip(state["band_quantiles"], state["band_models"])), settings=FitSettings(**s),
+                   band_scale=float(state.get("band_scale", 0.0)))
 
 
 def fit_point(df: pd.DataFrame, kind: str, settings: FitSettings, prior_ratio=None):

@@ -1,0 +1,288 @@
+"""``stormlane learn``: the performance model learned from the workspace's AIS x weather.
+
+:func:`learn_performance` wires the steps (no formulas or SQL here):
+
+1. the weather grid (``--weather`` files loaded into the workspace first, as ``weather load``
+   does; else the workspace's latest grid);
+2. the training table (:func:`pipelines.storage.training.training_table`: cleaning rules and the
+   weather at each fix, in DuckDB);
+3. each ship's particulars where AIS lacks them and its vessel profile by the house rule
+   (:func:`pipelines.vessels.vessel_for_ship`: the formulas' Lpp, deadweight and floor);
+4. features, calm-water speeds, segments (:func:`performance.features.prepare`), the formulas on
+   the same segments (:func:`performance.formulas.formula_speeds`);
+5. grouped cross-validation, time split, the final model of the winning kind with its
+   conformalised band, the voluntary thresholds (:mod:`performance.validate`,
+   :mod:`performance.fit`, :mod:`performance.voluntary`);
+6. the model file (skops) and its row (:mod:`pipelines.storage.performance`).
+
+Scikit-learn's trees run on OpenMP threads; ``threads`` (default: the machine's cores, at most
+2) limits them. The OpenMP runtime is loaded before the limit is set, so the limit takes.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from thresholds.errors import StormlaneError
+
+
+class LearnError(StormlaneError):
+    """``learn performance`` cannot learn from what the workspace holds (one line, exit 2)."""
+
+
+#: Fewest segments and vessels a model is fitted on.
+MIN_SEGMENTS = 200
+MIN_VESSELS = 2
+
+
+@dataclass(frozen=True)
+class LearnRequest:
+    """What ``stormlane learn performance`` was asked."""
+
+    db: Path
+    name: str
+    weather: tuple[str, ...] = ()
+    since: pd.Timestamp | None = None
+    until: pd.Timestamp | None = None
+    classes: tuple[str, ...] = ()
+    folds: int = 5
+    threads: int | None = None
+
+
+def class_ranges(classes) -> list[tuple[int, int]] | None:
+    """AIS ship-type ranges of the named classes (:data:`performance.features.SHIP_CLASSES`)."""
+    from performance.features import SHIP_CLASSES
+
+    if not classes:
+        return None
+    out = []
+    for c in classes:
+        if c not in SHIP_CLASSES:
+            raise LearnError(f"--class {c!r}: not a ship class; use one of {', '.join(SHIP_CLASSES)} "
+                             "(AIS ship types 60-69, 70-79, 80-89)")
+        out.append(SHIP_CLASSES[c])
+    return out
+
+
+def ship_particulars(table: pd.DataFrame) -> pd.DataFrame:
+    """Per MMSI: its vessel profile by the house rule, the profile's Lpp, deadweight and floor
+    (for the formulas), and length/beam/draught where AIS gives none (the profile's)."""
+    from pipelines.config import load_vessel
+    from pipelines.vessels import vessel_for_ship
+
+    rows = []
+    ships = table.drop_duplicates("mmsi")[["mmsi", "ship_type", "length_m"]]
+    cache: dict[str, object] = {}
+    for r in ships.itertuples(index=False):
+        static = {"ship_type": None if pd.isna(r.ship_type) else r.ship_type,
+                  "length_m": None if pd.isna(r.length_m) else r.length_m}
+        prof = vessel_for_ship(static)
+        v = cache.setdefault(prof, load_vessel(prof))
+        rows.append({"mmsi": int(r.mmsi), "profile": prof, "lpp_m": v.lpp_m, "dwt_t": v.dwt_t,
+                     "min_speed_kn": v.min_speed_kn, "length_m": v.lpp_m, "beam_m": v.beam_m, "draught_m": v.draught_m})
+    return pd.DataFrame(rows, columns=["mmsi", "profile", "lpp_m", "dwt_t", "min_speed_kn", "length_m", "beam_m",
+                                       "draught_m"])
+
+
+def _threads(threads: int | None) -> int:
+    import os
+
+    return max(1, int(threads)) if threads else max(1, min(2, os.cpu_count() or 1))
+
+
+def _grid(ws, req: LearnRequest) -> dict:
+    from pipelines.storage.weather import get_grid
+
+    try:
+        return get_grid(ws)
+    except StormlaneError:
+        raise LearnError(f"workspace {req.db} holds no weather; pass --weather FILE|DIR (or run "
+                         "`stormlane weather load`)") from None
+
+
+def _versions() -> dict:
+    from importlib.metadata import version
+
+    return {p: version(p) for p in ("scikit-learn", "numpy", "pandas", "duckdb", "skops", "stormlane")}
+
+
+def learn_performance(req: LearnRequest, echo=lambda line: None) -> dict:
+    """Learn, validate and store a performance model (module notes); returns the summary."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.performance import check_name
+    from pipelines.storage.training import CleaningRules, training_table
+
+    check_name(req.name)
+    ranges = class_ranges(req.classes)
+    timings = {}
+    t0 = time.perf_counter()
+    if req.weather:
+        from pipelines.weather import load_weather_paths
+
+        grid_row = load_weather_paths(list(req.weather), req.db)
+        echo(f"weather grid {grid_row['grid_id']} {grid_row['name']!r} loaded from --weather")
+    rules = CleaningRules()
+    with open_workspace(req.db) as ws:
+        grid = _grid(ws, req)
+        table, funnel = training_table(ws, grid, since=req.since, until=req.until, ship_types=ranges, rules=rules)
+    timings["table_s"] = time.perf_counter() - t0
+    return _fit_and_store(req, table, funnel, grid, rules, timings, echo)
+
+
+def _fit_and_store(req: LearnRequest, table: pd.DataFrame, funnel: dict, grid: dict, rules, timings: dict, echo) -> dict:
+    # Long by design: the fitting steps in order, each timed, then one row and one file written.
+    from sklearn.ensemble import HistGradientBoostingRegressor  # noqa: F401 - loads OpenMP before the limit
+    from threadpoolctl import threadpool_limits
+
+    from performance.features import prepare
+    from performance.fit import FitSettings, fit_model
+    from performance.formulas import formula_speeds
+    from performance.validate import grouped_cv, time_split
+    from performance.voluntary import voluntary_thresholds
+
+    t = time.perf_counter()
+    ships = ship_particulars(table)
+    fixes, seg, prep = prepare(table, ships[["mmsi", "length_m", "beam_m", "draught_m"]])
+    vessels = int(seg["mmsi"].nunique()) if len(seg) else 0
+    if len(seg) < MIN_SEGMENTS or vessels < MIN_VESSELS:
+        raise LearnError(f"too little to learn from in {req.db}: {len(seg)} ten-minute segments of {vessels} vessel(s) "
+                         f"after cleaning ({funnel['kept']:,} of {funnel['fixes_in_span']:,} fixes kept: "
+                         + ", ".join(f"{k} {v:,}" for k, v in funnel["counts"].items() if v)
+                         + f"); at least {MIN_SEGMENTS} segments of {MIN_VESSELS} vessels are needed")
+    formula_kn, outside = formula_speeds(seg, ships)
+    timings["features_s"] = time.perf_counter() - t
+    settings = FitSettings()
+    with threadpool_limits(limits=_threads(req.threads)):
+        t = time.perf_counter()
+        cv = grouped_cv(seg, formula_kn, settings, k=req.folds)
+        timings["grouped_cv_s"] = time.perf_counter() - t
+        t = time.perf_counter()
+        ts = time_split(seg, formula_kn, settings, cv.pop("oof_score"))
+        timings["time_split_s"] = time.perf_counter() - t
+        t = time.perf_counter()
+        kind = cv["winner"]
+        prior = cv["best_formula"]
+        prior_ratio = formula_kn[f"speed_{prior}_kn"].to_numpy(float) / seg["v0_kn"].to_numpy(float)
+        model = fit_model(seg, kind, settings, prior=prior, prior_ratio=prior_ratio)
+        model.band_scale = cv["band_scale"]
+        timings["final_fit_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    limits = voluntary_thresholds(fixes)
+    timings["voluntary_s"] = time.perf_counter() - t
+    summary = _summary(req, table, funnel, prep, grid, cv, ts, limits, outside, model, fixes, seg, rules, settings)
+    summary["timings_s"] = {k: round(v, 2) for k, v in timings.items()}
+    _store(req, model, summary)
+    summary["file"] = str(_file_of(req))
+    return summary
+
+
+def _file_of(req: LearnRequest) -> Path:
+    from pipelines.storage.performance import models_dir
+
+    return models_dir(req.db) / f"{req.name}.skops"
+
+
+def _summary(req, table, funnel, prep, grid, cv, ts, limits, outside, model, fixes, seg, rules, settings) -> dict:
+    t = pd.to_datetime(fixes["time_utc"], utc=True)
+    span = [t.min(), t.max()] if len(t) else [None, None]
+    return {
+        "name": req.name, "db": str(req.db),
+        "span_utc": [None if x is None else x.strftime("%Y-%m-%dT%H:%M:%SZ") for x in span],
+        "classes": sorted(str(c) for c in fixes["ship_class"].unique()), "vessels": int(seg["mmsi"].nunique()),
+        "fixes": int(len(fixes)), "segments": int(len(seg)), "table": {**funnel, **prep},
+        "kind": model.kind, "prior": model.prior, "band_scale": model.band_scale,
+        "formulas_outside_range": outside,
+        "grouped_cv": cv, "time_split": ts, "voluntary": limits,
+        "beats_formulas": cv["beats_formulas"],
+        "params": {"since": None if req.since is None else req.since.isoformat(),
+                   "until": None if req.until is None else req.until.isoformat(), "classes": list(req.classes),
+                   "rules": rules.to_dict(), "fit": settings.to_dict(), "folds": req.folds,
+                   "grid": {"grid_id": int(grid["grid_id"]), "name": str(grid["name"])}},
+        "versions": _versions(),
+    }
+
+
+def _store(req: LearnRequest, model, summary: dict) -> None:
+    from pipelines.storage import open_workspace
+    from pipelines.storage.performance import save_model_file, write_model
+
+    path, sha = save_model_file(req.db, req.name, model.to_state())
+    span = summary["span_utc"]
+    metrics = {k: summary[k] for k in ("grouped_cv", "time_split", "voluntary", "table", "formulas_outside_range",
+                                       "band_scale", "fixes", "segments")}
+    with open_workspace(req.db) as ws:
+        write_model(ws, {
+            "name": req.name, "span_start": span[0], "span_end": span[1], "rows": summary["segments"],
+            "vessels": summary["vessels"], "classes": ",".join(summary["classes"]), "kind": model.kind,
+            "prior": model.prior, "features": list(model.features), "beats_formulas": bool(summary["beats_formulas"]),
+            "file": str(path), "file_sha256": sha, "versions_json": summary["versions"],
+            "params_json": summary["params"], "metrics_json": metrics})
+
+
+def load_performance_model(db, name: str):
+    """A stored model, rebuilt from its skops file (trusted types only), and its row."""
+    from performance.fit import PerformanceModel
+    from pipelines.storage import open_workspace
+    from pipelines.storage.performance import load_model_file, read_model
+
+    with open_workspace(db, read_only=True) as ws:
+        row = read_model(ws, name)
+    state = load_model_file(row["file"], row["file_sha256"])
+    model = PerformanceModel.from_state(state)
+    return model, row
+
+
+def headline(cv: dict) -> dict:
+    """The overall scores of the learned model and each formula, by model name."""
+    return {r["model"]: r for r in cv["scores"] if r["scope"] == "all"}
+
+
+def coverage_all(cv: dict) -> float:
+    return float(next(c["coverage"] for c in cv["coverage"] if c["scope"] == "all"))
+
+
+def _fmt(x, nd=3) -> str:
+    return "-" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{nd}f}"
+
+
+def table_lines(summary: dict) -> list[str]:
+    """The validation table for people (``learn performance`` and ``learn show``)."""
+    cv = summary["grouped_cv"]
+    lines = [f"model {summary['name']!r}: {summary['kind']} "
+             + (f"(residual to {summary['prior']}) " if summary["kind"] == "residual" else "")
+             + f"on {summary['segments']:,} ten-minute segments ({summary['fixes']:,} fixes) of "
+             f"{summary['vessels']} vessels, {summary['span_utc'][0]} -> {summary['span_utc'][1]}",
+             f"held-out vessels ({cv['k']}-fold grouped CV): the learned model vs the formulas on the same segments",
+             f"  {'scope':<22}{'model':<18}{'n':>8}{'MAE kn':>9}{'bias kn':>9}{'R2 loss':>9}{'R2 speed':>9}"]
+    for r in cv["scores"]:
+        if r["model"] in ("learned_direct", "learned_residual") and r["model"] != f"learned_{summary['kind']}":
+            if r["scope"] != "all":
+                continue
+        lines.append(f"  {r['group']:<22}{r['model']:<18}{r['n']:>8,}{_fmt(r['mae_kn']):>9}{_fmt(r['bias_kn']):>9}"
+                     f"{_fmt(r['r2_loss']):>9}{_fmt(r['r2_speed']):>9}")
+    gain = cv["mae_gain_frac"]
+    lines.append(f"  MAE {_fmt(cv['learned_mae_kn'])} kn against {cv['best_formula']}'s {_fmt(cv['best_formula_mae_kn'])} kn "
+                 f"({'-' if gain is None else f'{100 * gain:.0f} %'} lower): "
+                 + ("beats every formula" if cv["beats_formulas"] else "does NOT beat the formulas (not used by default)"))
+    cov = ", ".join(f"{c['group']} {100 * c['coverage']:.0f} %" for c in cv["coverage"])
+    lines.append(f"  P10-P90 band coverage on held-out vessels (nominal 80 %): {cov}")
+    ts = summary.get("time_split")
+    if ts:
+        h = headline(ts)
+        lines.append(f"time split at {ts['cut_utc']} ({ts['train_rows']:,} segments before, {ts['rows']:,} after): "
+                     f"MAE {_fmt(ts['learned_mae_kn'])} kn vs {ts['best_formula']} {_fmt(ts['best_formula_mae_kn'])} kn, "
+                     f"R2 loss {_fmt(h['learned_' + ts['winner']]['r2_loss'])}, coverage {100 * coverage_all(ts):.0f} %")
+    lines.append("learned voluntary slow-down (evidence beside the operator limits):")
+    for r in summary["voluntary"]:
+        if r["threshold_hs_m"] is not None:
+            lines.append(f"  {r['ship_class']:<10} {r['sector']:<10} above Hs {r['threshold_hs_m']:.2f} m "
+                         f"(step {r['from_hs_m']:.2f}-{r['to_hs_m']:.2f} m, {100 * r['drop_frac']:.0f} % of the speed, "
+                         f"{r['vessels']} vessels)")
+        else:
+            lines.append(f"  {r['ship_class']:<10} {r['sector']:<10} none: {r['why']}")
+    return lines
