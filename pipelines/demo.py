@@ -3,7 +3,7 @@
 ``run_demo(workdir)`` runs :data:`STEPS` in order. A step is ``(name, function)``; the function
 takes the :class:`DemoContext`, prints its summary through ``ctx.echo`` and returns a small
 JSON-able dict kept in ``ctx.results[name]``. Later components add their step by appending to
-:data:`STEPS` (scenario -> ingest -> lanes -> weather -> nightly -> report).
+:data:`STEPS` (scenario -> ingest -> lanes -> weather -> learn -> audit -> nightly -> report).
 
 Everything is written under the work folder: the scenario (``ais/``, ``weather/``,
 ``scenario.json``) and the workspace ``stormlane.duckdb``.
@@ -131,6 +131,42 @@ def step_weather(ctx: DemoContext) -> dict:
     return run(ctx)
 
 
+def step_learn(ctx: DemoContext) -> dict:
+    """Learn the fleet's performance model from the demo's AIS x weather (``stormlane learn
+    performance --name demo-fleet``) and say how close it came to the scenario's hidden law.
+
+    The learning never reads the law (:mod:`scenario.performance_law`); only this step reads the
+    truth ``scenario.json`` holds (the classes' voluntary thresholds) to print the comparison."""
+    import json
+
+    from pipelines.learn import DEMO_MODEL, LearnError, LearnRequest, learn_performance, table_lines
+
+    try:
+        summary = learn_performance(LearnRequest(db=ctx.db, name=DEMO_MODEL), echo=ctx.echo)
+    except LearnError as err:  # a short demo (--days 1) holds too little weather to learn from
+        ctx.echo(f"  skipped: {err}")
+        return {"model": None, "skipped": str(err)}
+    lines = table_lines(summary)
+    for line in lines[:2] + [ln for ln in lines if ln.lstrip().startswith(("all ", "MAE", "P10", "time split"))]:
+        ctx.echo(line)
+    truth = json.loads(ctx.scenario_json.read_text(encoding="utf-8")) if ctx.scenario_json.exists() else {}
+    law = truth.get("performance", {}).get("classes", {})
+    ais_class = {v["vessel_class"]: v["ship_type"] for v in truth.get("vessels", []) if "vessel_class" in v}
+    from performance.features import ship_class
+
+    found = {r["ship_class"]: r["threshold_hs_m"] for r in summary["voluntary"] if r["sector"] == "head-bow"}
+    compared = {}
+    for name, c in law.items():
+        learned = found.get(str(ship_class([ais_class.get(name)])[0]))
+        compared[name] = {"scenario_hs_m": c["voluntary_hs_m"], "learned_hs_m": learned}
+        ctx.echo(f"  voluntary slow-down of the scenario's {name} class: generator {c['voluntary_hs_m']:.2f} m, learned "
+                 + ("none" if learned is None else f"{learned:.2f} m ({learned - c['voluntary_hs_m']:+.2f} m)"))
+    cv = summary["grouped_cv"]
+    return {"model": summary["name"], "file": summary["file"], "beats_formulas": summary["beats_formulas"],
+            "mae_kn": cv["learned_mae_kn"], "best_formula": cv["best_formula"], "best_formula_mae_kn": cv["best_formula_mae_kn"],
+            "voluntary": compared, "timings_s": summary["timings_s"]}
+
+
 def step_audit(ctx: DemoContext) -> dict:
     """Audit the voyage that sailed through the scenario's historical storm (``DIR/audit.html``)."""
     from pipelines.audit import demo_step
@@ -158,6 +194,7 @@ STEPS: list[tuple[str, Callable[[DemoContext], dict]]] = [
     ("ingest", step_ingest),
     ("lanes", step_lanes),
     ("weather", step_weather),
+    ("learn", step_learn),
     ("audit", step_audit),
     ("nightly", step_nightly),
     ("report", step_report),

@@ -15,8 +15,10 @@
    :mod:`performance.fit`, :mod:`performance.voluntary`);
 6. the model file (skops) and its row (:mod:`pipelines.storage.performance`).
 
-Scikit-learn's trees run on OpenMP threads; ``threads`` (default: the machine's cores, at most
-2) limits them. The OpenMP runtime is loaded before the limit is set, so the limit takes.
+Scikit-learn's trees run on OpenMP threads; ``threads`` limits them, default **1**: on the shared
+2-core machine under load (load average 11) one fit of the demo's 41,537 segments took 39 s on
+two OpenMP threads and 2.3 s on one (OpenMP threads spin-wait for each other when the cores are
+busy). The OpenMP runtime is loaded before the limit is set, so the limit takes.
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ class LearnError(StormlaneError):
     """``learn performance`` cannot learn from what the workspace holds (one line, exit 2)."""
 
 
+#: The model ``make demo`` learns.
+DEMO_MODEL = "demo-fleet"
 #: Fewest segments and vessels a model is fitted on.
 MIN_SEGMENTS = 200
 MIN_VESSELS = 2
@@ -90,9 +94,7 @@ def ship_particulars(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def _threads(threads: int | None) -> int:
-    import os
-
-    return max(1, int(threads)) if threads else max(1, min(2, os.cpu_count() or 1))
+    return max(1, int(threads)) if threads else 1
 
 
 def _grid(ws, req: LearnRequest) -> dict:
@@ -235,6 +237,15 @@ def load_performance_model(db, name: str):
     state = load_model_file(row["file"], row["file_sha256"])
     model = PerformanceModel.from_state(state)
     return model, row
+
+
+def row_summary(row: dict) -> dict:
+    """What :func:`table_lines` needs, from a stored model's row (``learn show``)."""
+    m = row["metrics"]
+    span = [None if t is None else t.strftime("%Y-%m-%dT%H:%M:%SZ") for t in (row["span_start"], row["span_end"])]
+    return {"name": row["name"], "kind": row["kind"], "prior": row["prior"], "segments": int(row["rows"]),
+            "fixes": int(m["fixes"]), "vessels": int(row["vessels"]), "span_utc": span, "grouped_cv": m["grouped_cv"],
+            "time_split": m["time_split"], "voluntary": m["voluntary"]}
 
 
 def headline(cv: dict) -> dict:

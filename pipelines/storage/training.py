@@ -39,6 +39,7 @@ a leg of its ship cut at gaps of more than :data:`LEG_GAP_S`.
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict, dataclass
 
 import pandas as pd
@@ -78,6 +79,12 @@ def _haversine_sql(lat1: str, lon1: str, lat2: str, lon2: str) -> str:
 def _table_exists(con, name: str) -> bool:
     return bool(con.execute("SELECT count(*) FROM information_schema.tables WHERE table_schema = 'main' AND table_name = ?",
                             [name]).fetchone()[0])
+
+
+def _used(sql: str, params: dict) -> dict:
+    """The named parameters a statement uses (DuckDB refuses unused ones; the distance rules'
+    margins are absent from the SQL when the workspace has no ports or lanes)."""
+    return {k: v for k, v in params.items() if re.search(rf"\${k}\b", sql)}
 
 
 def _count(con, sql: str) -> int:
@@ -259,8 +266,8 @@ def training_table(ws, grid: dict, *, since=None, until=None, ship_types: list[t
               "mismatch_kn": rules.mismatch_kn, "mismatch_frac": rules.mismatch_frac, "radius": EARTH_RADIUS_NMI}
     try:
         span_sql, tag_sql = _fix_sql(ship_types, have_ports, have_centroids)
-        con.execute(span_sql, {k: params[k] for k in ("since", "until", "radius")})
-        con.execute(tag_sql, {k: v for k, v in params.items() if k not in ("since", "until")})
+        con.execute(span_sql, _used(span_sql, params))
+        con.execute(tag_sql, _used(tag_sql, params))
         counts = dict(con.execute("SELECT coalesce(rule, 'kept'), count(*) FROM _perf_fixes GROUP BY 1").fetchall())
         columns = tuple(c for c in str(grid["variables"]).split(",") if c)
         step_s = grid.get("step_s")
