@@ -61,3 +61,14 @@ def formula_speeds(df: pd.DataFrame, ships: pd.DataFrame) -> tuple[pd.DataFrame,
         out[f"speed_{name}_kn"] = col
         outside[name] = n_out / max(len(df), 1)
     return out, outside
+
+
+def prior_ratio_for(name: str, df: pd.DataFrame, *, lpp_m: float, dwt_t: float, floor_kn: float) -> np.ndarray:
+    """One formula's speed as a share of ``v0_kn`` at rows of ``v0_kn``, ``hs_m``, ``encounter_deg``
+    for one ship (the residual model's prior on a grid: :mod:`performance.tabulate`)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sl.SpeedLossValidityWarning)  # scored on every row, as in training
+        v0 = df["v0_kn"].to_numpy(float)
+        loss = sl.speed_loss(v0, df["hs_m"].to_numpy(float), df["encounter_deg"].to_numpy(float), name, lpp_m=lpp_m,
+                             dwt_t=dwt_t, floor_kn=floor_kn)
+    return (v0 - np.asarray(loss, float)) / v0

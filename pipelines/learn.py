@@ -173,11 +173,14 @@ def _fit_and_store(req: LearnRequest, table: pd.DataFrame, funnel: dict, grid: d
         model = fit_model(seg, kind, settings, prior=prior, prior_ratio=prior_ratio)
         model.band_scale = cv["band_scale"]
         timings["final_fit_s"] = time.perf_counter() - t
+    from performance.tabulate import sea_context
+
     t = time.perf_counter()
     limits = voluntary_thresholds(fixes)
     timings["voluntary_s"] = time.perf_counter() - t
     summary = _summary(req, table, funnel, prep, grid, cv, ts, limits, outside, model, fixes, seg, rules, settings)
     summary["timings_s"] = {k: round(v, 2) for k, v in timings.items()}
+    summary["context"] = sea_context(seg)
     _store(req, model, summary)
     summary["file"] = str(_file_of(req))
     return summary
@@ -216,7 +219,7 @@ def _store(req: LearnRequest, model, summary: dict) -> None:
     path, sha = save_model_file(req.db, req.name, model.to_state())
     span = summary["span_utc"]
     metrics = {k: summary[k] for k in ("grouped_cv", "time_split", "voluntary", "table", "formulas_outside_range",
-                                       "band_scale", "fixes", "segments")}
+                                       "band_scale", "fixes", "segments", "context")}
     with open_workspace(req.db) as ws:
         write_model(ws, {
             "name": req.name, "span_start": span[0], "span_end": span[1], "rows": summary["segments"],
@@ -237,6 +240,28 @@ def load_performance_model(db, name: str):
     state = load_model_file(row["file"], row["file_sha256"])
     model = PerformanceModel.from_state(state)
     return model, row
+
+
+def parse_learned(speed_loss: str) -> str | None:
+    """The model name of ``--speed-loss learned:NAME`` (None for a formula's name)."""
+    from pipelines.storage.performance import check_name
+
+    if not str(speed_loss).startswith("learned:"):
+        return None
+    return check_name(str(speed_loss).split(":", 1)[1])
+
+
+def speed_table(db, name: str, *, vessel, speed_kn: float):
+    """The stored model ``name`` tabulated for ``vessel`` at ``speed_kn`` (:mod:`performance.tabulate`),
+    once per request; one ``error:`` line when the vessel lies outside what it was trained on."""
+    from performance.tabulate import OutsideTraining
+    from performance.tabulate import speed_table as tabulate
+
+    model, row = load_performance_model(db, name)
+    try:
+        return tabulate(model, row["metrics"]["context"], name, speed_kn=speed_kn, vessel=vessel)
+    except OutsideTraining as err:
+        raise LearnError(f"--speed-loss learned:{name}: {err}") from None
 
 
 def row_summary(row: dict) -> dict:

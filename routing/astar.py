@@ -61,6 +61,8 @@ from routing.errors import NoRouteError, WeatherVariableError
 from routing.field import NS_PER_HOUR, MeshWeather
 from routing.mesh import Mesh
 from routing.safety import SafetyFlags
+from routing.learned import LearnedSpeedTable
+from routing.learned import attained_speed_kn as learned_speed_kn
 from routing.speed_loss_kwon import KwonHull, kwon_check
 from thresholds.units import EARTH_RADIUS_NMI
 
@@ -106,9 +108,13 @@ class ShipModel:
     kwon: KwonHull | None = None
     wait: bool = True
     vessel_name: str = ""
+    learned: LearnedSpeedTable | None = None  # model "learned": its table for this vessel (routing.learned)
 
     def __post_init__(self):
-        if self.model not in sl.MODELS:
+        if self.model == "learned":
+            if not isinstance(self.learned, LearnedSpeedTable):
+                raise ValueError("the learned speed model needs its table: ShipModel(learned=LearnedSpeedTable(...))")
+        elif self.model not in sl.MODELS:
             raise ValueError(f"unknown speed-loss model {self.model!r}; choose one of {', '.join(sl.MODELS)}")
         if not self.speed_kn > 0:
             raise ValueError(f"speed must be positive, got {self.speed_kn!r} kn")
@@ -164,6 +170,8 @@ class ShipModel:
                      + (note if note else "within the published 4,000-20,000 dwt, 9-20 kn") + ")")
         elif self.model == "kwon" and self.kwon is not None:
             extra = f" (Cb {self.kwon.cb:g}, {self.kwon.form}, Fn {self.kwon.froude(self.speed_kn):.3f})"
+        elif self.model == "learned":
+            return f"learned:{self.learned.name} ({self.learned.note})"
         return f"{self.model}{extra}"
 
     def params(self, step_time: bool = False, pace_min: float = 0.0) -> np.ndarray:
@@ -174,7 +182,9 @@ class ShipModel:
         pace over ground of any edge in the weather at hand [h/nmi] (0: unknown), which bounds
         the departures worth trying when waiting.
         """
-        p = np.zeros(_kernels.N_PARAMS)
+        table = self.learned.pack() if self.model == "learned" else np.zeros(0)
+        p = np.zeros(_kernels.N_PARAMS + table.size)
+        p[_kernels.N_PARAMS:] = table
         p[_kernels.P_MODEL] = _kernels.MODEL_CODES[self.model]
         p[_kernels.P_V0] = self.speed_kn
         p[_kernels.P_FLOOR] = self.floor_kn
@@ -192,11 +202,15 @@ class ShipModel:
         return p
 
     def max_speed_kn(self, hs_max_m: float) -> float:
+        if self.model == "learned":  # bilinear values never exceed the table's largest (routing.learned)
+            return max(self.speed_kn * self.learned.max_ratio(), min(self.floor_kn, self.speed_kn))
         return sl.max_attainable_speed_kn(self.speed_kn, self.model, hs_max_m=hs_max_m, dwt_t=self.dwt_t)
 
     def attained_kn(self, hs_m, encounter_deg, wind_ms=None, wind_encounter_deg=None):
         """Speed through the water (numpy, :func:`routing.speed_loss.attained_speed_kn`) in waves of
         ``hs_m`` met at ``encounter_deg``, or for Kwon in the wind ``wind_ms`` met at ``wind_encounter_deg``. [kn]"""
+        if self.model == "learned":
+            return learned_speed_kn(self.learned, self.speed_kn, hs_m, encounter_deg, self.floor_kn)
         if self.wind_driven:
             return sl.attained_speed_kn(self.speed_kn, hs_m, wind_encounter_deg, self.model, floor_kn=self.floor_kn, wind_ms=wind_ms,
                                         kwon=self.kwon)  # fmt: skip

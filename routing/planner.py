@@ -384,6 +384,9 @@ def model_notes(req: RouteRequest, mw: MeshWeather | None) -> list:
         notes.append("Kwon's loss reads the 10 m wind (Beaufort number and direction), not the waves")
     elif not mw.has_direction:
         notes.append("the weather has no wave direction: every edge is sailed as in head seas (the largest loss)")
+    if ship.model == "learned" and ship.learned.beyond_training(mw.hs_max_m):
+        notes.append(f"the weather holds Hs up to {mw.hs_max_m:.1f} m, above the {ship.learned.hs_max_trained_m:.1f} m the "
+                     f"learned model was trained on: its speed at {ship.learned.hs_max_trained_m:.1f} m is held beyond")
     return notes
 
 

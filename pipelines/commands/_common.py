@@ -74,6 +74,16 @@ DbOption = typer.Option(Path(DEFAULT_DB), "--db", metavar="FILE", callback=_db_n
 #: ``--db`` of a command that reads the workspace (it must exist).
 DbReadOption = typer.Option(Path(DEFAULT_DB), "--db", metavar="FILE", callback=_db_existing, show_default=True,
                             help="DuckDB workspace file (must exist: `stormlane ingest-ais` creates it).")
+#: ``--db`` of a command that reads a workspace only for ``--speed-loss learned:NAME`` (checked then).
+LearnedDbOption = typer.Option(None, "--db", metavar="FILE",
+                               help=f"DuckDB workspace holding the learned model of --speed-loss learned:NAME (default {DEFAULT_DB}).")
+
+
+def check_workspace(value: Path | None) -> Path:
+    """The workspace of ``--db`` (default :data:`DEFAULT_DB`), which must exist."""
+    return _db_existing(Path(value if value is not None else DEFAULT_DB))
+
+
 JsonOption = typer.Option(False, "--json", help="Print one JSON object on stdout instead of a table.")
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._route_fuel import echo_fuel, echo_window, fuel_spec, window_times
-from pipelines.commands._common import (VESSEL_WITHOUT_AIS, JsonOption, ProfileOption, SpeedLossOption, check_output_file, emit_json,
+from pipelines.commands._common import (SPEED_LOSS_MODELS, VESSEL_WITHOUT_AIS, JsonOption, LearnedDbOption, ProfileOption, check_output_file, emit_json,
                                         note, vessel_option, weather_option, xarray_without_dask_arrays)
 
 ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
@@ -46,7 +46,10 @@ def register(app: typer.Typer) -> None:
         weather: list[Path] = weather_option("the sea is calm"),
         vessel: str = vessel_option(VESSEL_WITHOUT_AIS),
         speed_kn: float = typer.Option(None, "--speed-kn", min=0.1, metavar="KN", help="Calm-water speed in knots; default the vessel's service speed."),
-        speed_loss: str = SpeedLossOption,
+        speed_loss: str = typer.Option("bowditch", "--speed-loss", metavar="|".join(SPEED_LOSS_MODELS) + "|learned:NAME",
+                                       show_default=True,
+                                       help="Speed-loss model: in waves (bowditch, aertssen, khokhlov), in the wind (kwon), or a "
+                                            "model learned from the fleet's AIS (`stormlane learn performance`; with --db)."),
         aertssen_bands: str = typer.Option(
             "wmo", "--aertssen-bands", metavar="wmo|simroute", show_default=True,
             help="Aertssen's Hs -> Beaufort convention: wmo (WMO probable maximum heights as class upper edges) or simroute "
@@ -81,6 +84,7 @@ def register(app: typer.Typer) -> None:
         fuel_corridor: str = typer.Option("0", "--fuel-corridor", metavar="W|full", show_default=True,
                                           help="Graph of the least-fuel search: W mesh nodes around the time-optimal paths of every setting and the "
                                                "minimum-distance path, or full (the whole mesh; exact but slow on large meshes)."),
+        db: Path = LearnedDbOption,
         json_out: bool = JsonOption,
         out: Path = typer.Option(None, "--out", metavar="FILE.geojson|gpx|rtz", callback=lambda v: check_output_file(v, "--out"),
                                  help="Also write the routes to this file (the format from the suffix)."),
@@ -115,8 +119,11 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
             raise typer.BadParameter("give either --mesh-nmi or --mesh-deg, not both", param_hint="--mesh-nmi/--mesh-deg")
         if edges not in (8, 16, 24, 48):
             raise typer.BadParameter(f"{edges} is not one of 8, 16, 24, 48", param_hint="--edges")
-        if speed_loss not in MODELS:
-            raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}", param_hint="--speed-loss")
+        from pipelines.learn import parse_learned
+
+        learned = parse_learned(speed_loss)
+        if learned is None and speed_loss not in MODELS:
+            raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}, learned:NAME", param_hint="--speed-loss")
         if aertssen_bands not in AERTSSEN_BANDS:
             raise typer.BadParameter(f"{aertssen_bands!r} is not one of {', '.join(AERTSSEN_BANDS)}", param_hint="--aertssen-bands")
         if safety not in SAFETY_MODES:
@@ -139,7 +146,14 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
 
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
         ship_vessel = load_vessel(vessel or DEFAULT_VESSEL)
-        ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn, aertssen_bands=aertssen_bands)
+        if learned is not None:  # tabulated once for this request (pipelines.learn.speed_table)
+            from pipelines.commands._common import check_workspace
+            from pipelines.learn import speed_table
+
+            table = speed_table(check_workspace(db), learned, vessel=ship_vessel, speed_kn=speed_kn or ship_vessel.speed_kn)
+            ship = ShipModel.from_vessel(ship_vessel, "learned", speed_kn=speed_kn, learned=table)
+        else:
+            ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn, aertssen_bands=aertssen_bands)
         fspec = fuel_spec(ship_vessel, objective, speeds, speed_range, speed_steps, arrive_by, pareto, fuel_buckets, fuel_corridor)
         limits = None
         if safety != "none":

@@ -32,7 +32,7 @@ def _drop_stale_cache() -> None:
     """Delete this package's numba cache files when a kernel source (or a module whose constants the
     kernels freeze) differs from the one the cache was built from."""
     here = Path(__file__).resolve().parent
-    deps = sorted(here.glob("*.py")) + [here.parent / "speed_loss.py", here.parent / "speed_loss_kwon.py", here.parent / "_land.py",
+    deps = sorted(here.glob("*.py")) + [here.parent / "speed_loss.py", here.parent / "speed_loss_kwon.py", here.parent / "learned.py", here.parent / "_land.py",
                                         here.parent.parent / "thresholds" / "units.py"]
     h = hashlib.blake2b(digest_size=16)
     for f in deps:

@@ -28,6 +28,8 @@ P_KWON_CU, P_KWON_FORM_A, P_KWON_FORM_B = 10, 11, 12
 #: departures worth trying (0: none pruned). Set by routing.astar for each weather.
 P_PACE_MIN = 13
 N_PARAMS = 14
+#: A learned model's table (:meth:`routing.learned.LearnedSpeedTable.pack`) follows the parameters.
+P_TABLE = N_PARAMS
 
 #: Longest step between the times at which the edge model computes travel times (sub-slices of
 #: the weather step; the weather itself is interpolated linearly in time there). [h]

@@ -30,11 +30,13 @@ from routing._kernels.core import (
     P_LPP,
     P_MODEL,
     P_PRINTED,
+    P_TABLE,
     P_V0,
 )
+from routing.learned import PACK_HEADER
 from thresholds.units import METRES_PER_FOOT
 
-MODEL_CODES = {"none": 0, "bowditch": 1, "aertssen": 2, "khokhlov": 3, "kwon": 4}
+MODEL_CODES = {"none": 0, "bowditch": 1, "aertssen": 2, "khokhlov": 3, "kwon": 4, "learned": 5}
 
 _COS30 = math.cos(math.radians(30.0))
 _COS45 = math.cos(math.radians(45.0))
@@ -58,9 +60,30 @@ if kw.KWON_SECTOR_EDGES_DEG != (30.0, 60.0, 150.0):  # the sector tests below us
 
 @njit(inline="always")
 def ship_of(p):
-    """The speed model's scalars from the parameter vector, as one tuple (kept in registers)."""
+    """The speed model's scalars from the parameter vector, as one tuple (kept in registers), and
+    the vector itself last (a learned model's table follows the parameters)."""
     return (int(p[P_MODEL]), p[P_V0], p[P_FLOOR], p[P_LPP], p[P_DWT], p[P_PRINTED] > 0.5, p[P_AERTSSEN_BANDS] > 0.5, p[P_KWON_CU],
-            p[P_KWON_FORM_A], p[P_KWON_FORM_B])  # fmt: skip
+            p[P_KWON_FORM_A], p[P_KWON_FORM_B], p)  # fmt: skip
+
+
+@njit(inline="always")
+def learned_ratio(p, hs, cosa):
+    """Bilinear P50 speed ratio of the learned table packed in ``p`` after the parameters, at Hs
+    [m] and the encounter angle (from cos a, folded to 0-180 deg); both clamped to the table.
+    The numpy twin is :meth:`routing.learned.LearnedSpeedTable.ratio_at` (cross-checked by tests)."""
+    o = P_TABLE
+    n_h = int(p[o])
+    n_e = int(p[o + 1])
+    c = min(max(cosa, -1.0), 1.0)
+    x = min(max((hs - p[o + 2]) / p[o + 3], 0.0), n_h - 1.0)
+    y = min(max((math.degrees(math.acos(c)) - p[o + 4]) / p[o + 5], 0.0), n_e - 1.0)
+    i0 = min(int(x), n_h - 2)
+    j0 = min(int(y), n_e - 2)
+    fx = x - i0
+    fy = y - j0
+    b = o + PACK_HEADER + i0 * n_e + j0
+    return (p[b] * (1.0 - fx) * (1.0 - fy) + p[b + n_e] * fx * (1.0 - fy) + p[b + 1] * (1.0 - fx) * fy
+            + p[b + n_e + 1] * fx * fy)
 
 
 @njit(inline="always")
@@ -124,7 +147,9 @@ def speed_through_water(ship, mag, cosa, sina):
     v0 = ship[1]
     floor = ship[2]
     loss = 0.0
-    if mag > 0.0:
+    if model == 5:  # learned: the table of routing.learned (Hs; calm water is its row Hs = 0)
+        loss = v0 * (1.0 - learned_ratio(ship[10], mag if mag > 0.0 else 0.0, cosa))
+    elif mag > 0.0:
         if model == 1:  # Bowditch: [1] Eq. A1.1, Table A1.1 of routing.speed_loss
             if ship[5]:  # the printed sector table
                 alpha = math.degrees(math.atan2(sina, cosa)) % 360.0
