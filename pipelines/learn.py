@@ -181,9 +181,33 @@ def _fit_and_store(req: LearnRequest, table: pd.DataFrame, funnel: dict, grid: d
     summary = _summary(req, table, funnel, prep, grid, cv, ts, limits, outside, model, fixes, seg, rules, settings)
     summary["timings_s"] = {k: round(v, 2) for k, v in timings.items()}
     summary["context"] = sea_context(seg)
+    summary["limits"] = beside_operator_limits(limits)
     _store(req, model, summary)
     summary["file"] = str(_file_of(req))
     return summary
+
+
+#: The vessel profile of each learned class (the house rule of :func:`pipelines.vessels.vessel_for_ship`).
+CLASS_PROFILE = {"passenger": "ro-pax", "cargo": "container-feeder", "tanker": "tanker-aframax", "other": "container-feeder"}
+
+
+def beside_operator_limits(voluntary: list[dict], profile: str | None = None) -> list[dict]:
+    """Per class: the Hs above which AIS shows voluntary slow-down in head-to-bow seas, beside the
+    operator's configured Hs limit for the class's vessel profile (evidence, not a replacement)."""
+    from pipelines.config import load_operator_profile, load_vessel
+
+    prof = load_operator_profile(profile)
+    rows = []
+    for r in voluntary:
+        if r["sector"] != "head-bow":
+            continue
+        v = load_vessel(CLASS_PROFILE.get(r["ship_class"], "container-feeder"))
+        lim = prof.limits_for(v.vessel_class, v.lpp_m)
+        hs_lim = lim.hs_max_m if isinstance(lim.hs_max_m, (int, float)) else None
+        rows.append({"ship_class": r["ship_class"], "vessel_profile": v.name, "operator_profile": prof.name,
+                     "limits": lim.name, "operator_hs_max_m": hs_lim, "learned_hs_m": r["threshold_hs_m"],
+                     "learned_interval_hs_m": [r["from_hs_m"], r["to_hs_m"]] if r["threshold_hs_m"] is not None else None})
+    return rows
 
 
 def _file_of(req: LearnRequest) -> Path:
@@ -219,7 +243,7 @@ def _store(req: LearnRequest, model, summary: dict) -> None:
     path, sha = save_model_file(req.db, req.name, model.to_state())
     span = summary["span_utc"]
     metrics = {k: summary[k] for k in ("grouped_cv", "time_split", "voluntary", "table", "formulas_outside_range",
-                                       "band_scale", "fixes", "segments", "context")}
+                                       "band_scale", "fixes", "segments", "context", "limits")}
     with open_workspace(req.db) as ws:
         write_model(ws, {
             "name": req.name, "span_start": span[0], "span_end": span[1], "rows": summary["segments"],
@@ -270,7 +294,7 @@ def row_summary(row: dict) -> dict:
     span = [None if t is None else t.strftime("%Y-%m-%dT%H:%M:%SZ") for t in (row["span_start"], row["span_end"])]
     return {"name": row["name"], "kind": row["kind"], "prior": row["prior"], "segments": int(row["rows"]),
             "fixes": int(m["fixes"]), "vessels": int(row["vessels"]), "span_utc": span, "grouped_cv": m["grouped_cv"],
-            "time_split": m["time_split"], "voluntary": m["voluntary"]}
+            "time_split": m["time_split"], "voluntary": m["voluntary"], "limits": m.get("limits", [])}
 
 
 def headline(cv: dict) -> dict:
@@ -321,4 +345,11 @@ def table_lines(summary: dict) -> list[str]:
                          f"{r['vessels']} vessels)")
         else:
             lines.append(f"  {r['ship_class']:<10} {r['sector']:<10} none: {r['why']}")
+    if summary.get("limits"):
+        lines.append("beside the configured operator limits (head-to-bow seas):")
+    for r in summary.get("limits", []):
+        op = "none" if r["operator_hs_max_m"] is None else f"Hs {r['operator_hs_max_m']:.2f} m"
+        got = "no voluntary step" if r["learned_hs_m"] is None else f"Hs {r['learned_hs_m']:.2f} m"
+        lines.append(f"  {r['ship_class']:<10} masters slow down above {got}; operator limit {op} "
+                     f"({r['operator_profile']}: {r['limits']}, profile {r['vessel_profile']})")
     return lines

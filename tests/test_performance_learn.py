@@ -144,3 +144,39 @@ def test_bad_input_gets_one_error_line(world, args, message):
 def test_show_of_an_unknown_model_names_the_models_there(world):
     code, _, err = run_cli(["learn", "show", "nope", "--db", str(world["db"])])
     assert code == 2 and err.startswith("error: no learned model 'nope'") and "fleet" in err
+
+
+def test_learned_limits_are_reported_beside_the_operator_limits(world):
+    s = world["summary"]
+    head = {r["ship_class"]: r["threshold_hs_m"] for r in s["voluntary"] if r["sector"] == "head-bow"}
+    rows = {r["ship_class"]: r for r in s["limits"]}
+    assert set(rows) == set(head)
+    for cls, r in rows.items():
+        assert r["learned_hs_m"] == head[cls]
+        assert r["operator_profile"] and r["limits"]
+
+
+ROUTE = ["--from", "41.30,2.25", "--to", "39.50,2.70", "--depart", "2025-01-15T00:00Z", "--mesh-nmi", "6", "--edges", "16"]
+
+
+def test_route_with_the_learned_model_states_it_and_sails_slower_than_calm(world):
+    weather = [str(p) for p in sorted((world["out"] / "weather").glob("*.nc"))]
+    code, out, err = run_cli(["route", *ROUTE, "--weather", *weather, "--vessel", "ro-pax", "--speed-loss", "learned:fleet",
+                              "--db", str(world["db"]), "--json"])
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["notes"][0].startswith("speed loss: learned:fleet (")
+    calm = data["min_distance_calm"]["time_h"]
+    assert data["optimal"]["time_h"] >= calm * 0.98  # the table's ratios stay near or below 1
+    assert data["min_distance"]["time_h"] > calm  # storm A on the way: the learned loss slows the ship
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--speed-loss", "learned:nope"], "no learned model 'nope'"),
+    (["--speed-loss", "learned:fleet", "--speed-kn", "40"], "kn calm-water speed; this vessel's 40.0 lies outside"),
+    (["--speed-loss", "learned:fleet", "--vessel", "container-large"], "m length; this vessel's 320.0 lies outside"),
+])
+def test_route_refuses_a_learned_model_it_cannot_use(world, extra, message):
+    vessel = [] if "--vessel" in extra else ["--vessel", "ro-pax"]
+    code, _, err = run_cli(["route", *ROUTE, *vessel, "--db", str(world["db"]), *extra])
+    assert code == 2 and err.startswith("error: ") and message in err and len(err.strip().splitlines()) == 1, err
