@@ -288,6 +288,29 @@ def speed_table(db, name: str, *, vessel, speed_kn: float):
         raise LearnError(f"--speed-loss learned:{name}: {err}") from None
 
 
+def eta_band(plan, name: str = "optimal_smoothed") -> dict | None:
+    """P10, P50 and P90 sailing time of a planned route sailed with a learned model's quantile
+    tables (None for a formula). The route's path is re-timed with the P90 speed ratios on every
+    leg (the early ETA) and with the P10 ratios (the late one): the errors of one voyage are taken
+    as fully correlated along it (the same master and hull on every leg), the wide reading of the
+    band; per-leg independence would narrow it."""
+    import dataclasses
+
+    from routing.astar import evaluate_path
+
+    ship, wx = plan.ship, plan.weather_arrays
+    if ship is None or ship.model != "learned" or wx is None or name not in plan.routes:
+        return None
+    r = plan.routes[name]
+    t0 = wx.rel_h(r.time_utc[0].value)
+    out = {"route": name, "assumption": "quantile ratios fully correlated along the route"}
+    for key, which in (("time_h_p10", "p90"), ("time_h_p50", "ratio"), ("time_h_p90", "p10")):
+        s = ship if which == "ratio" else dataclasses.replace(ship, learned=ship.learned.band(which))
+        times, _ = evaluate_path(plan.mesh, wx, s, r.lat_deg, r.lon_deg, t_start_h=t0)
+        out[key] = float(times[-1] - times[0])
+    return out
+
+
 def row_summary(row: dict) -> dict:
     """What :func:`table_lines` needs, from a stored model's row (``learn show``)."""
     m = row["metrics"]

@@ -88,6 +88,11 @@ class LearnedSpeedTable:
                + grid[i1, j1] * fx * fy)
         return np.where(np.isnan(hs), np.nan, out)
 
+    def band(self, which: str) -> "LearnedSpeedTable":
+        """The same table with its ``p10`` or ``p90`` ratios as the speed (for ETA bands)."""
+        return LearnedSpeedTable(f"{self.name}:{which}", self.hs_m, self.encounter_deg, getattr(self, which), self.p10,
+                                 self.p90, self.hs_max_trained_m, self.note, dict(self.meta, band=which))
+
     def pack(self) -> np.ndarray:
         """The table as the flat float64 array the kernels read after the parameter vector:
         ``n_hs, n_enc, hs0, dhs, enc0, denc`` then the P50 ratios row by row."""

@@ -169,6 +169,9 @@ def test_route_with_the_learned_model_states_it_and_sails_slower_than_calm(world
     calm = data["min_distance_calm"]["time_h"]
     assert data["optimal"]["time_h"] >= calm * 0.98  # the table's ratios stay near or below 1
     assert data["min_distance"]["time_h"] > calm  # storm A on the way: the learned loss slows the ship
+    band = data["eta_band"]
+    assert band["time_h_p10"] < band["time_h_p50"] < band["time_h_p90"]
+    assert band["time_h_p50"] == pytest.approx(data["optimal_smoothed"]["time_h"], rel=0.02)
 
 
 @pytest.mark.parametrize("extra, message", [

@@ -91,7 +91,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Compute the time-optimal route (raw grid and smoothed) and the minimum-distance route.
 
-        The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time); a route that arrives after the last weather time (whose last field is then held) also has weather_held_after_h; "speed_loss" names the model with its convention or range; "notes" lists what the table prints as note: lines, first the speed-loss model and what it rests on (a wave direction the weather lacks is taken as head seas; Kwon reads the wind; an antimeridian crossing), then points moved to sea and weather held.
+        The optimal route minimises the sailing time with the speed loss in waves, by a time-dependent A* on a lat/lon mesh whose edges never touch land; the minimum-distance route is the shortest sea path on the same mesh, sailed through the same weather and in calm water. With --json one object is printed: great_circle_nmi and, for optimal, optimal_smoothed, min_distance and min_distance_calm, time_h, dist_nmi, max_hs_m and waypoints (lists of lat, lon, ISO time); a route that arrives after the last weather time (whose last field is then held) also has weather_held_after_h; "speed_loss" names the model with its convention or range; "notes" lists what the table prints as note: lines, first the speed-loss model and what it rests on (a wave direction the weather lacks is taken as head seas; Kwon reads the wind; an antimeridian crossing), then points moved to sea and weather held. With --speed-loss learned:NAME (a model of `stormlane learn performance`, read from --db) the JSON also has eta_band: the optimal_smoothed route re-timed by the model's P10/P50/P90 speed tables (time_h_p10, time_h_p50, time_h_p90, assumption).
 
 A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 000 dwt and 9-20 kn; Kwon: Cb 0.55-0.85, a positive speed-reduction coefficient), and a model whose variable the weather lacks is refused naming it and the files (waves for bowditch, aertssen, khokhlov; the 10 m wind for kwon). The ship may wait or slow down where that arrives earlier (the optimum under weather whose sailing times jump with time). Routes may cross the antimeridian (--bbox 170,30,-160,50 or 170,30,200,50).
 
@@ -202,6 +202,11 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
         if held:
             notes.append("the weather ends before arrival; its last field was held for the last "
                          + ", ".join(f"{h:.2f} h of {name}" for name, h in held.items()))
+        band = None
+        if learned is not None:
+            from pipelines.learn import eta_band
+
+            band = eta_band(plan)
         if out is not None:
             from dashboards.exports import write_routes
 
@@ -211,6 +216,8 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
             data = plan.to_dict()
             for name, h in held.items():
                 data[name]["weather_held_after_h"] = h
+            if band is not None:
+                data["eta_band"] = band
             data["notes"] = notes  # what the table prints as note: lines (empty: nothing to say)
             emit_json(data)
             return
@@ -239,5 +246,8 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
             typer.echo(line)
         if fuel_cols:
             echo_fuel(plan)
+        if band is not None:
+            typer.echo(f"{band['route']} sailing time P10-P50-P90 by the learned model's quantiles: {band['time_h_p10']:.2f} - "
+                       f"{band['time_h_p50']:.2f} - {band['time_h_p90']:.2f} h ({band['assumption']})")
         if held:
             typer.echo(f"note: {notes[-1]}")
