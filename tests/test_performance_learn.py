@@ -65,8 +65,10 @@ def test_on_held_out_vessels_the_model_beats_every_formula_as_the_issue_asks(wor
     rows = _overall(cv)
     learned = rows[f"learned_{s['kind']}"]
     formulas = {f: rows[f] for f in ("bowditch", "aertssen", "khokhlov")}
-    # the same held-out segments for every model
-    assert {r["n"] for r in rows.values()} == {s["segments"]}
+    # the same held-out segments for every model (Khokhlov refuses ships beyond its published D x v0:
+    # scored on the segments it accepts)
+    assert {rows[m]["n"] for m in ("learned_direct", "learned_residual", "bowditch", "aertssen")} == {s["segments"]}
+    assert 0 < rows["khokhlov"]["n"] <= s["segments"]
     assert learned["r2_loss"] >= 0.8
     best = min(f["mae_kn"] for f in formulas.values())
     assert learned["mae_kn"] <= 0.7 * best, (learned["mae_kn"], best)

@@ -75,7 +75,7 @@ DbOption = typer.Option(Path(DEFAULT_DB), "--db", metavar="FILE", callback=_db_n
 DbReadOption = typer.Option(Path(DEFAULT_DB), "--db", metavar="FILE", callback=_db_existing, show_default=True,
                             help="DuckDB workspace file (must exist: `stormlane ingest-ais` creates it).")
 #: ``--db`` of a command that reads a workspace only for ``--speed-loss learned:NAME`` (checked then).
-LearnedDbOption = typer.Option(None, "--db", metavar="FILE",
+LearnedDbOption = typer.Option(None, "--db", metavar="FILE", callback=lambda v: None if v is None else _db_existing(v),
                                help=f"DuckDB workspace holding the learned model of --speed-loss learned:NAME (default {DEFAULT_DB}).")
 
 

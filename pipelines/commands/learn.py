@@ -14,7 +14,7 @@ from typing import List, Optional
 
 import typer
 
-from pipelines.commands._common import DbOption, DbReadOption, JsonOption, emit_json, paths_text, weather_option
+from pipelines.commands._common import DbReadOption, JsonOption, emit_json, paths_text, weather_option
 
 learn_app = typer.Typer(help="Learned models: a ship performance model from the fleet's AIS x weather.",
                         no_args_is_help=True, rich_markup_mode=None)
@@ -34,7 +34,7 @@ def _time(text: Optional[str], option: str):
 
 @learn_app.command("performance")
 def performance(
-    db: Path = DbOption,
+    db: Path = DbReadOption,
     weather: Optional[List[Path]] = weather_option("the weather loaded in the workspace (`stormlane weather load`)"),
     since: Optional[str] = typer.Option(None, "--since", metavar="ISO", help="First AIS time to learn from (UTC if no offset)."),
     until: Optional[str] = typer.Option(None, "--until", metavar="ISO", help="AIS times before this one (UTC if no offset)."),
