@@ -120,7 +120,7 @@ def test_the_multi_valued_options_are_the_documented_ones():
     assert set(_multi_options()) == {
         ("audit", "--weather"), ("deviate", "--weather"), ("route", "--weather"), ("nightly", "--weather"),
         ("schedule", "--weather"), ("nightly", "--lane"), ("schedule", "--lane"), ("lanes", "--ports"),
-        ("weather join", "--depart"),
+        ("weather join", "--depart"), ("learn performance", "--weather"), ("learn performance", "--class"),
     }
 
 

@@ -313,7 +313,7 @@ def test_workspace_locked_by_another_process_is_one_line(tmp_path, capsys):
     ("argv", "expect"),
     [
         (["route", "--from", "39.2,2.9", "--to", "41.5,2.7", "--depart", "2020-01-20T09:00Z", "--speed-loss", "foo"],
-         "error: Invalid value for --speed-loss: 'foo' is not one of bowditch, aertssen, khokhlov, kwon, none (see `stormlane route --help`)"),
+         "error: Invalid value for --speed-loss: 'foo' is not one of bowditch, aertssen, khokhlov, kwon, none, learned:NAME (see `stormlane route --help`)"),
         (["route", "--from", "39.2,2.9", "--to", "41.5,2.7", "--depart", "2020-01-20T09:00Z", "--edges", "12"],
          "error: Invalid value for --edges: 12 is not one of 8, 16, 24, 48 (see `stormlane route --help`)"),
         (["route", "--to", "41.5,2.7"], "error: Missing option '--from'. (see `stormlane route --help`)"),

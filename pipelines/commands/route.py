@@ -46,10 +46,10 @@ def register(app: typer.Typer) -> None:
         weather: list[Path] = weather_option("the sea is calm"),
         vessel: str = vessel_option(VESSEL_WITHOUT_AIS),
         speed_kn: float = typer.Option(None, "--speed-kn", min=0.1, metavar="KN", help="Calm-water speed in knots; default the vessel's service speed."),
-        speed_loss: str = typer.Option("bowditch", "--speed-loss", metavar="|".join(SPEED_LOSS_MODELS) + "|learned:NAME",
-                                       show_default=True,
-                                       help="Speed-loss model: in waves (bowditch, aertssen, khokhlov), in the wind (kwon), or a "
-                                            "model learned from the fleet's AIS (`stormlane learn performance`; with --db)."),
+        speed_loss: str = typer.Option("bowditch", "--speed-loss", metavar="|".join(SPEED_LOSS_MODELS), show_default=True,
+                                       help="Speed-loss model: in waves (bowditch, aertssen, khokhlov), in the wind (kwon), or "
+                                            "learned:NAME, a model learned from the fleet's AIS (`stormlane learn performance`; "
+                                            "read from --db)."),
         aertssen_bands: str = typer.Option(
             "wmo", "--aertssen-bands", metavar="wmo|simroute", show_default=True,
             help="Aertssen's Hs -> Beaufort convention: wmo (WMO probable maximum heights as class upper edges) or simroute "
