@@ -372,7 +372,7 @@ def table_lines(summary: dict) -> list[str]:
         lines.append("beside the configured operator limits (head-to-bow seas):")
     for r in summary.get("limits", []):
         op = "none" if r["operator_hs_max_m"] is None else f"Hs {r['operator_hs_max_m']:.2f} m"
-        got = "no voluntary step" if r["learned_hs_m"] is None else f"Hs {r['learned_hs_m']:.2f} m"
-        lines.append(f"  {r['ship_class']:<10} masters slow down above {got}; operator limit {op} "
+        got = "no voluntary slow-down found" if r["learned_hs_m"] is None else f"masters slow down above Hs {r['learned_hs_m']:.2f} m"
+        lines.append(f"  {r['ship_class']:<10} {got}; operator limit {op} "
                      f"({r['operator_profile']}: {r['limits']}, profile {r['vessel_profile']})")
     return lines

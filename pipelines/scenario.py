@@ -271,6 +271,10 @@ def make_out_dir(path, option: str = "--out") -> Path:
     return path
 
 
+#: Along-track speed wander of a ship sailing through the weather (sd, share of its speed).
+SEAWAY_ALONG_TRACK_SD_FRAC = 0.003
+
+
 def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | None = None,
                    days: float = DEFAULT_DAYS, gzip: bool = False, config: Path | None = None,
                    ports: Path | None = None, writers: list[tuple[str, ScenarioWriter]] | None = None,
@@ -299,6 +303,9 @@ def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | 
         raise ScenarioConfigError(f"--start {start!r} is not an ISO 8601 time")
     out_dir = make_out_dir(out_dir)
     spec = load_scenario_spec(config, ports)
+    # Sailing through the weather, the weather moves the speed: the slow along-track wander that
+    # stands in for it in calm-water scenarios (ScenarioSettings' default) shrinks to trim and engine.
+    settings = {"along_track_speed_sd_frac": SEAWAY_ALONG_TRACK_SD_FRAC, **settings}
     st = ScenarioSettings(seed=int(seed), start_utc=start_ts, days=float(days), **settings)
     from pipelines.weather import scenario_weather
     from scenario.performance_law import describe as describe_law

@@ -340,7 +340,7 @@ class ScenarioSettings:
     heading_noise_deg: float = 0.7
     harbour_speed_kn: float = 8.0
     voyage_speed_sd_frac: float = 0.025  # voyage-to-voyage speed spread
-    along_track_speed_sd_frac: float = 0.003  # slow wander within a voyage (trim, engine; the weather comes on top)
+    along_track_speed_sd_frac: float = 0.015  # slow fluctuation within a voyage (calm water: it stands in for the weather)
     keep_right_nmi: float = 0.5
     lateral_sd_nmi: float = 0.6
     lateral_max_nmi: float = 2.0
