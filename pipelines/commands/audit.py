@@ -64,7 +64,7 @@ def register(app: typer.Typer) -> None:
         Example (a ship through a storm, between two times):
 
         \b
-          stormlane audit --mmsi 225991460 --start 2025-01-14T21:30Z --end 2025-01-15T06:30Z \\
+          stormlane audit --mmsi 224087350 --start 2025-01-14T21:30Z --end 2025-01-15T10:30Z \\
             --db work/stormlane.duckdb --report audit.html
         """
         xarray_without_dask_arrays()
