@@ -293,14 +293,15 @@ def test_scenario_storms_in_their_windows(scenario_weather):
     hs_max = pd.Series(np.nanmax(w.hs_m.values, axis=(1, 2)), index=pd.DatetimeIndex(w.time_utc.values))
     assert hs_max["2025-01-14T00":"2025-01-16T00"].max() > 6.5  # storm A, above the 6 m limit
     assert hs_max["2025-01-31T00":"2025-02-02T00"].max() > 6.5  # storm B in the forecast window
-    calm = pd.concat([hs_max[:"2025-01-13T00"], hs_max["2025-01-17T00":"2025-01-30T00"]])
+    assert hs_max["2025-01-07T00":"2025-01-10T12"].max() > 6.5  # storm C (issue 21: heavy seas on the cargo routes)
+    calm = pd.concat([hs_max[:"2025-01-06T12"], hs_max["2025-01-11T00":"2025-01-13T00"], hs_max["2025-01-17T00":"2025-01-30T00"]])
     assert calm.max() < 4.0
     # storm A crosses the Barcelona-Palma lane (about 40.5N 2.4E) on 2025-01-14/15
     iy, ix = int(round((40.5 - 35.5) * 12)), int(round((2.4 + 1.5) * 12))
     lane = pd.Series(w.hs_m.values[:, iy, ix], index=hs_max.index)
     assert lane["2025-01-14T06":"2025-01-15T18"].max() > 4.5
     desc = scenario_weather.describe()
-    assert [s["name"] for s in desc["storms"]] == ["A", "B"] and desc["synthetic"] is True
+    assert [s["name"] for s in desc["storms"]] == ["A", "B", "C"] and desc["synthetic"] is True
 
 
 def test_scenario_files_read_back_through_the_readers(tmp_path):
