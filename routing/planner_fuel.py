@@ -106,7 +106,8 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props) ->
         raise InfeasibleArrivalError(f"no route arrives by {_utc(st, deadline_h).isoformat()}: the earliest possible arrival is {earliest()}")
     cands = _candidates(st, routes, opt_nodes, spec, deadline_h)
     if spec.corridor is not None:
-        paths = [opt_nodes, md_nodes] + [search(mesh, wx, sh, st.start_node, st.goal_node, t_start_h=st.t_node_h).nodes for sh in prob.ships]
+        paths = [opt_nodes, md_nodes] + [search(mesh, wx, sh, st.start_node, st.goal_node, t_start_h=st.t_node_h).nodes for sh in prob.ships
+                                         if sh != req.ship]  # the service speed's path is opt_nodes
         prob.allowed = corridor_edges(mesh, paths, spec.corridor)
     f_upper = min((c[5] for c in cands), default=np.inf) - f_tail
     try:
