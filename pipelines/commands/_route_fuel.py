@@ -3,7 +3,6 @@ the table prints about the least-fuel route, its reference and the time-fuel fro
 
 from __future__ import annotations
 
-import pandas as pd
 import typer
 
 OBJECTIVES = ("time", "fuel", "co2")
@@ -113,6 +112,8 @@ def echo_window(result: dict) -> None:
         f_t = f"{r['fuel_t']:.3f}" if r.get("fuel_t") is not None else ""
         c_t = f"{r['co2_t']:.3f}" if r.get("co2_t") is not None else ""
         typer.echo(f"{mark} {r['depart_utc']:<27}{r['arrive_utc']:<27}{r['time_h']:>8.2f}{r['dist_nmi']:>10.2f}{f_t:>9}{c_t:>9}{hs:>9}{over:>11}")
+    import pandas as pd  # here, not at the top: `stormlane --help` imports this module
+
     arrivals = [pd.Timestamp(r["arrive_utc"]) for r in result["rows"] if r.get("arrive_utc")]
     if fuel and arrivals and max(arrivals) - min(arrivals) > pd.Timedelta(minutes=1):
         typer.echo("note: the departures arrive at different times: their fuel differences are not savings")
