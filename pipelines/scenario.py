@@ -271,6 +271,20 @@ def make_out_dir(path, option: str = "--out") -> Path:
     return path
 
 
+def checked_seed_start(seed, start) -> pd.Timestamp:
+    """The scenario's start time (default :data:`DEFAULT_START_UTC`) after checking the seed is a
+    non-negative integer and the start an ISO 8601 time; else a :class:`ScenarioConfigError`
+    naming the option."""
+    from pipelines.times import utc_or_none
+
+    if int(seed) < 0:
+        raise ScenarioConfigError(f"--seed {seed}: the seed must be a non-negative integer")
+    start_ts = utc_or_none(start) if start is not None else DEFAULT_START_UTC
+    if start_ts is None:
+        raise ScenarioConfigError(f"--start {start!r} is not an ISO 8601 time")
+    return start_ts
+
+
 #: Along-track speed wander of a ship sailing through the weather (sd, share of its speed).
 SEAWAY_ALONG_TRACK_SD_FRAC = 0.003
 
@@ -294,13 +308,7 @@ def build_scenario(out_dir: Path, *, seed: int = 0, start: str | pd.Timestamp | 
     **settings
         Further :class:`scenario.generator.ScenarioSettings` fields.
     """
-    if int(seed) < 0:
-        raise ScenarioConfigError(f"--seed {seed}: the seed must be a non-negative integer")
-    from pipelines.times import utc_or_none
-
-    start_ts = utc_or_none(start) if start is not None else DEFAULT_START_UTC
-    if start_ts is None:
-        raise ScenarioConfigError(f"--start {start!r} is not an ISO 8601 time")
+    start_ts = checked_seed_start(seed, start)
     out_dir = make_out_dir(out_dir)
     spec = load_scenario_spec(config, ports)
     # Sailing through the weather, the weather moves the speed: the slow along-track wander that

@@ -31,7 +31,7 @@ import numpy as np
 
 from pipelines.scenario import (
     AIS_PATTERNS, DIRTY_KINDS, EXPECTED_REASON, ScenarioConfigError, ScenarioSettings, describe_setup, file_entries,
-    load_scenario_spec, make_out_dir,
+    checked_seed_start, load_scenario_spec, make_out_dir,
 )
 
 #: Gzip level of the daily files: the ``gzip`` tool's default (the public archives' zip files use deflate too).
@@ -144,16 +144,9 @@ def build_fleet_scenario(out_dir: Path, *, vessels: int, seed: int = 0, start=No
     per core, at most one per ship)."""
     # Long by design: the two phases (ships -> spill, days -> files) and the truth written as
     # they finish, in ship and day order, so that nothing waits for the whole fleet in memory.
-    from pipelines.times import utc_or_none
-    from scenario.generator import DEFAULT_START_UTC
-
-    if int(seed) < 0:
-        raise ScenarioConfigError(f"--seed {seed}: the seed must be a non-negative integer")
+    start_ts = checked_seed_start(seed, start)
     if int(vessels) < 1:
         raise ScenarioConfigError(f"--vessels {vessels}: a fleet needs at least one vessel")
-    start_ts = utc_or_none(start) if start is not None else DEFAULT_START_UTC
-    if start_ts is None:
-        raise ScenarioConfigError(f"--start {start!r} is not an ISO 8601 time")
     out_dir = make_out_dir(out_dir)
     st = ScenarioSettings(seed=int(seed), start_utc=start_ts, days=float(days), **settings)
     job = FleetJob(str(config) if config else None, str(ports) if ports else None, int(vessels), st,
