@@ -33,6 +33,10 @@ REPAIR_SPACING_DEG = 0.5 / 60.0
 #: The repair mesh spans the leg's box widened by this fraction of the leg's length (at least
 #: ``REPAIR_MIN_PAD_DEG``): room to go round an island as long as the leg. [-]
 REPAIR_PAD_FRAC = 0.6
+#: When that box holds no sea connection (the way round runs outside it: a leg from Palma bay to
+#: Mallorca's north-west coast must round the island's west end, beyond 0.6 leg lengths), the search is
+#: repeated once in a box widened by this fraction. [-]
+REPAIR_WIDE_PAD_FRAC = 2.5
 REPAIR_MIN_PAD_DEG = 0.1
 #: Nearest sea nodes tried for each end of the leg (the first whose leg to the end is at sea). [-]
 SNAP_TRIES = 40
@@ -60,11 +64,11 @@ class RepairResult:
         return "; ".join(f"leg {f['leg']}: {f['reason']}" for f in self.failed_legs)
 
 
-def _repair_mesh(lat1, lon1, lat2, lon2, spacing_deg):
+def _repair_mesh(lat1, lon1, lat2, lon2, spacing_deg, pad_frac: float = REPAIR_PAD_FRAC):
     from routing.mesh import MeshGrid, build_mesh, global_land_mask_window
 
     d_deg = float(haversine_nmi(lat1, lon1, lat2, lon2)) / 60.0
-    pad = max(REPAIR_MIN_PAD_DEG, REPAIR_PAD_FRAC * d_deg)
+    pad = max(REPAIR_MIN_PAD_DEG, pad_frac * d_deg)
     lon2u = lon1 + ((lon2 - lon1 + 180.0) % 360.0 - 180.0)  # the leg in one longitude frame
     coslat = max(math.cos(math.radians(max(abs(lat1), abs(lat2)))), 0.05)
     bbox = (min(lon1, lon2u) - pad / coslat, max(min(lat1, lat2) - pad, -89.0), max(lon1, lon2u) + pad / coslat,
@@ -119,10 +123,19 @@ def sea_path(lat1: float, lon1: float, lat2: float, lon2: float, *, berths=(), s
         :func:`routing.land.legs_at_sea` with the berths. None when the mesh holds no sea
         connection between the two ends.
     """
+    for pad_frac in (REPAIR_PAD_FRAC, REPAIR_WIDE_PAD_FRAC):
+        path = _sea_path_in_box(lat1, lon1, lat2, lon2, berths, spacing_deg, pad_frac)
+        if path is not None:
+            return path
+    return None
+
+
+def _sea_path_in_box(lat1, lon1, lat2, lon2, berths, spacing_deg, pad_frac):
+    """:func:`sea_path` on the repair mesh of the leg's box widened by ``pad_frac`` leg lengths."""
     from routing.astar import ShipModel, WeatherArrays, evaluate_path, reachable, search, smooth
     from routing.errors import NoRouteError
 
-    mesh, lon2u = _repair_mesh(lat1, lon1, lat2, lon2, spacing_deg)
+    mesh, lon2u = _repair_mesh(lat1, lon1, lat2, lon2, spacing_deg, pad_frac)
     a = _snap(mesh, lat1, lon1, berths)
     if a is None:
         return None

@@ -218,3 +218,14 @@ def test_no_sea_connection_is_said_not_hidden():
     rr = repair_route([43.0, 42.0], [34.0, 50.0], berths=())
     assert not rr.sea_only and rr.failed_legs[0]["leg"] == 0 and "no sea path" in rr.reason
     assert sea_path(43.0, 34.0, 42.0, 50.0) is None
+
+
+def test_a_repair_that_must_round_the_island_beyond_the_legs_box():
+    """Found by the Hypothesis test above: Palma bay (39.5N 2.625E) to Mallorca's north-west coast
+    (39.8125N 2.625E) has no sea path within 0.6 leg lengths of the leg (the way round Mallorca's
+    west end lies further west); the repair widens its box once and goes round at sea."""
+    lat1, lon1, lat2, lon2 = 39.5, 2.625, 39.8125, 2.625
+    rr = repair_route([lat1, lat2], [lon1, lon2], berths=())
+    assert rr.sea_only, rr.reason
+    assert land_points(rr.lat_deg, rr.lon_deg) == 0
+    assert float(np.min(rr.lon_deg)) < 2.40  # round Mallorca's west end (Sant Elm, 2.36E-2.40E)
