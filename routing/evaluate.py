@@ -46,10 +46,11 @@ import pandas as pd
 
 from routing.emissions import Engine, steam2_legs, steam2_totals
 from routing.route import Route
-from thresholds.geodesy import initial_bearing_deg, intermediate_point
+from routing.samples import IMO_RULES, densify  # noqa: F401 (densify re-exported: the evaluation's sampling)
+from routing.samples import nanmax as _nanmax
+from routing.samples import rule_events as _events
+from routing.samples import weighted_mean as _weighted_mean
 
-#: Rules of IMO MSC.1/Circ.1228 (reported as "IMO events"); every other rule is an operator limit.
-IMO_RULES = ("surf_riding", "high_waves", "synchronous_roll", "parametric_roll")
 #: Operator-limit rules (the seed paper's Table 1 thresholds).
 OPERATOR_RULES = ("hs", "period", "wind", "beam_seas")
 #: Speed-loss models evaluated on every route.
@@ -92,97 +93,6 @@ def rule_check(assess_fn: AssessFn) -> Callable:
         return {name: np.asarray(r.fired, dtype=bool) for name, r in a.rules.items()}
 
     return check
-
-
-def densify(route: Route, max_step_h: float = 0.25) -> pd.DataFrame:
-    """Cut every leg into pieces of at most ``max_step_h`` and return the middle of each piece.
-
-    Returns
-    -------
-    DataFrame
-        One row per piece: ``leg`` (index of the leg), ``time_utc`` (when the ship is at the
-        piece's middle), ``lat_deg``, ``lon_deg``, ``dt_h`` (the piece's duration),
-        ``dist_nmi`` (its length), ``heading_deg`` (course there) and ``speed_kn`` (the leg's
-        speed made). Legs of zero duration give no piece.
-    """
-    if max_step_h <= 0:
-        raise ValueError("max_step_h must be positive")
-    n = route.n_waypoints
-    if n < 2:
-        return pd.DataFrame(columns=["leg", "time_utc", "lat_deg", "lon_deg", "dt_h", "dist_nmi", "heading_deg", "speed_kn"])
-    leg_dt_h = np.diff(route.time_utc.asi8) / 3.6e12
-    if np.any(leg_dt_h < 0):
-        raise ValueError(f"route {route.name!r}: waypoint times go backwards")
-    leg_d = route.leg_dist_nmi
-    pieces = np.where(leg_dt_h > 0, np.maximum(1, np.ceil(leg_dt_h / max_step_h - 1e-9)), 0).astype(int)
-    leg = np.repeat(np.arange(n - 1), pieces)
-    k = np.arange(pieces.sum()) - np.repeat(np.cumsum(pieces) - pieces, pieces)
-    frac = (k + 0.5) / pieces[leg]
-    lat, lon = intermediate_point(route.lat_deg[leg], route.lon_deg[leg], route.lat_deg[leg + 1], route.lon_deg[leg + 1], frac)
-    lat = np.asarray(lat, dtype=float).reshape(-1)
-    lon = np.asarray(lon, dtype=float).reshape(-1)
-    t0 = route.time_utc.asi8[leg]
-    times = pd.DatetimeIndex(t0 + np.round(frac * leg_dt_h[leg] * 3.6e12).astype(np.int64), tz="UTC")
-    heading = np.asarray(initial_bearing_deg(lat, lon, route.lat_deg[leg + 1], route.lon_deg[leg + 1]), dtype=float).reshape(-1)
-    same = (route.lat_deg[leg] == route.lat_deg[leg + 1]) & (route.lon_deg[leg] == route.lon_deg[leg + 1])
-    heading = np.where(same, np.nan, heading)
-    return pd.DataFrame(
-        {
-            "leg": leg,
-            "time_utc": times,
-            "lat_deg": lat,
-            "lon_deg": lon,
-            "dt_h": leg_dt_h[leg] / pieces[leg],
-            "dist_nmi": leg_d[leg] / pieces[leg],
-            "heading_deg": heading,
-            "speed_kn": route.leg_speed_kn[leg],
-        }
-    )
-
-
-def _events(samples: pd.DataFrame, rule: str, margin: np.ndarray) -> list[dict]:
-    """Maximal runs of consecutive pieces where ``fired_<rule>`` is True."""
-    fired = samples[f"fired_{rule}"].to_numpy(dtype=bool)
-    if not fired.any():
-        return []
-    edges = np.diff(np.concatenate([[0], fired.astype(np.int8), [0]]))
-    starts = np.flatnonzero(edges == 1)
-    ends = np.flatnonzero(edges == -1)  # exclusive
-    out = []
-    t = samples["time_utc"]
-    dt = samples["dt_h"].to_numpy()
-    for s, e in zip(starts, ends):
-        m = margin[s:e]
-        worst = s + int(np.nanargmax(m)) if np.isfinite(m).any() else s
-        out.append(
-            {
-                "criterion": rule,
-                "kind": "imo" if rule in IMO_RULES else "operator",
-                "start_utc": (t.iloc[s] - pd.Timedelta(hours=dt[s] / 2)).isoformat(),
-                "end_utc": (t.iloc[e - 1] + pd.Timedelta(hours=dt[e - 1] / 2)).isoformat(),
-                "duration_h": float(dt[s:e].sum()),
-                "start_lat_deg": float(samples["lat_deg"].iloc[s]),
-                "start_lon_deg": float(samples["lon_deg"].iloc[s]),
-                "worst_lat_deg": float(samples["lat_deg"].iloc[worst]),
-                "worst_lon_deg": float(samples["lon_deg"].iloc[worst]),
-                "worst_time_utc": t.iloc[worst].isoformat(),
-                "max_margin": float(np.nanmax(m)) if np.isfinite(m).any() else None,
-                "hs_m_at_worst": float(samples["hs_m"].iloc[worst]) if "hs_m" in samples else None,
-            }
-        )
-    return out
-
-
-def _weighted_mean(values, weights) -> float:
-    v = np.asarray(values, dtype=float)
-    w = np.asarray(weights, dtype=float)
-    ok = np.isfinite(v) & (w > 0)
-    return float(np.sum(v[ok] * w[ok]) / np.sum(w[ok])) if ok.any() else float("nan")
-
-
-def _nanmax(values) -> float:
-    v = np.asarray(values, dtype=float)
-    return float(np.nanmax(v)) if np.isfinite(v).any() else float("nan")
 
 
 @dataclass
@@ -258,48 +168,84 @@ def evaluate_route(
     -------
     RouteEvaluation
     """
-    from routing.speed_loss import speed_loss
-
     if speed_loss_model not in models:
         models = tuple(models) + (speed_loss_model,)
     if assess_fn is None:
         assess_fn = assess_with(vessel, limits)
     samples = densify(route, max_step_h)
+    weather, cols = _weather_columns(samples, weather_at)
+    loss_summary, model_warnings = _speed_loss_columns(samples, cols, vessel, models)
+    rules, exposure, margins, skipped = _rule_columns(samples, cols, weather, assess_fn)
+    samples = pd.concat([samples, pd.DataFrame(cols, index=samples.index)], axis=1)
+    events: list[dict] = []
+    for name in rules:
+        events += _events(samples, name, margins[name])
+    events.sort(key=lambda e: (e["start_utc"], e["criterion"]))
+    legs = _leg_emissions(route, samples, weather, speed_loss_model, vessel)
+    summary = {
+        **_route_summary(route, samples, weather),
+        "speed_loss": loss_summary,
+        "speed_loss_model": speed_loss_model,
+        **steam2_totals(legs),
+        "exposure_by_rule_h": exposure,
+        **_exposure_summary(samples, events),
+        **land_summary(route),
+        "rules_not_evaluated": skipped,
+        "speed_loss_warnings": model_warnings,
+        "weather_vars": sorted(weather),
+    }
+    return RouteEvaluation(_with_waypoint_weather(route, weather_at), samples, legs, summary, events)
+
+
+def _weather_columns(samples: pd.DataFrame, weather_at: WeatherAt) -> tuple[dict, dict]:
+    """(the weather at every piece, in canonical names; the new sample columns: weather, wind speed, encounter angle)."""
     n = len(samples)
-    cols: dict[str, np.ndarray] = {}
     times = pd.DatetimeIndex(samples["time_utc"])
     raw = weather_at(times, samples["lat_deg"].to_numpy(), samples["lon_deg"].to_numpy()) if n else {}
     weather = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in raw.items() if k in WEATHER_VARS}
-    cols.update(weather)
+    cols: dict[str, np.ndarray] = dict(weather)
     if "wind_u_ms" in weather and "wind_v_ms" in weather:
         cols["wind_ms"] = np.hypot(weather["wind_u_ms"], weather["wind_v_ms"])
-    hs = weather.get("hs_m", np.full(n, np.nan))
     heading = samples["heading_deg"].to_numpy()
-    enc = np.mod(weather["wave_from_deg"] - heading, 360.0) if "wave_from_deg" in weather else np.full(n, np.nan)  # 0 = head seas
-    cols["encounter_deg"] = enc
+    # 0 = head seas: the direction the waves come from, relative to the course
+    cols["encounter_deg"] = np.mod(weather["wave_from_deg"] - heading, 360.0) if "wave_from_deg" in weather else np.full(n, np.nan)
+    return weather, cols
+
+
+def _speed_loss_columns(samples: pd.DataFrame, cols: dict, vessel, models) -> tuple[dict, list[str]]:
+    """Each model's speed loss at the service speed on every piece (added to ``cols``), its mean, max
+    and the time the geometry takes under it; the models' warnings (out of range ...) as text."""
+    from routing.speed_loss import speed_loss
+
+    n = len(samples)
+    hs = np.nan_to_num(cols.get("hs_m", np.full(n, np.nan)), nan=0.0)
+    enc = np.nan_to_num(cols["encounter_deg"], nan=0.0)
     dt_h = samples["dt_h"].to_numpy()
-    v0 = float(vessel.speed_kn)
-    calm_hs = np.nan_to_num(hs, nan=0.0)
-    calm_enc = np.nan_to_num(enc, nan=0.0)
-    loss_summary = {}
     dist = samples["dist_nmi"].to_numpy()
-    model_warnings = []
+    v0 = float(vessel.speed_kn)
+    summary, model_warnings = {}, []
     for model in models:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            loss = np.asarray(speed_loss(v0, calm_hs, calm_enc, model, vessel=vessel), dtype=float).reshape(-1) if n else np.zeros(0)
+            loss = np.asarray(speed_loss(v0, hs, enc, model, vessel=vessel), dtype=float).reshape(-1) if n else np.zeros(0)
         model_warnings += sorted({f"{model}: {w.message}" for w in caught})
         cols[f"speed_loss_{model}_kn"] = loss
-        loss_summary[model] = {
+        summary[model] = {
             "mean_kn": _weighted_mean(loss, dt_h),
             "max_kn": _nanmax(loss) if loss.size else float("nan"),
             "time_h_at_service_speed": float(np.sum(dist / (v0 - loss))) if loss.size else 0.0,
         }
-    a = assess_fn(weather, heading, samples["speed_kn"].to_numpy()) if n else None
+    return summary, model_warnings
+
+
+def _rule_columns(samples: pd.DataFrame, cols: dict, weather: dict, assess_fn: AssessFn):
+    """Every rule on every piece: ``fired_<rule>``, ``adverse_operator``, ``adverse_imo`` and
+    ``no_data`` columns (added to ``cols``); returns (rules, hours per rule, margins, rules not evaluated)."""
+    n = len(samples)
+    a = assess_fn(weather, samples["heading_deg"].to_numpy(), samples["speed_kn"].to_numpy()) if n else None
     rules = dict(a.rules) if a is not None else {}
-    skipped = list(getattr(a, "skipped", ())) if a is not None else []
-    exposure = {}
-    margins = {}
+    dt_h = samples["dt_h"].to_numpy()
+    exposure, margins = {}, {}
     any_op = np.zeros(n, dtype=bool)
     any_imo = np.zeros(n, dtype=bool)
     for name, rule in rules.items():
@@ -315,19 +261,17 @@ def evaluate_route(
     cols["adverse_imo"] = any_imo
     nd = getattr(a, "no_data", None) if a is not None else None
     cols["no_data"] = np.broadcast_to(np.asarray(nd, dtype=bool), (n,)) if nd is not None else np.zeros(n, dtype=bool)
-    samples = pd.concat([samples, pd.DataFrame(cols, index=samples.index)], axis=1)
-    events: list[dict] = []
-    for name in rules:
-        events += _events(samples, name, margins[name])
-    events.sort(key=lambda e: (e["start_utc"], e["criterion"]))
+    skipped = list(getattr(a, "skipped", ())) if a is not None else []
+    return rules, exposure, margins, skipped
 
-    # STEAM2 per leg: each leg's own duration and speed, the chosen model's loss on that leg.
+
+def _leg_emissions(route: Route, samples: pd.DataFrame, weather: dict, model: str, vessel) -> pd.DataFrame:
+    """STEAM2 per leg: each leg's own duration and speed, the chosen model's loss on that leg."""
     n_legs = max(route.n_waypoints - 1, 0)
     leg_dt = np.diff(route.time_utc.asi8) / 3.6e12 if n_legs else np.zeros(0)
-    col = f"speed_loss_{speed_loss_model}_kn"
     if len(samples):
         w = samples["dt_h"].to_numpy()
-        num = np.bincount(samples["leg"], weights=samples[col].to_numpy() * w, minlength=n_legs)
+        num = np.bincount(samples["leg"], weights=samples[f"speed_loss_{model}_kn"].to_numpy() * w, minlength=n_legs)
         den = np.bincount(samples["leg"], weights=w, minlength=n_legs)
         leg_loss = np.divide(num, den, out=np.zeros(n_legs), where=den > 0)
     else:
@@ -336,24 +280,31 @@ def evaluate_route(
     if setting is not None and len(setting) == n_legs:
         # a route planned with a speed setting per leg (routing.fuel; 0 = a wait): the engine ran that setting, so the
         # power is P(setting) (leg_power_kw with made + loss = setting), the loss re-evaluated at the setting in the weather met
-        legs = setting_legs(leg_dt, np.asarray(setting, dtype=float), samples, weather, enc, speed_loss_model, vessel)
+        enc = samples["encounter_deg"].to_numpy()
+        legs = setting_legs(leg_dt, np.asarray(setting, dtype=float), samples, weather, enc, model, vessel)
     else:
         legs = steam2_legs(leg_dt, route.leg_speed_kn, leg_loss, Engine.from_vessel(vessel))
     legs.insert(0, "leg", np.arange(n_legs))
-    emissions = steam2_totals(legs)
+    return legs
 
-    # Weather at the waypoints (for maps and exports); keep what the route already had.
+
+def _with_waypoint_weather(route: Route, weather_at: WeatherAt) -> Route:
+    """The route with the weather at its waypoints (for maps and exports); what it already had is kept."""
     wp = {}
     if route.n_waypoints:
         wraw = weather_at(route.time_utc, route.lat_deg, route.lon_deg)
         wp = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in wraw.items() if k in WEATHER_VARS}
-    evaluated = Route(
+    return Route(
         name=route.name, lat_deg=route.lat_deg, lon_deg=route.lon_deg, time_utc=route.time_utc,
         leg_speed_kn=route.leg_speed_kn, weather={**wp, **route.weather}, properties=dict(route.properties),
-    )
+    )  # fmt: skip
 
+
+def _route_summary(route: Route, samples: pd.DataFrame, weather: dict) -> dict:
+    """Times, distance, mean speed made and the weather met (max and time-weighted mean)."""
     dt = samples["dt_h"] if len(samples) else pd.Series(dtype=float)
-    summary = {
+    hs = weather.get("hs_m", np.full(len(samples), np.nan))
+    return {
         "name": route.name,
         "depart_utc": route.time_utc[0].isoformat() if route.n_waypoints else None,
         "arrive_utc": route.time_utc[-1].isoformat() if route.n_waypoints else None,
@@ -366,26 +317,29 @@ def evaluate_route(
         "mean_wind_ms": _weighted_mean(samples["wind_ms"], dt) if "wind_ms" in samples else None,
         "max_tp_s": _nanmax(samples["tp_s"]) if "tp_s" in samples else None,
         "mean_tp_s": _weighted_mean(samples["tp_s"], dt) if "tp_s" in samples else None,
-        "speed_loss": loss_summary,
-        "speed_loss_model": speed_loss_model,
-        **emissions,
-        "exposure_by_rule_h": exposure,
-        # hours over any operator limit, and IMO events: the report's "exposure_h" / "n_safety_events"
-        "exposure_h": float(samples.loc[samples["adverse_operator"], "dt_h"].sum()) if len(samples) else 0.0,
-        "n_safety_events": sum(e["kind"] == "imo" for e in events),
-        "adverse_h": float(samples.loc[samples["adverse_operator"] | samples["adverse_imo"], "dt_h"].sum()) if len(samples) else 0.0,
-        "operator_adverse_h": float(samples.loc[samples["adverse_operator"], "dt_h"].sum()) if len(samples) else 0.0,
-        "imo_adverse_h": float(samples.loc[samples["adverse_imo"], "dt_h"].sum()) if len(samples) else 0.0,
-        "n_imo_events": sum(e["kind"] == "imo" for e in events),
-        "n_operator_events": sum(e["kind"] == "operator" for e in events),
-        "no_weather_h": float(samples.loc[samples["no_data"], "dt_h"].sum()) if len(samples) else 0.0,
-        **land_summary(route),
-        "rules_not_evaluated": skipped,
-        "speed_loss_warnings": model_warnings,
-        "weather_vars": sorted(weather),
     }
-    return RouteEvaluation(evaluated, samples, legs, summary, events)
 
+
+def _exposure_summary(samples: pd.DataFrame, events: list[dict]) -> dict:
+    """Hours over operator limits, under IMO rules and without weather; the events by kind."""
+
+    def hours(mask) -> float:
+        return float(samples.loc[mask, "dt_h"].sum()) if len(samples) else 0.0
+
+    op = samples["adverse_operator"] if len(samples) else None
+    imo = samples["adverse_imo"] if len(samples) else None
+    n_imo = sum(e["kind"] == "imo" for e in events)
+    return {
+        # hours over any operator limit, and IMO events: the report's "exposure_h" / "n_safety_events"
+        "exposure_h": hours(op),
+        "n_safety_events": n_imo,
+        "adverse_h": hours(op | imo) if len(samples) else 0.0,
+        "operator_adverse_h": hours(op),
+        "imo_adverse_h": hours(imo),
+        "n_imo_events": n_imo,
+        "n_operator_events": sum(e["kind"] == "operator" for e in events),
+        "no_weather_h": hours(samples["no_data"] if len(samples) else None),
+    }
 
 def setting_legs(leg_dt, setting_kn, samples: pd.DataFrame, weather: dict, enc, model: str, vessel) -> pd.DataFrame:
     """STEAM2 legs of a route sailed at a known setting per leg (``speed_setting_kn``, 0 on a wait).

@@ -54,6 +54,7 @@ from routing.planner_parts import (  # noqa: F401 (re-exported: the planner's pu
     sample_weather,
 )
 from routing.planner_safe import safe_routes
+from routing.planner_fuel import FUEL_ROUTE_NAMES  # re-exported: the routes a fuel objective adds
 from routing.safety import DEFAULT_PENALTY_PER_H, DEFAULT_SECTORS, SafetySpec
 from thresholds.geodesy import haversine_nmi
 
@@ -155,8 +156,6 @@ class RoutePlan:
 #: Routes every plan has, and those a safety-constrained plan adds.
 ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
 SAFE_ROUTE_NAMES = ("safe_optimal", "safe_optimal_smoothed")
-#: Routes a plan with a fuel objective adds (:mod:`routing.planner_fuel`).
-FUEL_ROUTE_NAMES = ("least_fuel", "min_distance_same_arrival")
 #: Route properties copied into the JSON object when present.
 SAFETY_KEYS = ("fuel_t", "co2_t", "speed_setting_kn", "hours_over_limits", "operator_h", "imo_h", "hours_by_rule", "unsafe_cell_h",
                "safety_requested", "safety_mode", "safety_fallback")

@@ -6,12 +6,11 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._route_fuel import echo_fuel, echo_window, fuel_spec, window_times
+from pipelines.commands._route_fuel import echo_window, fuel_spec, window_times
+from pipelines.commands._route_output import show_plan
 from pipelines.commands._common import (SPEED_LOSS_MODELS, VESSEL_WITHOUT_AIS, JsonOption, LearnedDbOption, ProfileOption, check_output_file, emit_json,
                                         note, vessel_option, weather_option, xarray_without_dask_arrays)
 
-ROUTE_NAMES = ("optimal", "optimal_smoothed", "min_distance", "min_distance_calm")
-SAFE_ROUTE_NAMES = ("safe_optimal", "safe_optimal_smoothed")
 SAFETY_MODES = ("none", "soft", "hard")
 
 
@@ -105,149 +104,101 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
           stormlane route --from 39.225,2.900 --to 41.500,2.775 --depart 2020-01-20T09:00Z \\
             --weather Waves_MEDSEA_20200120.nc Waves_MEDSEA_20200121.nc --vessel simroute-r6 --out r6.gpx
         """  # noqa: E501
-        # Long by its option declarations above; the work is validating them, then one plan.
+        # Long by its option declarations above; the body checks them, loads the ship and the weather, plans, prints.
         import logging
 
-        from pipelines.config import load_vessel
-        from pipelines.times import utc_or_none
-        from pipelines.vessels import DEFAULT_VESSEL
-        from routing.astar import ShipModel
-        from routing.planner import FUEL_ROUTE_NAMES, RouteRequest, plan_routes
-        from routing.speed_loss import AERTSSEN_BANDS, MODELS
-
-        if mesh_nmi is not None and mesh_deg is not None:
-            raise typer.BadParameter("give either --mesh-nmi or --mesh-deg, not both", param_hint="--mesh-nmi/--mesh-deg")
-        if edges not in (8, 16, 24, 48):
-            raise typer.BadParameter(f"{edges} is not one of 8, 16, 24, 48", param_hint="--edges")
         from pipelines.learn import parse_learned
+        from routing.planner import RouteRequest, plan_routes
 
         learned = parse_learned(speed_loss)
-        if learned is None and speed_loss not in MODELS:
-            raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}, learned:NAME", param_hint="--speed-loss")
-        if aertssen_bands not in AERTSSEN_BANDS:
-            raise typer.BadParameter(f"{aertssen_bands!r} is not one of {', '.join(AERTSSEN_BANDS)}", param_hint="--aertssen-bands")
-        if safety not in SAFETY_MODES:
-            raise typer.BadParameter(f"{safety!r} is not one of {', '.join(SAFETY_MODES)}", param_hint="--safety")
+        _check_choices(mesh_nmi, mesh_deg, edges, speed_loss, learned, aertssen_bands, safety)
         if operator is not None:
             note("--operator is deprecated: use --profile")
             profile = profile or operator
         if profile is not None and safety == "none":
             raise typer.BadParameter("--profile applies with --safety soft|hard", param_hint="--profile")
-        files = list(weather or [])
-        start = _latlon(from_, "--from")
-        goal = _latlon(to, "--to")
+        start, goal = _latlon(from_, "--from"), _latlon(to, "--to")
         box = _floats(bbox, 4, "LONMIN,LATMIN,LONMAX,LATMAX", "--bbox") if bbox else None
-        if (depart is None) == (depart_window is None):
-            raise typer.BadParameter("give --depart ISO or --depart-window START/END --step-h H", param_hint="--depart")
-        window = window_times(depart_window, step_h) if depart_window is not None else None
-        t = window[0] if window else utc_or_none(depart)
-        if t is None:
-            raise typer.BadParameter(f"{depart!r} is not an ISO 8601 time", param_hint="--depart")
+        window, t = _departures(depart, depart_window, step_h)
 
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-        ship_vessel = load_vessel(vessel or DEFAULT_VESSEL)
-        if learned is not None:  # tabulated once for this request (pipelines.learn.speed_table)
-            from pipelines.commands._common import check_workspace
-            from pipelines.learn import speed_table
-
-            table = speed_table(check_workspace(db), learned, vessel=ship_vessel, speed_kn=speed_kn or ship_vessel.speed_kn)
-            ship = ShipModel.from_vessel(ship_vessel, "learned", speed_kn=speed_kn, learned=table)
-        else:
-            ship = ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn, aertssen_bands=aertssen_bands)
+        ship_vessel, ship = _ship(vessel, speed_loss, learned, speed_kn, aertssen_bands, db)
         fspec = fuel_spec(ship_vessel, objective, speeds, speed_range, speed_steps, arrive_by, pareto, fuel_buckets, fuel_corridor)
-        limits = None
-        if safety != "none":
-            from pipelines.config import load_operator_profile
-
-            limits = load_operator_profile(profile)
-        field = None
-        if files:
-            xarray_without_dask_arrays()
-            from pipelines.routing_weather import load_weather
-
-            missing = [str(f) for f in files if not Path(f).exists()]
-            if missing:
-                from routing.errors import WeatherCoverageError
-
-                raise WeatherCoverageError(f"weather file(s) not found: {', '.join(missing)}")
-            field, _meta = load_weather(
-                [str(f) for f in files], depart_utc=t, points=() if ignore_land else (("start", start), ("goal", goal))
-            )
+        field = _weather_field(list(weather or []), t, () if ignore_land else (("start", start), ("goal", goal)))
         spacing = mesh_deg if mesh_deg is not None else (mesh_nmi / 60.0 if mesh_nmi is not None else None)
         req = RouteRequest(
             start, goal, t, ship, spacing_deg=spacing, bbox=box, edges=edges, ignore_land=ignore_land,
             snap_limit_nmi=snap_nmi, vessel_name=ship_vessel.name,
         )  # fmt: skip
+        from pipelines.config import load_operator_profile
+
+        limits = load_operator_profile(profile) if safety != "none" or window is not None else None
         if window is not None:
             from routing.planner_window import plan_window
 
-            from pipelines.config import load_operator_profile
-
-            result = plan_window(req, field, window, objective=objective, fuel=fspec, vessel=ship_vessel, limits=load_operator_profile(profile))
-            if json_out:
-                emit_json(result)
-            else:
-                echo_window(result)
+            result = plan_window(req, field, window, objective=objective, fuel=fspec, vessel=ship_vessel, limits=limits)
+            emit_json(result) if json_out else echo_window(result)
             return
         plan = plan_routes(req, field, safety=safety, vessel=ship_vessel, limits=limits, penalty_per_h=safety_penalty, fuel=fspec)
-        names = ROUTE_NAMES + (SAFE_ROUTE_NAMES if safety != "none" else ()) + tuple(n for n in FUEL_ROUTE_NAMES if n in plan.routes)
-        notes = list(plan.notes)  # the model and what it rests on, said in every output
-        for what, key in (("start", "start_snap_nmi"), ("goal", "goal_snap_nmi")):
-            moved = plan.routes["optimal"].properties.get(key, 0.0)
-            if moved > 0.5 * plan.mesh.grid.dlat_deg * 60.0:
-                notes.append(f"{what} moved {moved:.2f} nmi to the nearest sea node")
-                typer.echo(f"note: {notes[-1]}", err=True)
-        held = {name: plan.routes[name].properties.get("weather_held_after_h") for name in names}
-        held = {name: h for name, h in held.items() if h}
-        if held:
-            notes.append("the weather ends before arrival; its last field was held for the last "
-                         + ", ".join(f"{h:.2f} h of {name}" for name, h in held.items()))
-        band = None
-        if learned is not None:
-            from pipelines.learn import eta_band
+        show_plan(plan, ship_vessel, ship, safety=safety, fuel=fspec is not None, learned=learned is not None, out=out, json_out=json_out)
 
-            band = eta_band(plan)
-        if out is not None:
-            from dashboards.exports import write_routes
 
-            written = write_routes([plan.routes[name] for name in names], out)
-            typer.echo(f"wrote {', '.join(map(str, written))}", err=True)
-        if json_out:
-            data = plan.to_dict()
-            for name, h in held.items():
-                data[name]["weather_held_after_h"] = h
-            if band is not None:
-                data["eta_band"] = band
-            data["notes"] = notes  # what the table prints as note: lines (empty: nothing to say)
-            emit_json(data)
-            return
-        typer.echo(f"great circle {plan.great_circle_nmi:.2f} nmi; mesh {plan.mesh.grid.ny} x {plan.mesh.grid.nx} "
-                   f"({plan.mesh.grid.dlat_deg * 60:.3g} nmi, {plan.mesh.edges} edges), vessel {ship_vessel.name}, "
-                   f"{ship.speed_kn:g} kn, {ship.model}")  # fmt: skip
-        for note in plan.notes:
-            typer.echo(f"note: {note}")
-        over = safety != "none"
-        if over:
-            sf = plan.stats["safety"]
-            typer.echo(f"safety {sf['requested']}" + (f" (ran {sf['mode']}: no route keeps within the limits)" if sf["fallback"] else "")
-                       + f"; limits {sf['operator_limits'] or 'none'}, IMO rules {'on' if sf['imo_rules'] else 'off'}"
-                       + (f"; not evaluated: {'; '.join(sf['rules_not_evaluated'])}" if sf["rules_not_evaluated"] else ""))
-        fuel_cols = fspec is not None
-        typer.echo(f"{'route':<26}{'time_h':>9}{'dist_nmi':>10}{'max_hs_m':>10}{'waypoints':>11}" + (f"{'over_limits_h':>15}" if over else "")
-                   + (f"{'fuel_t':>10}{'co2_t':>10}" if fuel_cols else ""))
-        for name in names:
-            r = plan.routes[name]
-            hs = "" if r.max_hs_m != r.max_hs_m else f"{r.max_hs_m:.2f}"
-            line = f"{name:<26}{r.time_h:>9.2f}{r.dist_nmi:>10.2f}{hs:>10}{r.n_waypoints:>11d}"
-            if over:
-                line += f"{r.properties['hours_over_limits']:>15.2f}" if "hours_over_limits" in r.properties else f"{'':>15}"
-            if fuel_cols:
-                line += f"{r.properties['fuel_t']:>10.3f}{r.properties['co2_t']:>10.3f}"
-            typer.echo(line)
-        if fuel_cols:
-            echo_fuel(plan)
-        if band is not None:
-            typer.echo(f"{band['route']} sailing time P10-P50-P90 by the learned model's quantiles: {band['time_h_p10']:.2f} - "
-                       f"{band['time_h_p50']:.2f} - {band['time_h_p90']:.2f} h ({band['assumption']})")
-        if held:
-            typer.echo(f"note: {notes[-1]}")
+def _check_choices(mesh_nmi, mesh_deg, edges: int, speed_loss: str, learned, aertssen_bands: str, safety: str) -> None:
+    """One `error:` line for an option outside its choices (typer's BadParameter, exit 2)."""
+    from routing.speed_loss import AERTSSEN_BANDS, MODELS
+
+    if mesh_nmi is not None and mesh_deg is not None:
+        raise typer.BadParameter("give either --mesh-nmi or --mesh-deg, not both", param_hint="--mesh-nmi/--mesh-deg")
+    if edges not in (8, 16, 24, 48):
+        raise typer.BadParameter(f"{edges} is not one of 8, 16, 24, 48", param_hint="--edges")
+    if learned is None and speed_loss not in MODELS:
+        raise typer.BadParameter(f"{speed_loss!r} is not one of {', '.join(MODELS)}, learned:NAME", param_hint="--speed-loss")
+    if aertssen_bands not in AERTSSEN_BANDS:
+        raise typer.BadParameter(f"{aertssen_bands!r} is not one of {', '.join(AERTSSEN_BANDS)}", param_hint="--aertssen-bands")
+    if safety not in SAFETY_MODES:
+        raise typer.BadParameter(f"{safety!r} is not one of {', '.join(SAFETY_MODES)}", param_hint="--safety")
+
+
+def _departures(depart: str | None, depart_window: str | None, step_h: float | None):
+    """(window departures or None, the first departure): exactly one of --depart and --depart-window."""
+    from pipelines.times import utc_or_none
+
+    if (depart is None) == (depart_window is None):
+        raise typer.BadParameter("give --depart ISO or --depart-window START/END --step-h H", param_hint="--depart")
+    window = window_times(depart_window, step_h) if depart_window is not None else None
+    t = window[0] if window else utc_or_none(depart)
+    if t is None:
+        raise typer.BadParameter(f"{depart!r} is not an ISO 8601 time", param_hint="--depart")
+    return window, t
+
+
+def _ship(vessel: str | None, speed_loss: str, learned, speed_kn: float | None, aertssen_bands: str, db: Path):
+    """(the vessel profile, the ShipModel the search sails): a learned model is tabulated once for this request."""
+    from pipelines.config import load_vessel
+    from pipelines.vessels import DEFAULT_VESSEL
+    from routing.astar import ShipModel
+
+    ship_vessel = load_vessel(vessel or DEFAULT_VESSEL)
+    if learned is None:
+        return ship_vessel, ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn, aertssen_bands=aertssen_bands)
+    from pipelines.commands._common import check_workspace
+    from pipelines.learn import speed_table
+
+    table = speed_table(check_workspace(db), learned, vessel=ship_vessel, speed_kn=speed_kn or ship_vessel.speed_kn)
+    return ship_vessel, ShipModel.from_vessel(ship_vessel, "learned", speed_kn=speed_kn, learned=table)
+
+
+def _weather_field(files: list[Path], depart_utc, points):
+    """The weather field of the files (None: calm sea); a missing file is one error naming it."""
+    if not files:
+        return None
+    xarray_without_dask_arrays()
+    from pipelines.routing_weather import load_weather
+
+    missing = [str(f) for f in files if not Path(f).exists()]
+    if missing:
+        from routing.errors import WeatherCoverageError
+
+        raise WeatherCoverageError(f"weather file(s) not found: {', '.join(missing)}")
+    field, _meta = load_weather([str(f) for f in files], depart_utc=depart_utc, points=points)
+    return field

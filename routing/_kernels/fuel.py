@@ -194,6 +194,9 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
     labels at the goal in time order (each with less fuel than the one before: the time-fuel
     front; the last one is the least fuel), the number settled, and ``status`` 0 (done) or 1 (the
     label budget ``max_labels`` was exhausted).
+
+    Long by design: one compiled label loop whose bucket queue, label arrays and per-node pruning
+    arrays are locals (numba helpers would need about twenty of them passed on every push).
     """
     step = False
     m_sub, tau, n_sub, phase = substeps(dt_h, n_times, step)

@@ -11,30 +11,8 @@ from routing._kernels.speed import ship_of
 
 
 @njit(cache=True)
-def astar(
-    nx,
-    allowed,
-    di,
-    dj,
-    elen,
-    ecos,
-    esin,
-    lat_rad,
-    lon_rad,
-    sea_index,
-    wave,
-    cur,
-    has_cur,
-    dt_h,
-    n_times,
-    p,
-    start,
-    goal,
-    t_start_h,
-    distance_mode,
-    heuristic_speed,
-    radius,
-):
+def astar(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_index, wave, cur, has_cur, dt_h, n_times, p, start,
+        goal, t_start_h, distance_mode, heuristic_speed, radius):
     """Label-setting A* from ``start`` to ``goal``; returns (g, parent, expanded, scanned, computed, reached).
 
     ``scanned`` counts the allowed edges looked at from expanded nodes; ``computed`` those of

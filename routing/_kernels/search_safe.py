@@ -12,37 +12,13 @@ from routing._kernels.speed import ship_of
 
 
 @njit(cache=True)
-def astar_safe(
-    nx,
-    allowed,
-    di,
-    dj,
-    elen,
-    ecos,
-    esin,
-    ebit,
-    cells,
-    counts,
-    lat_rad,
-    lon_rad,
-    sea_index,
-    wave,
-    cur,
-    has_cur,
-    dt_h,
-    n_times,
-    p,
-    start,
-    goal,
-    t_start_h,
-    heuristic_speed,
-    radius,
-    unsafe,
-    hard,
-    penalty,
-):
+def astar_safe(nx, allowed, di, dj, elen, ecos, esin, ebit, cells, counts, lat_rad, lon_rad, sea_index, wave, cur, has_cur,
+        dt_h, n_times, p, start, goal, t_start_h, heuristic_speed, radius, unsafe, hard, penalty):
     """Time-dependent A* that respects the vessel's limits; returns
     ``(g, t, exposure, parent, expanded, scanned, reached, horizon_hit)``.
+
+    Long by design: one compiled loop whose heap and per-node label arrays are locals; a numba
+    helper per phase would need them all passed in and out on every edge.
 
     Edge time as in :func:`routing._kernels.search.astar`: an edge entered at t (the arrival at
     u) is left by A(t), its FIFO arrival. An edge is *unsafe* when a cell it touches
