@@ -328,11 +328,13 @@ def run_medsea_fuel(st: dict) -> dict:
 # --------------------------------------------------------------------------- the groups
 
 
-def build(cfg):
-    here = "bench.routing"
-    r6 = cases.r6_files()
-    route = _stormlane() + cases.r6_route_args()
-    g_r6 = Group(
+HERE = "bench.routing"
+
+
+def _r6_group(r6, route):
+    """The R6 CLI (cold and warm), its searches and the weather onto the mesh; SIMROUTE's external figures."""
+    here = HERE
+    return Group(
         "r6", "R6 (Palma -> Barcelona, Storm Gloria): the CLI, the searches, weather onto the mesh", needs=r6,
         sides=[
             Side("route_cli", "`stormlane route` R6 --json, a fresh process (NetCDF read, land mask, weather on the mesh, "
@@ -370,7 +372,12 @@ def build(cfg):
                     relation="same fields, nodes and times; xarray interpolates every node with NaN next to land, "
                              "ours only sea nodes with the weights renormalised over sea points"),
         ])
-    g_ref = Group(
+
+
+def _reference_group():
+    """Our time-dependent Dijkstra against a plain-Python one on a small mesh (same optimum)."""
+    here = HERE
+    return Group(
         "reference", "Time-dependent Dijkstra against a plain-Python reference (small mesh)",
         sides=[
             Side("td_ours", "our time-dependent Dijkstra (compiled core, no heuristic), 0.1 deg Balearic mesh, 48 edges",
@@ -381,7 +388,12 @@ def build(cfg):
         ],
         measures=[Measure("td_reference", "time-dependent Dijkstra, small mesh", "td_ours", "td_python",
                           relation="same algorithm, edge model and optimum (checked: time_h in both results)")])
-    g_med = Group(
+
+
+def _medsea_group():
+    """MEDSEA size: the whole plan, safe mode and the core's throughput against scipy's static Dijkstra."""
+    here = HERE
+    return Group(
         "medsea", "MEDSEA size (387 k nodes, generated storm): plan, safe mode, core throughput",
         sides=[
             Side("medsea_plan", "plan_routes: field to both routes (land mask, weather on the mesh, mesh, searches, smoothing)",
@@ -411,7 +423,12 @@ def build(cfg):
             Measure("core_wait", "core time-dependent Dijkstra (MEDSEA mesh): what waiting costs", "core_time",
                     "core_time_no_wait", relation="the same search without waiting: the ratio is what the FIFO closure costs"),
         ])
-    g_safe = Group(
+
+
+def _safe_group(r6):
+    """R6 in safe mode against the same plan without safety."""
+    here = HERE
+    return Group(
         "r6_safe", "R6 safe mode (container feeder, default operator profile + IMO rules)", needs=r6,
         sides=[
             Side("r6_safe", "NetCDF to all six routes, safety='hard'", setup=f"{here}:setup_r6_feeder",
@@ -422,8 +439,13 @@ def build(cfg):
         measures=[Measure("r6_safe", "R6 safe mode, NetCDF to all routes", "r6_safe", "r6_plain",
                           relation="the same case without safety: the ratio is what safe mode costs",
                           targets=[Target("warm < 0.5 s", "warm.wall_s", "<", 0.5, "s", "README (safe mode)")])])
+
+
+def _fuel_group(r6, route):
+    """Least-fuel routes (issue 20), each beside the time objective in the same run."""
+    here = HERE
     fuel_route = _stormlane() + cases.r6_route_args() + R6_FUEL_ARGS
-    g_fuel = Group(
+    return Group(
         "fuel", "Least-fuel routes (issue 20), each beside the time objective in the same run", needs=r6,
         sides=[
             Side("r6_fuel_cli", "`stormlane route` R6 --objective fuel, 8 settings, --arrive-by 02:00 (NetCDF to every route and "
@@ -452,11 +474,17 @@ def build(cfg):
                     targets=[Target("warm <= 10 s", "warm.wall_s", "<=", 10.0, "s", "issue 20"),
                              Target("peak <= 1 GB", "warm.peak_mb", "<=", 1024.0, "MB", "issue 20")]),
         ])
+
+
+def build(cfg):
+    r6 = cases.r6_files()
+    route = _stormlane() + cases.r6_route_args()
+    groups = [_r6_group(r6, route), _safe_group(r6), _reference_group(), _medsea_group(), _fuel_group(r6, route)]
     notes = ["SIMROUTE's figures are external (ANCHORS.md): measured by a coordinator on these machines, not in this run; "
              "compared cold with cold only.",
              "Throughput counts edges whose cost was computed (routing._kernels.astar's counter): edges to settled nodes "
              "are scanned and skipped, and not counted."]
-    return [g_r6, g_safe, g_ref, g_med, g_fuel], notes
+    return groups, notes
 
 
 if __name__ == "__main__":

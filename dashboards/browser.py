@@ -225,6 +225,37 @@ def visit(
     text = str(path_or_url)
     url = text if "://" in text else Path(text).resolve().as_uri()
     profile = tempfile.mkdtemp(prefix="stormlane-chromium-")
+    proc, cmd_w, res_r = _launch(binary, profile, width, height)
+    pipe = _Pipe(proc, cmd_w, res_r, timeout_s)
+    result = PageVisit(url=url)
+    try:
+        target = pipe.call("Target.createTarget", url="about:blank")["targetId"]
+        session = pipe.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
+        for domain in ("Page", "Network", "Runtime", "Log"):
+            pipe.call(f"{domain}.enable", session)
+        pipe.call("Emulation.setDeviceMetricsOverride", session, width=width, height=height, deviceScaleFactor=1, mobile=False)
+        _load_and_capture(pipe, session, url, result, full_page=full_page, timeout_s=timeout_s, evaluate=evaluate,
+                          print_pdf=print_pdf, print_evaluate=print_evaluate)
+        pipe.drain(quiet_s=0.2)
+        _collect_events(pipe.events, result)
+        try:
+            pipe.call("Browser.close")
+        except ReportError:
+            pass
+    finally:
+        os.close(cmd_w)
+        os.close(res_r)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=10)
+        shutil.rmtree(profile, ignore_errors=True)
+    return result
+
+
+def _launch(binary: str, profile: str, width: int, height: int):
+    """Start Chromium with the DevTools protocol on a pipe: (process, our command fd, our reply fd)."""
     cmd_r, cmd_w = os.pipe()  # we write commands, the browser reads them on fd 3
     res_r, res_w = os.pipe()  # the browser writes replies on fd 4
 
@@ -242,61 +273,48 @@ def visit(
     proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=_child_fds, close_fds=False)
     os.close(cmd_r)
     os.close(res_w)
-    pipe = _Pipe(proc, cmd_w, res_r, timeout_s)
-    result = PageVisit(url=url)
-    try:
-        target = pipe.call("Target.createTarget", url="about:blank")["targetId"]
-        session = pipe.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
-        for domain in ("Page", "Network", "Runtime", "Log"):
-            pipe.call(f"{domain}.enable", session)
-        pipe.call("Emulation.setDeviceMetricsOverride", session, width=width, height=height, deviceScaleFactor=1, mobile=False)
-        pipe.events.clear()
-        pipe.call("Page.navigate", session, url=url)
-        if not pipe.wait_for("Page.loadEventFired", timeout_s=timeout_s / 2):
-            raise ReportError(f"{url} did not finish loading")
-        pipe.drain(quiet_s=0.5)
-        shot = {"format": "png"}
-        if full_page:
-            metrics = pipe.call("Page.getLayoutMetrics", session)
-            size = metrics.get("cssContentSize") or metrics["contentSize"]
-            shot.update(captureBeyondViewport=True, clip={"x": 0, "y": 0, "width": size["width"], "height": size["height"], "scale": 1})
-        result.screenshot_png = base64.b64decode(pipe.call("Page.captureScreenshot", session, **shot)["data"])
-        result.title = pipe.call("Runtime.evaluate", session, expression="document.title", returnByValue=True).get("result", {}).get("value", "")
-        _evaluate(pipe, session, evaluate, result.values)
-        if print_evaluate:
-            pipe.call("Emulation.setEmulatedMedia", session, media="print")
-            _evaluate(pipe, session, print_evaluate, result.values)
-            pipe.call("Emulation.setEmulatedMedia", session, media="")
-        if print_pdf:
-            result.pdf = base64.b64decode(pipe.call("Page.printToPDF", session, printBackground=True)["data"])
-        pipe.drain(quiet_s=0.2)
-        for ev in pipe.events:
-            method, params = ev["method"], ev.get("params", {})
-            if method == "Network.requestWillBeSent":
-                result.requests.append(params["request"]["url"])
-            elif method == "Runtime.consoleAPICalled":
-                text_args = " ".join(str(a.get("value", a.get("description", ""))) for a in params.get("args", []))
-                result.console.append((params.get("type", "log"), text_args))
-            elif method == "Runtime.exceptionThrown":
-                details = params.get("exceptionDetails", {})
-                result.exceptions.append(details.get("exception", {}).get("description") or details.get("text", "exception"))
-            elif method == "Log.entryAdded":
-                entry = params.get("entry", {})
-                result.console.append((entry.get("level", "info"), f"{entry.get('source', '')}: {entry.get('text', '')} {entry.get('url', '')}".strip()))
-        try:
-            pipe.call("Browser.close")
-        except ReportError:
-            pass
-    finally:
-        os.close(cmd_w)
-        os.close(res_r)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
-        shutil.rmtree(profile, ignore_errors=True)
-    return result
+    return proc, cmd_w, res_r
+
+
+def _load_and_capture(pipe, session, url: str, result: PageVisit, *, full_page: bool, timeout_s: float, evaluate, print_pdf: bool,
+                      print_evaluate) -> None:
+    """Navigate, wait for the load event and a quiet network, then screenshot, evaluate and print into ``result``."""
+    pipe.events.clear()
+    pipe.call("Page.navigate", session, url=url)
+    if not pipe.wait_for("Page.loadEventFired", timeout_s=timeout_s / 2):
+        raise ReportError(f"{url} did not finish loading")
+    pipe.drain(quiet_s=0.5)
+    shot = {"format": "png"}
+    if full_page:
+        metrics = pipe.call("Page.getLayoutMetrics", session)
+        size = metrics.get("cssContentSize") or metrics["contentSize"]
+        shot.update(captureBeyondViewport=True, clip={"x": 0, "y": 0, "width": size["width"], "height": size["height"], "scale": 1})
+    result.screenshot_png = base64.b64decode(pipe.call("Page.captureScreenshot", session, **shot)["data"])
+    result.title = pipe.call("Runtime.evaluate", session, expression="document.title", returnByValue=True).get("result", {}).get("value", "")
+    _evaluate(pipe, session, evaluate, result.values)
+    if print_evaluate:
+        pipe.call("Emulation.setEmulatedMedia", session, media="print")
+        _evaluate(pipe, session, print_evaluate, result.values)
+        pipe.call("Emulation.setEmulatedMedia", session, media="")
+    if print_pdf:
+        result.pdf = base64.b64decode(pipe.call("Page.printToPDF", session, printBackground=True)["data"])
+
+
+def _collect_events(events, result: PageVisit) -> None:
+    """The page's requests, console lines and uncaught exceptions, from the protocol's events."""
+    for ev in events:
+        method, params = ev["method"], ev.get("params", {})
+        if method == "Network.requestWillBeSent":
+            result.requests.append(params["request"]["url"])
+        elif method == "Runtime.consoleAPICalled":
+            text_args = " ".join(str(a.get("value", a.get("description", ""))) for a in params.get("args", []))
+            result.console.append((params.get("type", "log"), text_args))
+        elif method == "Runtime.exceptionThrown":
+            details = params.get("exceptionDetails", {})
+            result.exceptions.append(details.get("exception", {}).get("description") or details.get("text", "exception"))
+        elif method == "Log.entryAdded":
+            entry = params.get("entry", {})
+            result.console.append((entry.get("level", "info"), f"{entry.get('source', '')}: {entry.get('text', '')} {entry.get('url', '')}".strip()))
 
 
 def is_blank_png(png: bytes, min_std: float = 8.0, min_ink_frac: float = 0.02) -> bool:

@@ -166,9 +166,39 @@ def route_map_png(
         The route it is met on (the legend names it).
     """
     from matplotlib.figure import Figure
-    from matplotlib.lines import Line2D
-    from matplotlib.patheffects import withStroke
 
+    lon0, lon1, lat0, lat1, aspect = _map_box(routes, weather)
+    height_in = width_in * (lat1 - lat0) * aspect / (lon1 - lon0) * 0.9 + 1.6
+    fig = Figure(figsize=(width_in, height_in), dpi=dpi)
+    ax = fig.add_subplot()
+    ax.set_facecolor("white")
+    handles = []
+
+    if weather is not None:
+        _draw_weather(fig, ax, weather, (lon0, lon1, lat0, lat1), hs_limit_m, handles)
+
+    lon_e, lat_e, land = land_mask(lon0, lon1, lat0, lat1)
+    rgba = np.zeros(land.shape + (4,), dtype=np.uint8)  # 4 bytes a pixel: the mask's own resolution stays small
+    rgba[land] = [round(255 * x) for x in (*LAND_RGB, 1.0)]
+    ax.imshow(rgba, extent=(lon_e[0], lon_e[-1], lat_e[0], lat_e[-1]), origin="lower", interpolation="nearest", zorder=4, aspect="auto")
+
+    _draw_routes(ax, routes, worst, worst_role, handles)
+
+    ax.set_xlim(lon0, lon1)
+    ax.set_ylim(lat0, lat1)
+    ax.set_aspect(aspect)
+    ax.set_xlabel("longitude [deg E]")
+    ax.set_ylabel("latitude [deg N]")
+    ax.grid(True, color="#999999", linewidth=0.4, alpha=0.5, zorder=5)
+    if weather is not None:
+        ax.set_title(f"Hs and mean wave direction at {weather.time_utc:%Y-%m-%d %H:%M} UTC", fontsize=11)
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8, frameon=False)
+    return _png(fig)
+
+
+def _map_box(routes: dict, weather) -> tuple:
+    """(lon0, lon1, lat0, lat1, aspect): the map's extent, widened on its short side to keep it
+    between 1:1 and 2:1 on screen, and the axes' aspect 1/cos(mid latitude)."""
     lon0, lon1, lat0, lat1 = map_extent(routes, weather)
     mid_lat = np.deg2rad(0.5 * (lat0 + lat1))
     coslat = max(np.cos(mid_lat), 0.05)
@@ -181,42 +211,51 @@ def route_map_png(
     elif screen_w > 2 * screen_h:
         grow = (screen_w / 2 - screen_h) / 2
         lat0, lat1 = max(lat0 - grow, -89.9), min(lat1 + grow, 89.9)
-    height_in = width_in * (lat1 - lat0) * aspect / (lon1 - lon0) * 0.9 + 1.6
-    fig = Figure(figsize=(width_in, height_in), dpi=dpi)
-    ax = fig.add_subplot()
-    ax.set_facecolor("white")
-    handles = []
+    return lon0, lon1, lat0, lat1, aspect
 
-    if weather is not None:
-        hs = np.ma.masked_invalid(weather.hs_m)
-        vmax = max(1.0, float(np.ceil(np.nanmax(weather.hs_m)))) if np.isfinite(weather.hs_m).any() else 1.0
-        mesh = ax.pcolormesh(weather.lon_deg, weather.lat_deg, hs, cmap=HS_CMAP, vmin=0.0, vmax=vmax, shading="nearest", zorder=1)
-        cbar = fig.colorbar(mesh, ax=ax, shrink=0.8, pad=0.02, fraction=0.04)
-        cbar.set_label("significant wave height Hs [m]")
-        if hs_limit_m is not None and np.nanmax(weather.hs_m) > hs_limit_m > np.nanmin(weather.hs_m):
-            ax.contour(weather.lon_deg, weather.lat_deg, weather.hs_m, levels=[hs_limit_m], colors=LIMIT_COLOR, linewidths=1.3, zorder=2)
-            handles.append(Line2D([], [], color=LIMIT_COLOR, linewidth=1.3, label=f"Hs limit {hs_limit_m:g} m"))
-        if weather.wave_from_deg is not None:
-            inside_lon = (weather.lon_deg >= lon0) & (weather.lon_deg <= lon1)
-            inside_lat = (weather.lat_deg >= lat0) & (weather.lat_deg <= lat1)
-            n_lon = max(int(inside_lon.sum()), 1)
-            step = max(1, int(np.ceil(n_lon / 14)))
-            ii = np.flatnonzero(inside_lat)[::step]
-            jj = np.flatnonzero(inside_lon)[::step]
-            if ii.size and jj.size:
-                d_from = weather.wave_from_deg[np.ix_(ii, jj)]
-                ok = np.isfinite(d_from) & np.isfinite(weather.hs_m[np.ix_(ii, jj)])
-                to_rad = np.deg2rad(d_from + 180.0)
-                lon_g, lat_g = np.meshgrid(weather.lon_deg[jj], weather.lat_deg[ii])
-                # angles="uv": arrow direction on screen; with the aspect set to 1/cos(lat) the
-                # screen is locally conformal, so (sin, cos) of the bearing points the right way.
-                ax.quiver(lon_g[ok], lat_g[ok], np.sin(to_rad[ok]), np.cos(to_rad[ok]), angles="uv", pivot="middle", color="#333333", scale=28, width=0.0028, headwidth=4, zorder=3)
-                handles.append(Line2D([], [], color="#333333", marker=r"$\rightarrow$", markersize=12, linestyle="none", label="mean wave direction (travelling to)"))
 
-    lon_e, lat_e, land = land_mask(lon0, lon1, lat0, lat1)
-    rgba = np.zeros(land.shape + (4,), dtype=np.uint8)  # 4 bytes a pixel: the mask's own resolution stays small
-    rgba[land] = [round(255 * x) for x in (*LAND_RGB, 1.0)]
-    ax.imshow(rgba, extent=(lon_e[0], lon_e[-1], lat_e[0], lat_e[-1]), origin="lower", interpolation="nearest", zorder=4, aspect="auto")
+def _draw_weather(fig, ax, weather, box: tuple, hs_limit_m, handles: list) -> None:
+    """Hs in colour with its colour bar, the vessel's Hs limit as a contour, wave-direction arrows."""
+    from matplotlib.lines import Line2D
+
+    hs = np.ma.masked_invalid(weather.hs_m)
+    vmax = max(1.0, float(np.ceil(np.nanmax(weather.hs_m)))) if np.isfinite(weather.hs_m).any() else 1.0
+    mesh = ax.pcolormesh(weather.lon_deg, weather.lat_deg, hs, cmap=HS_CMAP, vmin=0.0, vmax=vmax, shading="nearest", zorder=1)
+    cbar = fig.colorbar(mesh, ax=ax, shrink=0.8, pad=0.02, fraction=0.04)
+    cbar.set_label("significant wave height Hs [m]")
+    if hs_limit_m is not None and np.nanmax(weather.hs_m) > hs_limit_m > np.nanmin(weather.hs_m):
+        ax.contour(weather.lon_deg, weather.lat_deg, weather.hs_m, levels=[hs_limit_m], colors=LIMIT_COLOR, linewidths=1.3, zorder=2)
+        handles.append(Line2D([], [], color=LIMIT_COLOR, linewidth=1.3, label=f"Hs limit {hs_limit_m:g} m"))
+    if weather.wave_from_deg is not None:
+        _wave_arrows(ax, weather, box, handles)
+
+
+def _wave_arrows(ax, weather, box: tuple, handles: list) -> None:
+    """Arrows of the mean wave direction (where the waves travel to) on about 14 columns inside the box."""
+    from matplotlib.lines import Line2D
+
+    lon0, lon1, lat0, lat1 = box
+    inside_lon = (weather.lon_deg >= lon0) & (weather.lon_deg <= lon1)
+    inside_lat = (weather.lat_deg >= lat0) & (weather.lat_deg <= lat1)
+    n_lon = max(int(inside_lon.sum()), 1)
+    step = max(1, int(np.ceil(n_lon / 14)))
+    ii = np.flatnonzero(inside_lat)[::step]
+    jj = np.flatnonzero(inside_lon)[::step]
+    if ii.size and jj.size:
+        d_from = weather.wave_from_deg[np.ix_(ii, jj)]
+        ok = np.isfinite(d_from) & np.isfinite(weather.hs_m[np.ix_(ii, jj)])
+        to_rad = np.deg2rad(d_from + 180.0)
+        lon_g, lat_g = np.meshgrid(weather.lon_deg[jj], weather.lat_deg[ii])
+        # angles="uv": arrow direction on screen; with the aspect set to 1/cos(lat) the
+        # screen is locally conformal, so (sin, cos) of the bearing points the right way.
+        ax.quiver(lon_g[ok], lat_g[ok], np.sin(to_rad[ok]), np.cos(to_rad[ok]), angles="uv", pivot="middle", color="#333333", scale=28, width=0.0028, headwidth=4, zorder=3)
+        handles.append(Line2D([], [], color="#333333", marker=r"$\rightarrow$", markersize=12, linestyle="none", label="mean wave direction (travelling to)"))
+
+
+def _draw_routes(ax, routes: dict, worst, worst_role: str, handles: list) -> None:
+    """Every route (great-circle legs, white halo), the departure and arrival marks, and the worst weather's star."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patheffects import withStroke
 
     halo = [withStroke(linewidth=4.5, foreground="white")]
     for role, route in routes.items():
@@ -233,17 +272,6 @@ def route_map_png(
     if worst is not None and all(v is not None and np.isfinite(v) for v in worst):
         ax.plot(worst[1], worst[0], marker="*", color="white", markeredgecolor="black", markersize=17, linestyle="none", zorder=8)
         handles.append(Line2D([], [], marker="*", color="white", markeredgecolor="black", markersize=12, linestyle="none", label=f"worst weather on {label_for(worst_role)}"))
-
-    ax.set_xlim(lon0, lon1)
-    ax.set_ylim(lat0, lat1)
-    ax.set_aspect(aspect)
-    ax.set_xlabel("longitude [deg E]")
-    ax.set_ylabel("latitude [deg N]")
-    ax.grid(True, color="#999999", linewidth=0.4, alpha=0.5, zorder=5)
-    if weather is not None:
-        ax.set_title(f"Hs and mean wave direction at {weather.time_utc:%Y-%m-%d %H:%M} UTC", fontsize=11)
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8, frameon=False)
-    return _png(fig)
 
 
 def series_png(routes: dict, *, hs_limit_m: float | None = None, profiles: dict | None = None, width_in: float = 5.8,

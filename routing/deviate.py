@@ -242,18 +242,7 @@ def deviate_lane(
     keys = sorted(set().union(*[w.keys() for w in weathers]))
     weather = {k: np.array([float(w[k][0]) if k in w else np.nan for w in weathers]) for k in keys}
     leg_speed = np.array([s.speed_kn for s in steps[1:]])
-    step_rows = [
-        {
-            "seq": s.seq,
-            "status": s.status,
-            "rules_fired": list(s.rules_fired),
-            "moved_nmi": round(s.moved_nmi, 4),
-            "candidates_tried": s.candidates_tried,
-            "leg_rules_fired": list(s.leg_rules_fired),
-            "centroid": [s.centroid_lat_deg, s.centroid_lon_deg],
-        }
-        for s in steps
-    ]
+    step_rows = [_step_row(s) for s in steps]
     sea_props = {}
     if repair is not None:
         out_lat, out_lon, times, leg_speed, weather, sea_props = _repaired(repair(out_lat, out_lon), leg_speed, t0, weather, step_rows)
@@ -274,6 +263,19 @@ def deviate_lane(
         }
     )
     return Route(name=name, lat_deg=out_lat, lon_deg=out_lon, time_utc=times, leg_speed_kn=leg_speed, weather=weather, properties=props)
+
+
+def _step_row(s) -> dict:
+    """One waypoint's line in ``properties["steps"]``: its status, the rules that fired and how far it moved."""
+    return {
+        "seq": s.seq,
+        "status": s.status,
+        "rules_fired": list(s.rules_fired),
+        "moved_nmi": round(s.moved_nmi, 4),
+        "candidates_tried": s.candidates_tried,
+        "leg_rules_fired": list(s.leg_rules_fired),
+        "centroid": [s.centroid_lat_deg, s.centroid_lon_deg],
+    }
 
 
 def _repaired(rr, leg_speed, t0, weather, step_rows):
