@@ -62,6 +62,7 @@ SIMROUTE_SEARCHES = {
 SAME_KERNELS = ("not repeated: the same compiled kernels (mesh, weather onto the mesh, search, smoothing) compile in "
                 "route_cli's empty-cache runs")
 SAFE_KERNELS = "not repeated: the safe-mode kernels compile in r6_safe's empty-cache runs"
+FUEL_KERNELS = "not repeated: the least-fuel kernels compile in r6_fuel_cli's empty-cache runs"
 
 
 def _stormlane() -> list[str]:
@@ -452,15 +453,17 @@ def _fuel_group(r6, route):
                  "the fuel search's bound)", argv=fuel_route, parse=f"{here}:parse_route_json", warm_setup=f"{here}:setup_cli",
                  warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args() + R6_FUEL_ARGS}),
             Side("r6_time_cli", "`stormlane route` R6 (time objective), the same process", argv=route, parse=f"{here}:parse_route_json",
-                 warm_setup=f"{here}:setup_cli", warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args()}),
+                 warm_setup=f"{here}:setup_cli", warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args()},
+                 empty_cache=SAME_KERNELS),
             Side("r6_window_fuel", "R6, 16 hourly departures with the fuel objective (arrival by 2020-01-21T12:00), ranked, hours over "
-                 "limits", setup=f"{here}:setup_r6_window", kwargs={"objective": "fuel"}, run=f"{here}:run_r6_window"),
+                 "limits", setup=f"{here}:setup_r6_window", kwargs={"objective": "fuel"}, run=f"{here}:run_r6_window",
+                 empty_cache=FUEL_KERNELS),
             Side("r6_window_time", "R6, the same 16 departures with the time objective", setup=f"{here}:setup_r6_window",
-                 kwargs={"objective": "time"}, run=f"{here}:run_r6_window"),
+                 kwargs={"objective": "time"}, run=f"{here}:run_r6_window", empty_cache=SAME_KERNELS),
             Side("medsea_fuel", "MEDSEA-size plan with the least-fuel route (8 settings, arrival 115 h after departure)",
-                 setup=f"{here}:setup_medsea", run=f"{here}:run_medsea_fuel"),
+                 setup=f"{here}:setup_medsea", run=f"{here}:run_medsea_fuel", empty_cache=FUEL_KERNELS),
             Side("medsea_time", "MEDSEA-size plan, time objective (the medsea group's medsea_plan)", setup=f"{here}:setup_medsea",
-                 run=f"{here}:run_medsea"),
+                 run=f"{here}:run_medsea", empty_cache=SAME_KERNELS),
         ],
         measures=[
             Measure("r6_fuel", "R6 least fuel, 8 settings, fixed arrival", "r6_fuel_cli", "r6_time_cli",
