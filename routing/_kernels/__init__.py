@@ -18,44 +18,77 @@
 * :mod:`.flags` — safety-flag helpers and :func:`heading_flags`.
 
 Numba's on-disk cache (``cache=True``) keys a compiled function on its own file only, not on
-the modules it calls or whose constants it freezes; :func:`_drop_stale_cache` therefore drops the
-package's cached machine code whenever any of the sources it depends on changed.
+the modules it calls or whose constants it freezes. The kernels therefore cache into a folder of
+their own per digest of every source they depend on (:func:`_kernel_cache_dir`): code that
+changed never loads machine code compiled from other sources, and a process still running older
+sources (an upgrade during a nightly run) writes only into its own digest's folder.
 """
 
 from __future__ import annotations
 
 import hashlib
+import os
+import time
 from pathlib import Path
 
+#: Folders of other digests unused for this long are removed (a running process keeps its own).
+STALE_CACHE_AGE_S = 7 * 24 * 3600.0
 
-def _drop_stale_cache() -> None:
-    """Delete this package's numba cache files when a kernel source (or a module whose constants the
-    kernels freeze) differs from the one the cache was built from."""
-    here = Path(__file__).resolve().parent
-    deps = sorted(here.glob("*.py")) + [here.parent / "speed_loss.py", here.parent / "speed_loss_kwon.py", here.parent / "learned.py", here.parent / "_land.py",
-                                        here.parent.parent / "thresholds" / "units.py"]
+
+def _sources_digest(here: Path) -> str:
+    """Digest of the kernel sources and of the modules whose constants the kernels freeze."""
+    deps = sorted(here.glob("*.py")) + [here.parent / name for name in ("speed_loss.py", "speed_loss_kwon.py", "learned.py", "_land.py")]
+    deps.append(here.parent.parent / "thresholds" / "units.py")
     h = hashlib.blake2b(digest_size=16)
     for f in deps:
         if f.exists():
-            h.update(f.read_bytes())
-    digest = h.hexdigest()
-    cache = here / "__pycache__"
-    stamp = cache / "kernels.sources"
+            h.update(f.name.encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()
+
+
+def _kernel_cache_dir() -> Path:
+    """``<base>/numba-<digest>``: the base is ``$NUMBA_CACHE_DIR`` when set (the benchmarks' empty
+    and warm caches), else this package's ``__pycache__``. Other digests' folders unused for
+    :data:`STALE_CACHE_AGE_S` and the flat cache files of earlier versions are removed."""
+    here = Path(__file__).resolve().parent
+    base = Path(os.environ["NUMBA_CACHE_DIR"]) if os.environ.get("NUMBA_CACHE_DIR") else here / "__pycache__"
+    folder = base / f"numba-{_sources_digest(here)}"
     try:
-        if stamp.read_text() == digest:
-            return
-    except OSError:
-        pass
-    try:
-        cache.mkdir(exist_ok=True)
-        for f in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
+        folder.mkdir(parents=True, exist_ok=True)
+        os.utime(folder)  # in use: not stale for another week
+        now = time.time()
+        for old in base.glob("numba-*"):
+            if old != folder and now - old.stat().st_mtime > STALE_CACHE_AGE_S:
+                import shutil
+
+                shutil.rmtree(old, ignore_errors=True)
+        earlier = [*(here / "__pycache__").glob("*.nbi"), *(here / "__pycache__").glob("*.nbc"), here / "__pycache__" / "kernels.sources"]
+        for f in earlier:  # the flat cache of earlier versions, keyed on one digest for all processes
             f.unlink(missing_ok=True)
-        stamp.write_text(digest)
-    except OSError:  # read-only install: numba then compiles in memory or in its own cache dir
+    except OSError:  # read-only install: numba then compiles in memory
         pass
+    return folder
 
 
-_drop_stale_cache()
+def _import_kernels() -> None:
+    """Import every kernel module with numba's cache folder set to :func:`_kernel_cache_dir`
+    (numba picks a function's cache folder when it is decorated), then restore the setting."""
+    import importlib
+
+    from numba.core import config
+
+    previous = config.CACHE_DIR
+    config.CACHE_DIR = str(_kernel_cache_dir())
+    try:
+        here = Path(__file__).resolve().parent
+        for f in sorted(here.glob("*.py")):
+            if f.stem != "__init__":
+                importlib.import_module(f"routing._kernels.{f.stem}")
+    finally:
+        config.CACHE_DIR = previous
+
+
+_import_kernels()
 
 from routing._kernels.cells import (  # noqa: E402
     allowed_edges,
