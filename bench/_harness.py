@@ -89,6 +89,14 @@ class Config:
         return cls(runs=2, empty_runs=1, quick=True) if quick else cls()
 
 
+#: Why a batch command has no warm figure (``Side(..., **BATCH)``): ingest, lanes, a night and a
+#: learning run are each a fresh process when users run them, so the cold figure (five fresh
+#: processes, compile cache warm) is theirs; a second run in one process is a case nobody runs,
+#: and measuring it would double the longest sides of ``make bench`` (budget: 30 min).
+BATCH = {"warm_per_process": 0,
+         "warm_na": "not measured: a batch command, run as a fresh process each time (the cold figure is what users get)"}
+
+
 @dataclass
 class Side:
     """One timed thing. Give ``run`` (+ optional ``setup``) or ``argv`` (a whole process)."""

@@ -29,7 +29,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from bench._harness import Group, Measure, Side, Target, script_main
+from bench._harness import BATCH, Group, Measure, Side, Target, script_main
 
 ROWS, ROWS_QUICK = 5_000_000, 1_000_000
 MESSAGES, MESSAGES_QUICK = 300_000, 60_000
@@ -113,9 +113,9 @@ def build(cfg):
         groups.append(Group(
             f"csv_{layout}", f"cleaned CSV ingest, {rows:,} rows, {title}", **prep,
             sides=[Side(clean, f"ingest_paths -> new workspace, {layout.upper()} CSV", setup=f"{here}:setup_paths",
-                        kwargs={"path": files[layout]}, run=f"{here}:run_clean", work="rows read from the file"),
+                        kwargs={"path": files[layout]}, run=f"{here}:run_clean", work="rows read from the file", **BATCH),
                    Side(raw, "DuckDB read_csv -> Parquet (no cleaning)", setup=f"{here}:setup_paths",
-                        kwargs={"path": files[layout]}, run=f"{here}:run_raw", ours=False, work="rows read from the file")],
+                        kwargs={"path": files[layout]}, run=f"{here}:run_raw", ours=False, work="rows read from the file", **BATCH)],
             measures=[Measure(f"csv_{layout}", f"cleaned CSV ingest, {layout.upper()}", clean, raw,
                               relation="same file; the baseline only parses and writes Parquet (no cleaning, "
                                        "quarantine, fingerprint or workspace)",
@@ -124,9 +124,9 @@ def build(cfg):
     groups.append(Group(
         "nmea", f"NMEA ingest, {messages:,} messages", **prep,
         sides=[Side("nmea_clean", "ingest_paths -> new workspace, NMEA", setup=f"{here}:setup_paths",
-                    kwargs={"path": files["nmea"]}, run=f"{here}:run_clean", work="messages read (positions + static)"),
+                    kwargs={"path": files["nmea"]}, run=f"{here}:run_clean", work="messages read (positions + static)", **BATCH),
                Side("nmea_pyais", "pyais loop: FileReaderStream + decode() of every message", setup=f"{here}:setup_paths",
-                    kwargs={"path": files["nmea"]}, run=f"{here}:run_pyais", ours=False, work="messages decoded")],
+                    kwargs={"path": files["nmea"]}, run=f"{here}:run_pyais", ours=False, work="messages decoded", **BATCH)],
         measures=[Measure("nmea", "NMEA ingest", "nmea_clean", "nmea_pyais",
                           relation="same file; pyais decodes every message and stores nothing",
                           targets=[Target(">= 1 x the pyais loop (cold)", "speedup.cold", ">=", 1.0, "x", "issue 2")])]))

@@ -28,7 +28,7 @@ if __name__ == "__main__":  # run as a file: `import lanes` must find the packag
 
 from pathlib import Path
 
-from bench._harness import Group, Measure, Side, Target, script_main, shared_data, source_stamp
+from bench._harness import BATCH, Group, Measure, Side, Target, script_main, shared_data, source_stamp
 
 EPOCH = "2019-01-01T00:00Z"  # the data has no absolute time (PROVENANCE.md); any explicit epoch works
 FULL_POSITIONS = 2_428_430
@@ -129,12 +129,13 @@ def build(cfg):
         "ushant", f"lanes chain and lane step, {what}", needs=[Path(path)],
         prepare=f"{here}:prepare", prepare_kwargs={"path": path, "points": points, "rows": rows},
         sides=[Side("chain", "the whole chain from the Parquet file to lanes (build_lanes)", setup=f"{here}:setup_chain",
-                    kwargs={"path": path, "rows": rows}, run=f"{here}:run_chain", work="positions read"),
+                    kwargs={"path": path, "rows": rows}, run=f"{here}:run_chain", work="positions read", **BATCH),
                Side("lane_step", "the lane step (extract_lanes) on the resampled points", setup=f"{here}:setup_points",
-                    kwargs={"points": points}, run=f"{here}:run_lane_step", work="points labelled (the moving resampled points)"),
+                    kwargs={"points": points}, run=f"{here}:run_lane_step", work="points labelled (the moving resampled points)",
+                    **BATCH),
                Side("sklearn_dbscan", "sklearn DBSCAN on every moving resampled point: same features, eps, weights, "
                     "min_samples (k-d tree), n_jobs=2", setup=f"{here}:setup_points", kwargs={"points": points},
-                    run=f"{here}:run_sklearn", ours=False, work="points labelled (the moving resampled points)")],
+                    run=f"{here}:run_sklearn", ours=False, work="points labelled (the moving resampled points)", **BATCH)],
         measures=[
             Measure("lane_step", "lane step (DBSCAN on position, speed, course)", "lane_step", "sklearn_dbscan",
                     relation="same points, features and eps; ours clusters a 150 k sample of each large partition and "

@@ -112,8 +112,7 @@ def build(cfg):
                     setup=f"{here}:setup", kwargs={"argv": seq}, run=f"{here}:run_night", work="lane-departures checked",
                     warm_per_process=0,
                     warm_na="not measured: a scheduled night is a fresh process (`stormlane schedule` runs each night in a "
-                            "subprocess), so the cold night is the figure users get; a second night in one process is not a "
-                            "case anyone runs (budget of `make bench`: 30 min)",
+                            "subprocess), so the cold figure is what users get",
                     empty_cache="not measured: the night's kernels (routing, safety, evaluation) compile in the "
                                 "empty-cache runs of bench/routing.py and bench/evaluate.py; one empty-cache night costs "
                                 "1.5-3 min (budget of `make bench`: 30 min)"),
