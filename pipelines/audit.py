@@ -240,7 +240,15 @@ def _check_coverage(sampler, start_utc: pd.Timestamp, end_utc: pd.Timestamp, wha
         )
 
 
-def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alternatives: bool = True, safety: str = "hard") -> dict:
+def speed_loss_of(speed_loss_model, db=None):
+    """The audit's speed-loss model as :class:`pipelines.learn.SpeedLossChoice` (a formula's name,
+    ``learned:NAME`` read from ``db``, or a choice already resolved)."""
+    from pipelines.learn import SpeedLossChoice, resolve_speed_loss
+
+    return speed_loss_model if isinstance(speed_loss_model, SpeedLossChoice) else resolve_speed_loss(str(speed_loss_model), db)
+
+
+def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternatives: bool = True, safety: str = "hard") -> dict:
     """The audit itself (plain function): track, its modelled twin, alternatives, evaluations, comparison.
 
     Like for like: the vessel sails at the voyage's calm-water speed (its AIS speeds in low sea
@@ -248,7 +256,10 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
     loss, for the A* routes, the deviation and the sailed track re-timed (``as_sailed_modelled``);
     the AIS track at its AIS times (``as_sailed``) is the truth, and the difference of the two is
     the model's bias on this voyage. ``safety`` (``"hard"``, ``"soft"`` or ``"none"``) is the mode
-    of the ``safe_optimal`` A* alternative (none: no such alternative).
+    of the ``safe_optimal`` A* alternative (none: no such alternative). ``speed_loss_model``: a
+    formula's name or a resolved :class:`pipelines.learn.SpeedLossChoice` (``learned:NAME``: the
+    model is tabulated once for this vessel at the voyage's calm-water speed, and every route is
+    sailed and evaluated by that table).
 
     Returns
     -------
@@ -279,12 +290,16 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
     _check_coverage(sampler, track.time_utc[0], track.time_utc[-1], "voyage")
     calm = calm_water_speed(track, sampler, inputs.vessel.speed_kn)
     vessel = dataclasses.replace(inputs.vessel, speed_kn=calm["speed_kn"]) if calm["speed_kn"] > inputs.vessel.min_speed_kn else inputs.vessel
+    choice = speed_loss_of(speed_loss_model)
+    table = choice.table(vessel, vessel.speed_kn)  # None for a formula
     alts: dict = {}
+    plan = None
     plan_stats: dict = {}
     deviation = modelled = None
     optimality: list = []
     if alternatives:
-        plan, modelled, alts, optimality = _alternatives(inputs, track, vessel, field_, sampler, speed_loss_model, safety, notes)
+        plan, modelled, alts, optimality = _alternatives(inputs, track, vessel, field_, sampler, choice.ship(vessel, table=table), safety,
+                                                         notes)
         plan_stats = dict(plan.stats) if plan is not None else {}
         deviation = alts.get("deviation")
     detour = detour_factor(track)
@@ -292,21 +307,25 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model: str = "bowditch", alt
         notes.append(f"the sailed track ({track.dist_nmi:.0f} nmi) is {detour:.1f} times the distance between its ends: "
                      "port calls or a loop inside the window? The A* alternatives sail straight between the ends, so their time, "
                      "fuel and exposure are not comparable with the track's")
-    out = audit_routes(track, sampler, vessel, limits=inputs.limits, alternatives=alts, modelled=modelled, speed_loss_model=speed_loss_model)
-    out["findings"] = out["findings"] + notes
+    out = audit_routes(track, sampler, vessel, limits=inputs.limits, alternatives=alts, modelled=modelled, speed_loss_model=choice.label,
+                       learned=table)
+    from routing.bands import audit_uncertainty
+
+    unc = audit_uncertainty(out["evaluations"], out["proposed"], out["reference"], track, plan if alternatives else None, sampler,
+                            vessel, label=choice.label, limits=inputs.limits)
+    out["findings"] = out["findings"] + unc["findings"] + notes
+    out.update({"model_check": unc["model_check"], "bands": unc["bands"]})
     out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler,
-                "calm_water": calm, "optimality": optimality})
+                "calm_water": calm, "optimality": optimality, "speed_loss_model": choice.label, "learned_table": table})
     return out
 
 
-def _alternatives(inputs: AuditInputs, track, vessel, field_, sampler, speed_loss_model: str, safety: str, notes: list):
-    """The A* plan, the modelled track, the alternatives (all sailed by one model) and the invariant's gaps."""
-    from routing.astar import ShipModel
+def _alternatives(inputs: AuditInputs, track, vessel, field_, sampler, ship, safety: str, notes: list):
+    """The A* plan, the modelled track, the alternatives (all sailed by one model, ``ship``) and the invariant's gaps."""
     from routing.compare import lane_departure, optimality_gaps, plan_bbox, retime
     from routing.deviate import threshold_inputs
     from routing.planner import RouteRequest, plan_routes
 
-    ship = ShipModel.from_vessel(vessel, model=speed_loss_model)
     start, goal = (float(track.lat_deg[0]), float(track.lon_deg[0])), (float(track.lat_deg[-1]), float(track.lon_deg[-1]))
     if inputs.lane is not None and len(inputs.lane) >= 2:
         base, props, what = inputs.lane.sort_values("seq"), {"lane_id": inputs.lane_id}, f"lane {inputs.lane_id}"
@@ -367,6 +386,7 @@ JSON_KEYS = {
     "audit_id": "the voyage id, else <mmsi>@<start>",
     "voyage": "voyage_id, mmsi, ship_name, start_utc, end_utc, lane_id, origin, destination",
     "vessel_profile, operator_profile": "the vessel profile and the operator limits used",
+    "speed_loss_model": "the speed-loss model every route is sailed by (a formula's name or learned:NAME)",
     "weather": "the weather files and product",
     "calm_water_speed": "speed_kn the model sails at, source (ais_low_sea: the voyage's AIS speeds in Hs <= low_hs_m over "
                         "low_sea_h hours; profile: the vessel profile's), low_sea_h, low_hs_m",
@@ -379,6 +399,11 @@ JSON_KEYS = {
     "proposed": "the recommended alternative or null (never one that is not sea-only or has more no_weather_h)",
     "comparison": "per role: the values and d_<metric> deltas (route minus reference), d_<metric>_pct",
     "optimality": "per route: gap_h (time-optimal minus it), tolerance_h (the mesh's discretisation), holds, constraint",
+    "model_check": "the sailed track re-timed by each wave formula and the learned model (when used) at the same calm-water "
+                   "speed against its AIS time: model, time_h, ais_time_h, bias_h, bias_pct (learned: time_h_p10, time_h_p90, "
+                   "inside_band); error for a formula outside its range",
+    "bands": "with learned:NAME, per role (the reference and the proposed route): time_h_p10/p50/p90 and fuel_t_p10/p50/p90 "
+             "by the model's quantile tables, assumption",
     "findings": "plain-language findings, the bias against the claimed savings in words",
 }
 
@@ -401,6 +426,7 @@ def audit_summary(inputs: AuditInputs, result: dict) -> dict:
         },
         "vessel_profile": inputs.vessel_profile,
         "operator_profile": inputs.profile_name,
+        "speed_loss_model": result.get("speed_loss_model", "bowditch"),
         "weather": {"files": inputs.weather_files, **{k: v for k, v in inputs.weather_meta.items() if isinstance(v, (str, int, float))}},
     }
     out["calm_water_speed"] = result.get("calm_water")
@@ -412,11 +438,13 @@ def audit_summary(inputs: AuditInputs, result: dict) -> dict:
     table = result["table"].replace({np.nan: None})
     out["comparison"] = {role: row for role, row in table.to_dict(orient="index").items()}
     out["optimality"] = result.get("optimality") or []
+    out["model_check"] = result.get("model_check") or []
+    out["bands"] = result.get("bands") or {}
     out["findings"] = result["findings"]
     return out
 
 
-def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str = "bowditch"):
+def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str | None = None):
     """The report model (:class:`dashboards.model.VoyageAudit`) of an audit, through
     :func:`pipelines.reporting.voyage_audit_model`."""
     from pipelines.reporting import voyage_audit_model
@@ -428,7 +456,8 @@ def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str = "bowd
     voyage.update({k: v for k, v in (inputs.port_names or {}).items() if v})
     return voyage_audit_model(
         result, mmsi=inputs.mmsi, static=inputs.static, voyage=voyage, vessel=inputs.vessel, limits=lim,
-        weather_ds=inputs.weather_ds, weather_meta=inputs.weather_meta, speed_loss_model=speed_loss_model,
+        weather_ds=inputs.weather_ds, weather_meta=inputs.weather_meta,
+        speed_loss_model=str(speed_loss_model or result.get("speed_loss_model") or "bowditch"),
         profile_name=inputs.profile_name,
         methods=[
             "Track: AIS fixes thinned to one per 5 min; speeds made good between kept fixes.",
@@ -451,7 +480,7 @@ def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str = "bowd
 
 
 def store_audit(db, inputs: AuditInputs, result: dict, report: str | Path | None = None,
-                speed_loss_model: str = "bowditch") -> dict:
+                speed_loss_model: str | None = None) -> dict:
     """Write the audit to the workspace's results tables and, optionally, the HTML report."""
     from pipelines.storage import open_workspace
     from pipelines.storage.results import write_audit
@@ -467,18 +496,21 @@ def store_audit(db, inputs: AuditInputs, result: dict, report: str | Path | None
     if report is not None:
         from dashboards.report import render_audit_report
 
-        path = render_audit_report(audit_model(inputs, result, speed_loss_model), Path(report))
+        path = render_audit_report(audit_model(inputs, result, None if speed_loss_model is None else str(speed_loss_model)), Path(report))
         summary["report"] = str(path)
     return summary
 
 
 def run_audit(db, *, voyage_id: str | None = None, mmsi: int | None = None, start=None, end=None, weather=(),
-              vessel: str | None = None, profile: str | None = None, report=None, speed_loss_model: str = "bowditch") -> dict:
-    """Plain entry point (CLI, demo, tests): read, audit, store; returns :func:`audit_summary`."""
+              vessel: str | None = None, profile: str | None = None, report=None, speed_loss_model="bowditch") -> dict:
+    """Plain entry point (CLI, demo, tests): read, audit, store; returns :func:`audit_summary`.
+    ``speed_loss_model``: a formula's name, ``learned:NAME`` (a model stored in ``db``) or a resolved
+    :class:`pipelines.learn.SpeedLossChoice`."""
+    choice = speed_loss_of(speed_loss_model, db)
     inputs = load_audit_inputs(db, voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather_paths=weather or (),
                                vessel=vessel, profile=profile)
-    result = audit_voyage(inputs, speed_loss_model=speed_loss_model)
-    return store_audit(db, inputs, result, report=report, speed_loss_model=speed_loss_model)
+    result = audit_voyage(inputs, speed_loss_model=choice)
+    return store_audit(db, inputs, result, report=report)
 
 
 def audit_flow(db: str, voyage_id: str | None = None, mmsi: int | None = None, start: str | None = None, end: str | None = None,
@@ -500,8 +532,8 @@ def audit_flow(db: str, voyage_id: str | None = None, mmsi: int | None = None, s
                      weather: list[str] | None = None, vessel: str | None = None, profile: str | None = None,
                      report: str | None = None, speed_loss_model: str = "bowditch") -> dict:
         inputs = load(db, voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather_paths=weather or (), vessel=vessel, profile=profile)
-        result = compute(inputs, speed_loss_model=speed_loss_model)
-        return store(db, inputs, result, report=report, speed_loss_model=speed_loss_model)
+        result = compute(inputs, speed_loss_model=speed_loss_of(speed_loss_model, db))
+        return store(db, inputs, result, report=report)
 
     return voyage_audit(db=str(db), voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather=weather, vessel=vessel,
                         profile=profile, report=None if report is None else str(report), speed_loss_model=speed_loss_model)

@@ -118,13 +118,17 @@ def not_safer_note(lane: dict, deviation: dict) -> str | None:
 
 
 def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | None = None, profile: str | None = None,
-                         store: bool = True) -> dict:
+                         store: bool = True, speed_loss="bowditch") -> dict:
     """Deviation of lane ``lane_id`` departing at ``depart``; returns the CLI's JSON object.
+
+    ``speed_loss``: a formula's name, ``learned:NAME`` (a model stored in ``db``, tabulated once for
+    the lane's vessel at the lane's typical speed) or a resolved :class:`pipelines.learn.SpeedLossChoice`;
+    the lane and the deviation are both sailed and evaluated by it.
 
     Returns
     -------
     dict
-        ``lane_id``, ``depart_utc``, ``vessel_profile``, ``speed_kn`` (the lane's typical AIS speed,
+        ``lane_id``, ``depart_utc``, ``vessel_profile``, ``speed_loss_model``, ``speed_kn`` (the lane's typical AIS speed,
         the model's calm-water speed), ``reference`` (``"lane"``), ``lane`` and ``deviation`` (route
         and evaluation summaries: the lane as planned and the deviation, both sailed by the vessel
         model from the departure, legs over land repaired), ``proposed`` (False when the deviation is
@@ -132,6 +136,7 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         (status of every waypoint), ``metrics`` (the seed paper's comparison metrics, deviation
         against lane) and ``deviation_id``.
     """
+    from pipelines.audit import speed_loss_of
     from pipelines.config import load_operator_profile, load_vessel
     from pipelines.nightly.reroute import lane_speed_vessel
     from pipelines.routing_weather import field_from_dataset
@@ -148,12 +153,13 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     if t0 is None:
         raise DeviationInputError(f"--depart {depart!r} is not an ISO 8601 time")
     files = [str(p) for p in weather]
+    choice = speed_loss_of(speed_loss, db)
     lane, vessel_name, ds, meta, label = _lane_and_weather(db, str(lane_id), t0, files, vessel)
     limits = load_operator_profile(profile)
     field_ = field_from_dataset(ds)
     sampler = PointSampler.from_field(field_)
     ves = lane_speed_vessel(load_vessel(vessel_name), lane)
-    ev_lane, ev_dev, dev = _lane_and_deviation(lane, str(lane_id), t0, field_, sampler, ves, vessel_name, limits, label)
+    ev_lane, ev_dev, dev = _lane_and_deviation(lane, str(lane_id), t0, field_, sampler, ves, vessel_name, limits, label, choice)
     lane_summary = ev_lane.to_dict(waypoints=True)
     dev_summary = {**ev_dev.to_dict(waypoints=True), "n_deviated": dev.properties["n_deviated"],
                    "n_unresolved": dev.properties["n_unresolved"], "n_legs_adverse": dev.properties["n_legs_adverse"],
@@ -172,6 +178,7 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         "lane_id": str(lane_id),
         "depart_utc": t0.isoformat(),
         "vessel_profile": vessel_name,
+        "speed_loss_model": choice.label,
         "speed_kn": ves.speed_kn,
         "reference": "lane",
         "proposed": why is None,
@@ -248,23 +255,25 @@ def _weather_from_grid(ws, db: Path, t0: pd.Timestamp, window_end: pd.Timestamp)
     return ds, meta, label
 
 
-def _lane_and_deviation(lane, lane_id, t0, field_, sampler, ves, vessel_name, limits, label):
-    """The lane and its deviation, both sailed by the vessel model from ``t0`` in the same weather
+def _lane_and_deviation(lane, lane_id, t0, field_, sampler, ves, vessel_name, limits, label, choice):
+    """The lane and its deviation, both sailed by the vessel model (``choice``, a
+    :class:`pipelines.learn.SpeedLossChoice`) from ``t0`` in the same weather
     (:func:`routing.compare.lane_departure`), evaluated. Returns (lane evaluation, deviation
     evaluation, deviation route)."""
-    from routing.astar import ShipModel
     from routing.compare import lane_departure, plan_bbox
     from routing.deviate import lane_route, threshold_inputs
     from routing.evaluate import evaluate_route
     from routing.planner import RouteRequest, plan_routes
 
     weather_at, check, cells = threshold_inputs(sampler, ves, limits)
+    table = choice.table(ves, ves.speed_kn)  # None for a formula
+    model = {"speed_loss_model": choice.label, "learned": table}
     lat, lon, spd = lane["lat_deg"].to_numpy(), lane["lon_deg"].to_numpy(), lane["speed_kn"].to_numpy()
     # a lane that meets no weather at all would read 0 h over the limits: refuse it first
     check_lane_meets_weather(evaluate_route(lane_route(lat, lon, spd, t0, default_speed_kn=ves.speed_kn), sampler, ves,
-                                            limits=limits).summary, lane, lane_id, label)
+                                            limits=limits, **model).summary, lane, lane_id, label)
     start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
-    req = RouteRequest(start, goal, t0, ShipModel.from_vessel(ves), vessel_name=vessel_name,
+    req = RouteRequest(start, goal, t0, choice.ship(ves, table=table), vessel_name=vessel_name,
                        bbox=plan_bbox(start, goal, lat, lon, field_))
     try:
         plan = plan_routes(req, field_)
@@ -273,4 +282,4 @@ def _lane_and_deviation(lane, lane_id, t0, field_, sampler, ves, vessel_name, li
     pair = lane_departure(lat, lon, spd, t0, plan, weather_at=weather_at, check=check, cells=cells,
                           properties={"lane_id": lane_id})
     lane_r, dev = pair["lane"], pair["deviation"]
-    return evaluate_route(lane_r, sampler, ves, limits=limits), evaluate_route(dev, sampler, ves, limits=limits), dev
+    return evaluate_route(lane_r, sampler, ves, limits=limits, **model), evaluate_route(dev, sampler, ves, limits=limits, **model), dev

@@ -275,40 +275,88 @@ def parse_learned(speed_loss: str) -> str | None:
     return check_name(str(speed_loss).split(":", 1)[1])
 
 
-def speed_table(db, name: str, *, vessel, speed_kn: float):
-    """The stored model ``name`` tabulated for ``vessel`` at ``speed_kn`` (:mod:`performance.tabulate`),
-    once per request; one ``error:`` line when the vessel lies outside what it was trained on."""
-    from performance.tabulate import OutsideTraining
-    from performance.tabulate import speed_table as tabulate
+@dataclass
+class SpeedLossChoice:
+    """``--speed-loss`` resolved once per command (:func:`resolve_speed_loss`): a formula's name, or
+    a stored learned model, loaded once and tabulated per vessel and calm-water speed.
 
-    model, row = load_performance_model(db, name)
-    try:
-        return tabulate(model, row["metrics"]["context"], name, speed_kn=speed_kn, vessel=vessel)
-    except OutsideTraining as err:
-        raise LearnError(f"--speed-loss learned:{name}: {err}") from None
+    ``label`` is what every output names (``bowditch``, ``learned:NAME``); ``model`` is the router's
+    model code (the formula's name, or ``learned``)."""
+
+    label: str
+    db: Path | None = None
+    _loaded: tuple | None = None
+
+    @property
+    def learned_name(self) -> str | None:
+        return self.label.split(":", 1)[1] if self.label.startswith("learned:") else None
+
+    @property
+    def model(self) -> str:
+        return "learned" if self.learned_name else self.label
+
+    def table(self, vessel, speed_kn: float | None = None):
+        """The learned model's table for ``vessel`` at ``speed_kn`` (default its service speed); None
+        for a formula. One ``error:`` line when the vessel lies outside what the model was trained on."""
+        if self.learned_name is None:
+            return None
+        from performance.tabulate import OutsideTraining
+        from performance.tabulate import speed_table as tabulate
+
+        if self._loaded is None:
+            self._loaded = load_performance_model(self.db, self.learned_name)
+        model, row = self._loaded
+        try:
+            return tabulate(model, row["metrics"]["context"], self.learned_name,
+                            speed_kn=float(speed_kn if speed_kn is not None else vessel.speed_kn), vessel=vessel)
+        except OutsideTraining as err:
+            raise LearnError(f"--speed-loss {self.label}: {err}") from None
+
+    def ship(self, vessel, speed_kn: float | None = None, table=None, **kwargs):
+        """The router's :class:`routing.astar.ShipModel` of ``vessel`` with this model (``table``: one
+        already tabulated for this vessel and speed)."""
+        from routing.astar import ShipModel
+
+        if self.learned_name is None:
+            return ShipModel.from_vessel(vessel, self.label, speed_kn=speed_kn, **kwargs)
+        table = table if table is not None else self.table(vessel, speed_kn)
+        return ShipModel.from_vessel(vessel, "learned", speed_kn=speed_kn, learned=table)
+
+    def __getstate__(self):  # shipped to workers without the fitted model (they get tables)
+        return {"label": self.label, "db": self.db, "_loaded": None}
+
+
+def resolve_speed_loss(text: str, db=None, option: str = "--speed-loss") -> SpeedLossChoice:
+    """The one resolution of ``--speed-loss`` for route, audit, deviate and nightly: a formula's
+    name (:data:`routing.speed_loss.MODELS`) or ``learned:NAME``, a model stored in the workspace
+    ``db`` (checked now: an unknown name is one line listing the stored models)."""
+    from routing.speed_loss import MODELS
+
+    name = parse_learned(text)
+    if name is None:
+        if text not in MODELS:
+            raise LearnError(f"{option} {text!r} is not one of {', '.join(MODELS)}, learned:NAME")
+        return SpeedLossChoice(str(text))
+    from pipelines.storage import open_workspace
+    from pipelines.storage.performance import read_model
+
+    if db is None or not Path(db).exists():
+        raise LearnError(f"{option} learned:{name} reads its model from a workspace: {db} does not exist (--db)")
+    with open_workspace(db, read_only=True) as ws:
+        read_model(ws, name)  # one line naming the stored models when there is no such model
+    return SpeedLossChoice(f"learned:{name}", db=Path(db))
 
 
 def eta_band(plan, name: str = "optimal_smoothed") -> dict | None:
     """P10, P50 and P90 sailing time of a planned route sailed with a learned model's quantile
-    tables (None for a formula). The route's path is re-timed with the P90 speed ratios on every
-    leg (the early ETA) and with the P10 ratios (the late one): the errors of one voyage are taken
-    as fully correlated along it (the same master and hull on every leg), the wide reading of the
-    band; per-leg independence would narrow it."""
-    import dataclasses
+    tables (None for a formula): :func:`routing.bands.quantile_bands` (the errors of one voyage
+    taken as fully correlated along it, the wide reading of the band)."""
+    from routing.bands import quantile_bands
 
-    from routing.astar import evaluate_path
-
-    ship, wx = plan.ship, plan.weather_arrays
-    if ship is None or ship.model != "learned" or wx is None or name not in plan.routes:
+    if name not in plan.routes or plan.ship is None or plan.ship.model != "learned":
         return None
-    r = plan.routes[name]
-    t0 = wx.rel_h(r.time_utc[0].value)
-    out = {"route": name, "assumption": "quantile ratios fully correlated along the route"}
-    for key, which in (("time_h_p10", "p90"), ("time_h_p50", "ratio"), ("time_h_p90", "p10")):
-        s = ship if which == "ratio" else dataclasses.replace(ship, learned=ship.learned.band(which))
-        times, _ = evaluate_path(plan.mesh, wx, s, r.lat_deg, r.lon_deg, t_start_h=t0)
-        out[key] = float(times[-1] - times[0])
-    return out
+    band = quantile_bands(plan.routes[name], plan, label=f"learned:{plan.ship.learned.name}")
+    return None if band is None else {k: band[k] for k in ("route", "assumption", "time_h_p10", "time_h_p50", "time_h_p90")}
 
 
 def row_summary(row: dict) -> dict:

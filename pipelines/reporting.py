@@ -67,17 +67,20 @@ def worst_point(route) -> dict:
     return {"time_utc": route.time_utc[i], "lat_deg": float(route.lat_deg[i]), "lon_deg": float(route.lon_deg[i]), "hs_m": float(hs[i])}
 
 
-def speed_loss_curve(vessel, model: str, hs_max_m: float = 8.0, step_m: float = 0.25, angles_deg=(0.0, 45.0, 90.0, 135.0, 180.0)) -> SpeedLossCurve:
+def speed_loss_curve(vessel, model: str, hs_max_m: float = 8.0, step_m: float = 0.25, angles_deg=(0.0, 45.0, 90.0, 135.0, 180.0),
+                     learned=None) -> SpeedLossCurve:
     """Attainable speed of ``vessel`` against Hs for a few encounter angles, by ``model``.
 
-    Values come from :func:`routing.speed_loss.attained_speed_kn` (with the vessel's floor).
+    Values come from :func:`routing.speed_loss.attained_speed_kn` (with the vessel's floor);
+    ``learned``: the table of a ``learned:NAME`` model.
     """
     from routing.speed_loss import attained_speed_kn
 
     hs = np.arange(0.0, hs_max_m + 1e-9, step_m)
     frames = []
     for angle in angles_deg:
-        speed = np.asarray(attained_speed_kn(vessel.speed_kn, hs, np.full(hs.shape, float(angle)), model, vessel=vessel), dtype=float)
+        speed = np.asarray(attained_speed_kn(vessel.speed_kn, hs, np.full(hs.shape, float(angle)), model, vessel=vessel, learned=learned),
+                           dtype=float)
         frames.append(pd.DataFrame({"hs_m": hs, "encounter_deg": float(angle), "speed_kn": speed}))
     return SpeedLossCurve(vessel=vessel.name, model=model, speed_kn=float(vessel.speed_kn), table=pd.concat(frames, ignore_index=True), min_speed_kn=getattr(vessel, "min_speed_kn", None))
 
@@ -302,7 +305,7 @@ def voyage_audit_model(out: dict, *, mmsi: int, static=None, voyage: dict | None
         findings=list(out.get("findings", [])),
         provenance=provenance(weather_meta=weather_meta, weather_ds=weather_ds, vessel=vessel, speed_loss_model=speed_loss_model,
                               limits=limits, profile_name=profile_name, ais_sources=ais_sources, methods=methods),
-        speed_loss=speed_loss_curve(vessel, speed_loss_model) if vessel is not None else None,
+        speed_loss=speed_loss_curve(vessel, speed_loss_model, learned=out.get("learned_table")) if vessel is not None else None,
         bias=dict(out.get("bias") or {}), calm_water=dict(out.get("calm_water") or {}),
     )
 
@@ -311,13 +314,15 @@ def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, 
                          table: pd.DataFrame | None = None, proposed: str | None = None, weather_ds=None,
                          exports: dict | None = None, error: str | None = None, risk_avoided: float | None = None,
                          hs_limit_m: float | None = None, vessel: str | None = None, optimality=(), reasons=(),
-                         events_avoided: int | None = None, detailed: bool = True):
+                         events_avoided: int | None = None, detailed: bool = True, bands: dict | None = None):
     """One nightly lane-departure for the report: adverse with its evaluated routes, or failed with ``error``.
 
     The worst point is where the lane as planned meets its highest Hs; the map's weather
     slice is taken at that time when ``weather_ds`` is given (and ``detailed``: a case shown
     without maps holds its comparison table and notes only). ``hs_limit_m`` is the lane's vessel's
-    Hs limit (drawn on its map and plot); ``reasons`` the screen's structured rules (the chips).
+    Hs limit (drawn on its map and plot); ``reasons`` the screen's structured rules (the chips);
+    ``bands`` a learned model's P10-P50-P90 time and fuel per role (:func:`routing.bands.quantile_bands`),
+    added to that role's note.
     """
     from dashboards.model import LaneDeparture
 
@@ -330,6 +335,11 @@ def lane_departure_model(*, lane_id, origin: str, destination: str, depart_utc, 
     end = pd.Timestamp(weather_ds["time_utc"].values[-1]).tz_localize("UTC") if weather_ds is not None else None
     routes = route_set_from_evaluations(evaluations, table, proposed, weather=snapshot, exports=exports, hs_limit_m=hs_limit_m,
                                         optimality=optimality, weather_end_utc=end, detailed=detailed)
+    if bands:
+        from routing.bands import band_line
+
+        for role, band in bands.items():
+            routes.notes[role] = "; ".join(filter(None, [routes.notes.get(role), band_line(band, role)]))
     return LaneDeparture(lane_id=lane_id, origin=origin, destination=destination, depart_utc=depart_utc, status="adverse",
                          rules=list(rules), worst_time_utc=worst["time_utc"], worst_lat_deg=worst["lat_deg"],
                          worst_lon_deg=worst["lon_deg"], worst_hs_m=worst["hs_m"], routes=routes, risk_avoided=risk_avoided,

@@ -366,7 +366,7 @@ def findings(evaluations: dict, proposed: str | None, reference: str = AS_SAILED
 
 
 def audit_routes(track: Route, weather_at, vessel, *, limits=None, alternatives: dict | None = None, modelled: Route | None = None,
-                 speed_loss_model: str = "bowditch", max_step_h: float = 0.25) -> dict:
+                 speed_loss_model: str = "bowditch", max_step_h: float = 0.25, learned=None) -> dict:
     """Evaluate the sailed track, its modelled twin and its alternatives in the same weather and compare them.
 
     Parameters
@@ -375,8 +375,8 @@ def audit_routes(track: Route, weather_at, vessel, *, limits=None, alternatives:
         The sailed track (:func:`track_to_route`) at its AIS times: role ``as_sailed``.
     weather_at : callable
         Hindcast weather sampler (:class:`routing.sampling.PointSampler`).
-    vessel, limits :
-        As in :func:`routing.evaluate.evaluate_route`.
+    vessel, limits, learned :
+        As in :func:`routing.evaluate.evaluate_route` (``learned``: the table of a learned model).
     alternatives : dict of str -> Route
         ``deviation``, ``optimal``, ``min_distance`` ... for the same departure, sailed by the model.
     modelled : Route, optional
@@ -391,7 +391,7 @@ def audit_routes(track: Route, weather_at, vessel, *, limits=None, alternatives:
         reference), ``reference`` (its role), ``bias`` (modelled minus AIS, :func:`model_bias`),
         ``proposed`` (role or None) and ``findings`` (list of str).
     """
-    kw = {"limits": limits, "speed_loss_model": speed_loss_model, "max_step_h": max_step_h}
+    kw = {"limits": limits, "speed_loss_model": speed_loss_model, "max_step_h": max_step_h, "learned": learned}
     evaluations: dict[str, RouteEvaluation] = {AS_SAILED: evaluate_route(track, weather_at, vessel, **kw)}
     reference, bias = AS_SAILED, {}
     if modelled is not None:

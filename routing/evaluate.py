@@ -142,6 +142,7 @@ def evaluate_route(
     speed_loss_model: str = "bowditch",
     models: tuple = SPEED_LOSS_MODELS,
     max_step_h: float = 0.25,
+    learned=None,
 ) -> RouteEvaluation:
     """Evaluate a route at its own ETAs.
 
@@ -163,6 +164,8 @@ def evaluate_route(
         Speed-loss models reported.
     max_step_h : float, default 0.25
         Longest piece of leg sampled as one. [h]
+    learned : routing.learned.LearnedSpeedTable, optional
+        The table of ``speed_loss_model`` ``"learned:NAME"`` (:func:`routing.speed_loss.speed_loss`).
 
     Returns
     -------
@@ -174,14 +177,14 @@ def evaluate_route(
         assess_fn = assess_with(vessel, limits)
     samples = densify(route, max_step_h)
     weather, cols = _weather_columns(samples, weather_at)
-    loss_summary, model_warnings = _speed_loss_columns(samples, cols, vessel, models)
+    loss_summary, model_warnings = _speed_loss_columns(samples, cols, vessel, models, learned)
     rules, exposure, margins, skipped = _rule_columns(samples, cols, weather, assess_fn)
     samples = pd.concat([samples, pd.DataFrame(cols, index=samples.index)], axis=1)
     events: list[dict] = []
     for name in rules:
         events += _events(samples, name, margins[name])
     events.sort(key=lambda e: (e["start_utc"], e["criterion"]))
-    legs = _leg_emissions(route, samples, weather, speed_loss_model, vessel)
+    legs = _leg_emissions(route, samples, weather, speed_loss_model, vessel, learned)
     summary = {
         **_route_summary(route, samples, weather),
         "speed_loss": loss_summary,
@@ -212,7 +215,7 @@ def _weather_columns(samples: pd.DataFrame, weather_at: WeatherAt) -> tuple[dict
     return weather, cols
 
 
-def _speed_loss_columns(samples: pd.DataFrame, cols: dict, vessel, models) -> tuple[dict, list[str]]:
+def _speed_loss_columns(samples: pd.DataFrame, cols: dict, vessel, models, learned=None) -> tuple[dict, list[str]]:
     """Each model's speed loss at the service speed on every piece (added to ``cols``), its mean, max
     and the time the geometry takes under it; the models' warnings (out of range ...) as text."""
     from routing.speed_loss import speed_loss
@@ -227,7 +230,8 @@ def _speed_loss_columns(samples: pd.DataFrame, cols: dict, vessel, models) -> tu
     for model in models:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            loss = np.asarray(speed_loss(v0, hs, enc, model, vessel=vessel), dtype=float).reshape(-1) if n else np.zeros(0)
+            loss = (np.asarray(speed_loss(v0, hs, enc, model, vessel=vessel, learned=learned), dtype=float).reshape(-1)
+                    if n else np.zeros(0))
         model_warnings += sorted({f"{model}: {w.message}" for w in caught})
         cols[f"speed_loss_{model}_kn"] = loss
         summary[model] = {
@@ -265,7 +269,7 @@ def _rule_columns(samples: pd.DataFrame, cols: dict, weather: dict, assess_fn: A
     return rules, exposure, margins, skipped
 
 
-def _leg_emissions(route: Route, samples: pd.DataFrame, weather: dict, model: str, vessel) -> pd.DataFrame:
+def _leg_emissions(route: Route, samples: pd.DataFrame, weather: dict, model: str, vessel, learned=None) -> pd.DataFrame:
     """STEAM2 per leg: each leg's own duration and speed, the chosen model's loss on that leg."""
     n_legs = max(route.n_waypoints - 1, 0)
     leg_dt = np.diff(route.time_utc.asi8) / 3.6e12 if n_legs else np.zeros(0)
@@ -281,7 +285,7 @@ def _leg_emissions(route: Route, samples: pd.DataFrame, weather: dict, model: st
         # a route planned with a speed setting per leg (routing.fuel; 0 = a wait): the engine ran that setting, so the
         # power is P(setting) (leg_power_kw with made + loss = setting), the loss re-evaluated at the setting in the weather met
         enc = samples["encounter_deg"].to_numpy()
-        legs = setting_legs(leg_dt, np.asarray(setting, dtype=float), samples, weather, enc, model, vessel)
+        legs = setting_legs(leg_dt, np.asarray(setting, dtype=float), samples, weather, enc, model, vessel, learned=learned)
     else:
         legs = steam2_legs(leg_dt, route.leg_speed_kn, leg_loss, Engine.from_vessel(vessel))
     legs.insert(0, "leg", np.arange(n_legs))
@@ -341,7 +345,7 @@ def _exposure_summary(samples: pd.DataFrame, events: list[dict]) -> dict:
         "no_weather_h": hours(samples["no_data"] if len(samples) else None),
     }
 
-def setting_legs(leg_dt, setting_kn, samples: pd.DataFrame, weather: dict, enc, model: str, vessel) -> pd.DataFrame:
+def setting_legs(leg_dt, setting_kn, samples: pd.DataFrame, weather: dict, enc, model: str, vessel, learned=None) -> pd.DataFrame:
     """STEAM2 legs of a route sailed at a known setting per leg (``speed_setting_kn``, 0 on a wait).
 
     The loss of each sample at its leg's setting (``model`` in the weather met, 0 = calm), averaged over
@@ -360,7 +364,8 @@ def setting_legs(leg_dt, setting_kn, samples: pd.DataFrame, weather: dict, enc, 
         hs = np.nan_to_num(weather.get("hs_m", np.zeros(len(samples))), nan=0.0)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            per = np.where(s > 0, np.asarray(speed_loss(np.maximum(s, 1e-9), hs, np.nan_to_num(enc, nan=0.0), model, vessel=vessel),
+            per = np.where(s > 0, np.asarray(speed_loss(np.maximum(s, 1e-9), hs, np.nan_to_num(enc, nan=0.0), model, vessel=vessel,
+                                                                   learned=learned),
                                              dtype=float).reshape(-1), 0.0)  # fmt: skip
         w = samples["dt_h"].to_numpy()
         den = np.bincount(leg, weights=w, minlength=n_legs)

@@ -1,7 +1,7 @@
 """A learned speed model as the router reads it: a table of speed ratios over Hs x encounter angle.
 
 The router never runs a learned model per edge. ``stormlane learn performance`` fits one
-(:mod:`performance`); for a request, :func:`pipelines.learn.speed_table` evaluates it once on a
+(:mod:`performance`); for a request, :meth:`pipelines.learn.SpeedLossChoice.table` evaluates it once on a
 grid for the request's vessel and hands this module a :class:`LearnedSpeedTable`. The compiled
 kernels (:mod:`routing._kernels.core`) and the vectorised evaluation here interpolate the same
 table bilinearly, so a route is timed identically by the search and by its re-timing.

@@ -473,8 +473,17 @@ def speed_loss_none(speed_kn, hs_m, encounter_deg):
     return _wrap(loss, hs_m)
 
 
+def is_learned(model) -> bool:
+    """``model`` names a learned model (``"learned"`` or ``"learned:NAME"``): its speed comes from a
+    :class:`routing.learned.LearnedSpeedTable`, not from a formula."""
+    return str(model) == "learned" or str(model).startswith("learned:")
+
+
 def _model_params(model, vessel, lpp_m, dwt_t, floor_kn):
     """The ship parameters a model needs (explicit values first, then the vessel's)."""
+    if is_learned(model):
+        floor_kn = vessel.min_speed_kn if (floor_kn is None and vessel is not None) else floor_kn
+        return lpp_m, dwt_t, DEFAULT_FLOOR_KN if floor_kn is None else float(floor_kn)
     if model not in MODELS:
         raise ValueError(f"unknown speed-loss model {model!r}; choose one of {', '.join(MODELS)}")
     if vessel is not None:
@@ -502,6 +511,7 @@ def speed_loss(
     aertssen_bands: str = "wmo",
     wind_ms=None,
     kwon=None,
+    learned=None,
 ):
     """Speed loss by the named model, limited so the speed never drops below a floor.
 
@@ -529,6 +539,11 @@ def speed_loss(
         the floor. [kn]
     bowditch_sectors : {"symmetric", "printed"}
         See :func:`speed_loss_bowditch`.
+    learned : routing.learned.LearnedSpeedTable, optional
+        The table of a learned model (``model`` ``"learned"`` or ``"learned:NAME"``, required
+        then): loss ``v0 * (1 - ratio(Hs, encounter))``, the table's P50 ratio interpolated as the
+        router does (:meth:`routing.learned.LearnedSpeedTable.ratio_at`). The ratio was tabulated at
+        one calm-water speed; at another ``speed_kn`` the same ratio is applied (stated where used).
 
     Returns
     -------
@@ -557,6 +572,10 @@ def speed_loss(
             warnings.warn("Kwon: no wind speed given (wind_ms): loss NaN", SpeedLossValidityWarning, stacklevel=2)
             wind_ms = np.full(np.shape(_as_float(hs_m)), np.nan)
         loss = speed_loss_kwon(speed_kn, wind_ms, encounter_deg, hull)
+    elif is_learned(model):
+        if learned is None:
+            raise ValueError(f"the speed-loss model {model!r} needs its table (learned=LearnedSpeedTable)")
+        loss = _as_float(speed_kn) * (1.0 - learned.ratio_at(_as_float(hs_m), _as_float(encounter_deg)))
     else:
         loss = speed_loss_none(speed_kn, hs_m, encounter_deg)
     v0 = _as_float(speed_kn)

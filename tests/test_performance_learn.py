@@ -186,3 +186,71 @@ def test_route_refuses_a_learned_model_it_cannot_use(world, extra, message):
     vessel = [] if "--vessel" in extra else ["--vessel", "ro-pax"]
     code, _, err = run_cli(["route", *ROUTE, *vessel, "--db", str(world["db"]), *extra])
     assert code == 2 and err.startswith("error: ") and message in err and len(err.strip().splitlines()) == 1, err
+
+
+STORM_A_SHIP = ["--mmsi", "224087350", "--start", "2025-01-14T21:30Z", "--end", "2025-01-15T10:30Z"]
+
+
+def _lane_of(db, mmsi: int) -> str:
+    """The lane of the ship's voyages (the ro-pax through storm A)."""
+    import duckdb
+
+    with duckdb.connect(str(db), read_only=True) as con:
+        return con.execute("SELECT lv.lane_id FROM lane_voyages lv JOIN voyages v USING (voyage_id) WHERE v.mmsi = ? "
+                           "GROUP BY 1 ORDER BY count(*) DESC LIMIT 1", [mmsi]).fetchone()[0]
+
+
+def test_audit_with_the_learned_model_sails_every_route_by_it_and_reads_its_bands(world):
+    code, out, err = run_cli(["audit", *STORM_A_SHIP, "--db", str(world["db"]), "--speed-loss", "learned:fleet", "--json"])
+    assert code == 0, err
+    a = json.loads(out)
+    assert a["speed_loss_model"] == "learned:fleet"
+    roles = [r for r in ("as_sailed", "as_sailed_modelled", "optimal", "min_distance", "deviation") if r in a]
+    assert len(roles) == 5 and all(a[r]["speed_loss_model"] == "learned:fleet" for r in roles)
+    # how every model did on this very voyage: the learned row is the modelled track's own time
+    check = {r["model"]: r for r in a["model_check"]}
+    assert set(check) == {"bowditch", "aertssen", "khokhlov", "learned:fleet"}
+    ais_h, mod_h = a["as_sailed"]["time_h"], a["as_sailed_modelled"]["time_h"]
+    lr = check["learned:fleet"]
+    assert lr["ais_time_h"] == pytest.approx(ais_h) and lr["time_h"] == pytest.approx(mod_h, rel=1e-6)
+    assert lr["bias_h"] == pytest.approx(a["bias"]["time_h"], abs=1e-4)  # the bias is rounded to 4 decimals
+    assert lr["time_h_p10"] < lr["time_h"] < lr["time_h_p90"]
+    assert lr["inside_band"] == (lr["time_h_p10"] <= ais_h <= lr["time_h_p90"])
+    for name in ("bowditch", "aertssen"):
+        assert check[name]["bias_h"] == pytest.approx(check[name]["time_h"] - ais_h)
+    # the bands: P50 is the route as sailed by the model (time and fuel), P10 < P50 < P90
+    band = a["bands"]["as_sailed_modelled"]
+    assert band["time_h_p50"] == pytest.approx(mod_h, rel=1e-6)
+    assert band["fuel_t_p50"] == pytest.approx(a["as_sailed_modelled"]["fuel_t"], rel=1e-6)
+    assert band["time_h_p10"] < band["time_h_p50"] < band["time_h_p90"]
+    if a["proposed"]:
+        b = a["bands"][a["proposed"]]
+        assert b["time_h_p50"] == pytest.approx(a[a["proposed"]]["time_h"], rel=1e-6)
+    assert any("by learned:fleet's quantiles" in f for f in a["findings"])
+    assert any(f.startswith("Speed models on this very voyage") for f in a["findings"])
+
+
+@pytest.mark.parametrize("command", ["audit", "deviate", "nightly"])
+def test_an_unknown_learned_model_is_one_line_listing_the_stored_ones(world, command):
+    extra = {"audit": STORM_A_SHIP, "deviate": ["--lane", "x", "--depart", "2025-01-15T00:00Z"], "nightly": []}[command]
+    code, out, err = run_cli([command, *extra, "--db", str(world["db"]), "--speed-loss", "learned:nope"])
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2 and lines[-1].startswith("error: no learned model 'nope'") and "models: fleet" in lines[-1], err
+
+
+def test_deviate_and_nightly_sail_by_the_learned_model_and_say_so(world, tmp_path):
+    from pipelines.nightly.flow import run_night
+
+    lane = _lane_of(world["db"], 224087350)
+    code, out, err = run_cli(["deviate", "--lane", lane, "--depart", "2025-01-14T22:00Z", "--db", str(world["db"]),
+                              "--speed-loss", "learned:fleet", "--json"])
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["speed_loss_model"] == "learned:fleet"
+    assert d["lane"]["speed_loss_model"] == d["deviation"]["speed_loss_model"] == "learned:fleet"
+    night = run_night(db=str(world["db"]), out=str(tmp_path / "night"), weather_source="workspace", now="2025-01-14T22:00Z",
+                      window_h=1.0, step_h=1.0, lanes=[lane], speed_loss="learned:fleet", exports="none")
+    assert night["speed_loss_model"] == "learned:fleet" and night["failed"] == 0
+    assert night["adverse"] >= 1  # storm A on the lane: a case to carry the band
+    report = Path(night["model"]).read_text(encoding="utf-8")
+    assert "sailing time P10-P50-P90 by learned:fleet's quantiles" in report

@@ -109,7 +109,22 @@ ProfileOption = typer.Option(
     None, "--profile", metavar="NAME|FILE",
     help="Operator-limits profile: a name in data/operator_limits.toml or a TOML file (default: that file's default).")
 SpeedLossOption = typer.Option("bowditch", "--speed-loss", metavar="|".join(SPEED_LOSS_MODELS),
-                               help="Speed-loss model: in waves (bowditch, aertssen, khokhlov) or in the wind (kwon).", show_default=True)
+                               help="Speed-loss model: in waves (bowditch, aertssen, khokhlov), in the wind (kwon), or learned:NAME, "
+                                    "a model learned from the fleet's AIS (`stormlane learn performance`; read from --db).",
+                               show_default=True)
+
+
+def speed_loss_choice(text: str, db):
+    """``--speed-loss`` resolved by the one shared function (:func:`pipelines.learn.resolve_speed_loss`):
+    a name that is neither a formula nor ``learned:NAME`` is one line naming the option; a learned
+    model is read from the workspace ``db`` (default :data:`DEFAULT_DB`, which must exist)."""
+    from pipelines.learn import parse_learned, resolve_speed_loss
+    from routing.speed_loss import MODELS
+
+    learned = parse_learned(text)
+    if learned is None and text not in MODELS:
+        raise typer.BadParameter(f"{text!r} is not one of {', '.join(MODELS)}, learned:NAME", param_hint="--speed-loss")
+    return resolve_speed_loss(text, check_workspace(db) if learned is not None else None)
 TaskRunnerOption = typer.Option(
     "sequential", "--task-runner", metavar="sequential|dask[:ADDRESS]", show_default=True,
     help="Where the parallel part runs: in this process, on a local Dask cluster, or on the Dask scheduler at ADDRESS.")

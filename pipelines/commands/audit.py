@@ -7,7 +7,7 @@ from typing import List, Optional
 
 import typer
 
-from pipelines.commands._common import (DbReadOption, JsonOption, ProfileOption, SpeedLossOption, check_choice, check_output_file,
+from pipelines.commands._common import (DbReadOption, JsonOption, ProfileOption, SpeedLossOption, check_output_file,
                                         emit_json, paths_text, vessel_option, weather_option, xarray_without_dask_arrays)
 
 
@@ -51,6 +51,7 @@ def register(app: typer.Typer) -> None:
 
         --json prints one object with the keys: audit_id; voyage (voyage_id, mmsi, ship_name,
         start_utc, end_utc, lane_id, origin, destination); vessel_profile; operator_profile;
+        speed_loss_model (a formula's name or learned:NAME: every route is sailed by it);
         weather; calm_water_speed (speed_kn, source: ais_low_sea or profile, low_sea_h, low_hs_m);
         as_sailed and as_sailed_modelled, and optimal, safe_optimal, min_distance, deviation when
         computed (each: time_h, dist_nmi, max_hs_m, mean_hs_m, fuel_t, co2_t, exposure_h,
@@ -59,7 +60,9 @@ def register(app: typer.Typer) -> None:
         co2_pct); reference (the role of the deltas); proposed (a role or null: never a route
         that crosses land or has more no_weather_h than the reference); comparison (per role:
         values and d_<metric> deltas against the reference); optimality (per route: gap_h,
-        tolerance_h, holds, constraint); findings.
+        tolerance_h, holds, constraint); model_check (the sailed track re-timed by each wave
+        formula and the learned model against its AIS time); bands (with learned:NAME: P10/P50/P90 time
+        and fuel of the reference and the proposed route); findings.
 
         Example (a ship through a storm, between two times):
 
@@ -75,17 +78,17 @@ def register(app: typer.Typer) -> None:
             raise StormlaneError("give --voyage ID, or --mmsi N with --start ISO and --end ISO")
         if voyage is not None and mmsi is not None:
             raise StormlaneError("give either --voyage or --mmsi/--start/--end, not both")
-        from routing.speed_loss import MODELS
+        from pipelines.commands._common import speed_loss_choice
 
-        check_choice(speed_loss, MODELS, "--speed-loss")
         summary = run_audit(db, voyage_id=voyage, mmsi=mmsi, start=start, end=end, weather=paths_text(weather),
-                            vessel=vessel, profile=profile, report=report, speed_loss_model=speed_loss)
+                            vessel=vessel, profile=profile, report=report, speed_loss_model=speed_loss_choice(speed_loss, db))
         if json_out:
             emit_json(summary)
             return
         v = summary["voyage"]
         typer.echo(f"audit {summary['audit_id']}: MMSI {v['mmsi']} {v['ship_name'] or ''} {v['start_utc']} .. {v['end_utc']}")
-        typer.echo(f"vessel profile {summary['vessel_profile']}, operator limits {summary['operator_profile']}")
+        typer.echo(f"vessel profile {summary['vessel_profile']}, operator limits {summary['operator_profile']}, "
+                   f"every route sailed by speed-loss model {summary['speed_loss_model']}")
         cols = [("time_h", "time h", 1), ("dist_nmi", "nmi", 1), ("max_hs_m", "max Hs", 2), ("mean_hs_m", "mean Hs", 2),
                 ("fuel_t", "fuel t", 2), ("co2_t", "CO2 t", 2), ("exposure_h", "over limits h", 1), ("n_safety_events", "IMO events", 0)]
         typer.echo(f"{'route':<20}" + "".join(f"{label:>14}" for _, label, _ in cols))

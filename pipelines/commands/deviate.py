@@ -7,8 +7,8 @@ from typing import List, Optional
 
 import typer
 
-from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, emit_json, paths_text,
-                                        vessel_option, weather_option, xarray_without_dask_arrays)
+from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption, emit_json, paths_text,
+                                        speed_loss_choice, vessel_option, weather_option, xarray_without_dask_arrays)
 
 
 def register(app: typer.Typer) -> None:
@@ -20,6 +20,7 @@ def register(app: typer.Typer) -> None:
         weather: Optional[List[Path]] = weather_option("the weather loaded in the workspace (`stormlane weather load`)"),
         vessel: Optional[str] = vessel_option(VESSEL_FROM_AIS),
         profile: Optional[str] = ProfileOption,
+        speed_loss: str = SpeedLossOption,
         json_out: bool = JsonOption,
     ) -> None:
         """Walk the lane's centroids from the departure and move every adverse one to the nearest
@@ -27,7 +28,8 @@ def register(app: typer.Typer) -> None:
         keeping legs at sea (a leg over land is replaced by the shortest sea path; a deviation that
         cannot be repaired is not proposed) and recomputing ETAs; prints what moved and the
         comparison with the lane as planned. Both are sailed by the same vessel model from the
-        departure: the lane's typical AIS speed minus the speed loss. --json adds speed_kn,
+        departure: the lane's typical AIS speed minus the speed loss (--speed-loss, a formula or
+        learned:NAME). --json adds speed_loss_model, speed_kn,
         reference ("lane"), proposed (false with the reason in notes) and each route's sea_only,
         land_legs, land_nmi, no_weather_h.
 
@@ -39,12 +41,14 @@ def register(app: typer.Typer) -> None:
         xarray_without_dask_arrays()
         from pipelines.deviate import deviate_in_workspace
 
-        out = deviate_in_workspace(db, lane, depart, weather=paths_text(weather), vessel=vessel, profile=profile)
+        out = deviate_in_workspace(db, lane, depart, weather=paths_text(weather), vessel=vessel, profile=profile,
+                                   speed_loss=speed_loss_choice(speed_loss, db))
         if json_out:
             emit_json(out)
             return
         a, b = out["lane"], out["deviation"]
-        typer.echo(f"lane {out['lane_id']} departing {out['depart_utc']} ({out['vessel_profile']})")
+        typer.echo(f"lane {out['lane_id']} departing {out['depart_utc']} ({out['vessel_profile']}, "
+                   f"{out['speed_kn']:.1f} kn, speed-loss model {out['speed_loss_model']})")
         typer.echo(f"  lane:      {a['time_h']:.1f} h, {a['dist_nmi']:.1f} nmi, max Hs {a['max_hs_m']:.2f} m, "
                    f"{a['exposure_h']:.1f} h over limits, {a['n_safety_events']} IMO event(s)")
         typer.echo(f"  deviation: {b['time_h']:.1f} h, {b['dist_nmi']:.1f} nmi, max Hs {b['max_hs_m']:.2f} m, "

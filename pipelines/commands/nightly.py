@@ -182,7 +182,8 @@ def print_summary(summary: dict) -> None:
                f"{s['window']['step_h']:g} h): {s['lanes_checked']} lanes, {s['departures_checked']} lane-departures checked, "
                f"{s['adverse']} adverse on {s['lanes_at_risk']} lanes, {s['reroutes']} with a proposed reroute, {s['failed']} failed")
     if s["reroutes"]:
-        typer.echo(f"proposed reroutes (against the lane as planned, same vessel model): {_num(s['risk_avoided_h'], '.1f', ' h')} "
+        typer.echo(f"proposed reroutes (against the lane as planned, same vessel model: {s.get('speed_loss_model', 'bowditch')}): "
+                   f"{_num(s['risk_avoided_h'], '.1f', ' h')} "
                    f"at risk avoided, {s['events_avoided']} IMO events avoided, time {_num(s['delta_time_h'], '+.1f', ' h')}, "
                    f"fuel {_num(s['delta_fuel_t'], '+.1f', ' t')}, CO2 {_num(s['delta_co2_t'], '+.1f', ' t')}")
     if s["top"]:

@@ -181,11 +181,9 @@ def _ship(vessel: str | None, speed_loss: str, learned, speed_kn: float | None, 
     ship_vessel = load_vessel(vessel or DEFAULT_VESSEL)
     if learned is None:
         return ship_vessel, ShipModel.from_vessel(ship_vessel, speed_loss, speed_kn=speed_kn, aertssen_bands=aertssen_bands)
-    from pipelines.commands._common import check_workspace
-    from pipelines.learn import speed_table
+    from pipelines.commands._common import speed_loss_choice
 
-    table = speed_table(check_workspace(db), learned, vessel=ship_vessel, speed_kn=speed_kn or ship_vessel.speed_kn)
-    return ship_vessel, ShipModel.from_vessel(ship_vessel, "learned", speed_kn=speed_kn, learned=table)
+    return ship_vessel, speed_loss_choice(speed_loss, db).ship(ship_vessel, speed_kn=speed_kn)
 
 
 def _weather_field(files: list[Path], depart_utc, points):

@@ -72,8 +72,8 @@ class NightlyParams(BaseModel):
     def _model(cls, v: str) -> str:
         from routing.speed_loss import MODELS
 
-        if v not in MODELS:
-            raise ValueError(f"unknown speed-loss model {v!r}; use one of {', '.join(MODELS)}")
+        if v not in MODELS and not v.startswith("learned:"):
+            raise ValueError(f"unknown speed-loss model {v!r}; use one of {', '.join(MODELS)}, learned:NAME")
         return v
 
     @field_validator("now")
@@ -154,6 +154,7 @@ class Night:
     vessels: dict  # profile name -> Vessel
     limits: object  # OperatorProfile
     out: Path
+    speed_model: object = None  # pipelines.learn.SpeedLossChoice of params.speed_loss (resolved once)
 
     def path_departures(self, p: NightPath) -> list:
         return list(p.departures) or list(self.departures)
@@ -168,10 +169,11 @@ class LaneJob:
     centroids: pd.DataFrame
     vessel: object  # thresholds.vessel.Vessel
     limits: object  # OperatorProfile
-    speed_loss: str
+    speed_loss: str  # a formula's name or learned:NAME
     departures: list  # Timestamps
     weather: object  # routing.field.WeatherField
     safety: str = "hard"
+    learned: object = None  # learned:NAME: its LearnedSpeedTable for this lane's vessel and speed (or the error why none)
 
 
 @dataclass

@@ -55,6 +55,10 @@ def preflight(params: NightlyParams) -> None:
     flow's I/O task, which retries it."""
     _require_workspace(params.db)
     _require_weather_files(params.weather)
+    if params.speed_loss.startswith("learned:"):  # the stored model exists (one line listing the models)
+        from pipelines.learn import resolve_speed_loss
+
+        resolve_speed_loss(params.speed_loss, params.db)
     if params.voyages:
         read_planned_voyages(params.voyages)  # file, columns, times and vessel profiles, by line
     if params.report:

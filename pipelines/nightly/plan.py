@@ -93,9 +93,11 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
         its grid misses the lanes.
     """
     from pipelines.config import load_operator_profile, load_vessel
+    from pipelines.learn import resolve_speed_loss
     from weather.coverage import check_coverage
     from weather.errors import CoverageError
 
+    speed_model = resolve_speed_loss(params.speed_loss, params.db)  # learned:NAME: one line listing the stored models
     departures = departure_times(now, params.window_h, params.step_h)
     first = min(min(p.departures) if p.departures else departures[0] for p in paths)
     last = max(max(p.departures) if p.departures else departures[-1] for p in paths)
@@ -119,4 +121,4 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
     out = Path(params.out) if params.out else default_out(now, params.out_root)
     return Night(run_id=run_id, now_utc=now, departures=departures, params=params, paths=paths, weather_ds=sub,
                  weather_meta=dict(meta), weather_source=source, weather_digest=wd, lanes_digest=ld, vessels=vessels,
-                 limits=limits, out=out)
+                 limits=limits, out=out, speed_model=speed_model)

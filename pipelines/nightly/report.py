@@ -195,7 +195,23 @@ def _case_model(night: Night, case: dict, detailed: bool, archive: dict | None):
     return lane_departure_model(
         evaluations=o["evaluations"], table=o["table"], proposed=o["proposed"], weather_ds=night.weather_ds, exports=links,
         risk_avoided=row["risk_avoided_h"], events_avoided=None if events is None or pd.isna(events) else int(events),
-        hs_limit_m=_hs_limit_m(night, row["path_id"]), optimality=o.get("optimality", ()), detailed=detailed, **common)
+        hs_limit_m=_hs_limit_m(night, row["path_id"]), optimality=o.get("optimality", ()), detailed=detailed,
+        bands=o.get("bands"), **common)
+
+
+def _curve(night: Night):
+    """The speed-loss curve of the most common vessel at its service speed (a learned model's table
+    for it; no curve, said in the methods, when that vessel lies outside what the model was trained on)."""
+    from pipelines.reporting import speed_loss_curve
+    from thresholds.errors import StormlaneError
+
+    vessel = _most_common_vessel(night)
+    choice = night.speed_model
+    try:
+        table = choice.table(vessel) if choice is not None else None
+    except StormlaneError:
+        return None
+    return speed_loss_curve(vessel, night.params.speed_loss, learned=table)
 
 
 def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -> dict:
@@ -207,7 +223,6 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
     from dashboards.model import NightlyReport, report_to_json
     from dashboards.report import render_nightly_report
     from pipelines.nightly.rank import overview_of
-    from pipelines.reporting import speed_loss_curve
 
     out = Path(night.out)
     _require_out_dir(out)
@@ -220,7 +235,7 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
         window_start_utc=night.departures[0], window_end_utc=night.departures[0] + pd.Timedelta(hours=night.params.window_h),
         departure_step_h=night.params.step_h, lanes_checked=result.counts["lanes_checked"],
         departures_checked=result.counts["departures_checked"], departures=departures, provenance=_provenance(night),
-        speed_loss=speed_loss_curve(_most_common_vessel(night), night.params.speed_loss), max_detail=night.params.max_detail,
+        speed_loss=_curve(night), max_detail=night.params.max_detail,
         lanes=_lane_lines(night), grid=_grid(result), summary=overview_of(result),
         exports={"exports.zip": "exports.zip"} if archive else {},
     )

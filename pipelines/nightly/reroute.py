@@ -26,8 +26,23 @@ def lane_jobs(night: Night, screen: pd.DataFrame) -> list[LaneJob]:
         jobs.append(LaneJob(path_id=pid, lane_id=p.lane_id, centroids=p.centroids, vessel=night.vessels[p.vessel_profile],
                             limits=night.limits, speed_loss=night.params.speed_loss,
                             departures=sorted(pd.Timestamp(t) for t in g["depart_utc"]), weather=field_,
-                            safety=night.params.safety))
+                            safety=night.params.safety, learned=_lane_table(night, p)))
     return jobs
+
+
+def _lane_table(night: Night, p):
+    """A learned model's table for the lane's vessel at the lane's typical speed, tabulated here once
+    (workers get the table, not the fitted model); the error when the vessel lies outside what the
+    model was trained on (the lane then fails with it); None for a formula."""
+    from thresholds.errors import StormlaneError
+
+    if night.speed_model is None or night.speed_model.learned_name is None:
+        return None
+    vessel = lane_speed_vessel(night.vessels[p.vessel_profile], p.centroids.sort_values("seq"))
+    try:
+        return night.speed_model.table(vessel, vessel.speed_kn)
+    except StormlaneError as err:
+        return err
 
 
 def lane_speed_vessel(vessel, centroids: pd.DataFrame):
@@ -77,7 +92,10 @@ def reroute_lane(job: LaneJob) -> list[dict]:
         vessel = lane_speed_vessel(job.vessel, c)
         sampler = PointSampler.from_field(job.weather)
         weather_at, check, cells = threshold_inputs(sampler, vessel, job.limits)
-        ship = ShipModel.from_vessel(vessel, job.speed_loss)
+        if isinstance(job.learned, Exception):
+            raise job.learned
+        ship = (ShipModel.from_vessel(vessel, "learned", learned=job.learned) if job.learned is not None
+                else ShipModel.from_vessel(vessel, job.speed_loss))
         start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
         bbox = plan_bbox(start, goal, lat, lon, job.weather)
         fixed = sea_checks(lat, lon)[1](lat, lon)  # the lane's legs over land, repaired once for every departure
@@ -99,14 +117,32 @@ def reroute_lane(job: LaneJob) -> list[dict]:
                 routes["safe_optimal"] = _clean_route(plan.routes["safe_optimal_smoothed"], "safe_optimal")
             routes["optimal"] = _clean_route(plan.routes["optimal_smoothed"], "optimal")
             routes["min_distance"] = _clean_route(plan.routes["min_distance"])
-            evs = {role: evaluate_route(r, sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss)
+            evs = {role: evaluate_route(r, sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss, learned=job.learned)
                    for role, r in routes.items()}
+            proposed = propose(evs, reference=REFERENCE)
             out.append({"path_id": job.path_id, "depart_utc": t, "status": "adverse", "evaluations": evs,
-                        "table": comparison_table(evs, reference=REFERENCE), "proposed": propose(evs, reference=REFERENCE),
-                        "optimality": optimality_gaps(routes, plan), "error": None})
+                        "table": comparison_table(evs, reference=REFERENCE), "proposed": proposed,
+                        "optimality": optimality_gaps(routes, plan), "error": None,
+                        "bands": _bands(evs, proposed, plan, sampler, vessel, job)})
         except Exception as err:  # noqa: BLE001 - one departure fails, the others run
             log.warning("lane %s departing %s failed: %s", job.path_id, t, err)
             out.append({"path_id": job.path_id, "depart_utc": t, "status": "failed", "error": f"{type(err).__name__}: {err}"})
+    return out
+
+
+def _bands(evs: dict, proposed: str | None, plan, sampler, vessel, job: LaneJob) -> dict:
+    """With a learned model: P10/P50/P90 time and fuel of the lane as planned and of the proposed
+    route (:func:`routing.bands.quantile_bands`); empty for a formula."""
+    from routing.bands import quantile_bands
+
+    if job.learned is None:
+        return {}
+    out = {}
+    for role in dict.fromkeys([REFERENCE, proposed]):
+        if role in evs:
+            band = quantile_bands(evs[role].route, plan, sampler, vessel, label=job.speed_loss, limits=job.limits)
+            if band is not None:
+                out[role] = band
     return out
 
 
