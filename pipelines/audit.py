@@ -240,14 +240,6 @@ def _check_coverage(sampler, start_utc: pd.Timestamp, end_utc: pd.Timestamp, wha
         )
 
 
-def speed_loss_of(speed_loss_model, db=None):
-    """The audit's speed-loss model as :class:`pipelines.learn.SpeedLossChoice` (a formula's name,
-    ``learned:NAME`` read from ``db``, or a choice already resolved)."""
-    from pipelines.learn import SpeedLossChoice, resolve_speed_loss
-
-    return speed_loss_model if isinstance(speed_loss_model, SpeedLossChoice) else resolve_speed_loss(str(speed_loss_model), db)
-
-
 def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternatives: bool = True, safety: str = "hard") -> dict:
     """The audit itself (plain function): track, its modelled twin, alternatives, evaluations, comparison.
 
@@ -290,7 +282,9 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
     _check_coverage(sampler, track.time_utc[0], track.time_utc[-1], "voyage")
     calm = calm_water_speed(track, sampler, inputs.vessel.speed_kn)
     vessel = dataclasses.replace(inputs.vessel, speed_kn=calm["speed_kn"]) if calm["speed_kn"] > inputs.vessel.min_speed_kn else inputs.vessel
-    choice = speed_loss_of(speed_loss_model)
+    from pipelines.learn import resolve_speed_loss
+
+    choice = resolve_speed_loss(speed_loss_model)
     table = choice.table(vessel, vessel.speed_kn)  # None for a formula
     alts: dict = {}
     plan = None
@@ -506,7 +500,9 @@ def run_audit(db, *, voyage_id: str | None = None, mmsi: int | None = None, star
     """Plain entry point (CLI, demo, tests): read, audit, store; returns :func:`audit_summary`.
     ``speed_loss_model``: a formula's name, ``learned:NAME`` (a model stored in ``db``) or a resolved
     :class:`pipelines.learn.SpeedLossChoice`."""
-    choice = speed_loss_of(speed_loss_model, db)
+    from pipelines.learn import resolve_speed_loss
+
+    choice = resolve_speed_loss(speed_loss_model, db)
     inputs = load_audit_inputs(db, voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather_paths=weather or (),
                                vessel=vessel, profile=profile)
     result = audit_voyage(inputs, speed_loss_model=choice)
@@ -527,12 +523,14 @@ def audit_flow(db: str, voyage_id: str | None = None, mmsi: int | None = None, s
     store = task(store_audit, name="store-audit", retries=3, retry_delay_seconds=[2, 5, 15], retry_condition_fn=retry_transient,
                  cache_policy=NO_CACHE)
 
+    from pipelines.learn import resolve_speed_loss
+
     @flow(name="voyage-audit")
     def voyage_audit(db: str, voyage_id: str | None = None, mmsi: int | None = None, start: str | None = None, end: str | None = None,
                      weather: list[str] | None = None, vessel: str | None = None, profile: str | None = None,
                      report: str | None = None, speed_loss_model: str = "bowditch") -> dict:
         inputs = load(db, voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather_paths=weather or (), vessel=vessel, profile=profile)
-        result = compute(inputs, speed_loss_model=speed_loss_of(speed_loss_model, db))
+        result = compute(inputs, speed_loss_model=resolve_speed_loss(speed_loss_model, db))
         return store(db, inputs, result, report=report)
 
     return voyage_audit(db=str(db), voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather=weather, vessel=vessel,

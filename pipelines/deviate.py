@@ -136,8 +136,8 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
         (status of every waypoint), ``metrics`` (the seed paper's comparison metrics, deviation
         against lane) and ``deviation_id``.
     """
-    from pipelines.audit import speed_loss_of
     from pipelines.config import load_operator_profile, load_vessel
+    from pipelines.learn import resolve_speed_loss
     from pipelines.nightly.reroute import lane_speed_vessel
     from pipelines.routing_weather import field_from_dataset
     from pipelines.storage import open_workspace
@@ -153,7 +153,7 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     if t0 is None:
         raise DeviationInputError(f"--depart {depart!r} is not an ISO 8601 time")
     files = [str(p) for p in weather]
-    choice = speed_loss_of(speed_loss, db)
+    choice = resolve_speed_loss(speed_loss, db)
     lane, vessel_name, ds, meta, label = _lane_and_weather(db, str(lane_id), t0, files, vessel)
     limits = load_operator_profile(profile)
     field_ = field_from_dataset(ds)
