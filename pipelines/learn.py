@@ -191,23 +191,73 @@ def _fit_and_store(req: LearnRequest, table: pd.DataFrame, funnel: dict, grid: d
 CLASS_PROFILE = {"passenger": "ro-pax", "cargo": "container-feeder", "tanker": "tanker-aframax", "other": "container-feeder"}
 
 
-def beside_operator_limits(voluntary: list[dict], profile: str | None = None) -> list[dict]:
-    """Per class: the Hs above which AIS shows voluntary slow-down in head-to-bow seas, beside the
-    operator's configured Hs limit for the class's vessel profile (evidence, not a replacement)."""
+def beside_operator_limits(voluntary: list[dict], profile: str | None = None, vessels=None) -> list[dict]:
+    """Per vessel (default: each learned class's vessel profile, :data:`CLASS_PROFILE`): the Hs and
+    heading sector above which AIS shows voluntary slow-down for its class (head-to-bow seas first,
+    then the other sectors that show a step), beside the operator's configured Hs limit for that
+    vessel (evidence for the operator, not a replacement of the limits)."""
+    from performance.tabulate import PROFILE_CLASS
     from pipelines.config import load_operator_profile, load_vessel
 
     prof = load_operator_profile(profile)
-    rows = []
+    by_class: dict = {}
     for r in voluntary:
-        if r["sector"] != "head-bow":
-            continue
-        v = load_vessel(CLASS_PROFILE.get(r["ship_class"], "container-feeder"))
+        by_class.setdefault(r["ship_class"], []).append(r)
+    if vessels is None:
+        pairs = [(c, load_vessel(CLASS_PROFILE.get(c, "container-feeder"))) for c in by_class
+                 if any(r["sector"] == "head-bow" for r in by_class[c])]
+    else:
+        pairs = [(PROFILE_CLASS.get(str(v.vessel_class), "other"), v) for v in vessels]
+    rows = []
+    for cls, v in pairs:
+        sectors = by_class.get(cls, [])
+        head = next((r for r in sectors if r["sector"] == "head-bow"), None)
         lim = prof.limits_for(v.vessel_class, v.lpp_m)
         hs_lim = lim.hs_max_m if isinstance(lim.hs_max_m, (int, float)) else None
-        rows.append({"ship_class": r["ship_class"], "vessel_profile": v.name, "operator_profile": prof.name,
-                     "limits": lim.name, "operator_hs_max_m": hs_lim, "learned_hs_m": r["threshold_hs_m"],
-                     "learned_interval_hs_m": [r["from_hs_m"], r["to_hs_m"]] if r["threshold_hs_m"] is not None else None})
+        found = [{"sector": r["sector"], "encounter_deg": r.get("encounter_deg"), "hs_m": r["threshold_hs_m"]}
+                 for r in sectors if r["threshold_hs_m"] is not None]
+        rows.append({"ship_class": cls, "vessel_profile": v.name, "operator_profile": prof.name,
+                     "limits": lim.name, "operator_hs_max_m": hs_lim,
+                     "learned_hs_m": None if head is None else head["threshold_hs_m"],
+                     "learned_interval_hs_m": [head["from_hs_m"], head["to_hs_m"]] if head and head["threshold_hs_m"] is not None else None,
+                     "learned_sectors": found,
+                     "why_none": None if head is None else head.get("why")})
     return rows
+
+
+def learned_limits(db, name: str | None = None, *, profile: str | None = None, vessels=None) -> dict | None:
+    """The voluntary slow-down a stored model learned (``name``; default the newest model in the
+    workspace), beside the operator limits of ``profile`` for ``vessels``: ``{"model", "rows"}``
+    (:func:`beside_operator_limits`), None when the workspace holds no model. Reads the model's row
+    only (its stored metrics), not its file."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.performance import list_models, read_model
+
+    if db is None or not Path(db).exists():
+        return None
+    with open_workspace(db, read_only=True) as ws:
+        if name is None:
+            try:
+                names = list_models(ws)["name"].tolist()
+            except Exception:  # noqa: BLE001 - a workspace without the models table holds no model
+                return None
+            if not names:
+                return None
+            name = names[0]
+        row = read_model(ws, name)
+    return {"model": f"learned:{name}", "rows": beside_operator_limits(row["metrics"]["voluntary"], profile, vessels)}
+
+
+def limit_line(r: dict) -> str:
+    """One row of :func:`beside_operator_limits` in words."""
+    op = "none" if r["operator_hs_max_m"] is None else f"Hs {r['operator_hs_max_m']:.2f} m"
+    if r["learned_hs_m"] is None:
+        got = "no voluntary slow-down found in head-to-bow seas" + (f" ({r['why_none']})" if r.get("why_none") else "")
+    else:
+        got = f"masters slow down above Hs {r['learned_hs_m']:.2f} m in head-to-bow seas (0-60 deg)"
+    other = [f"{s['sector']} above Hs {s['hs_m']:.2f} m" for s in r.get("learned_sectors", []) if s["sector"] != "head-bow"]
+    return (f"{r['ship_class']} ({r['vessel_profile']}): {got}" + (f", {', '.join(other)}" if other else "")
+            + f"; operator limit {op} ({r['operator_profile']}: {r['limits']})")
 
 
 def _file_of(req: LearnRequest) -> Path:
@@ -326,11 +376,15 @@ class SpeedLossChoice:
         return {"label": self.label, "db": self.db, "_loaded": None}
 
 
-def resolve_speed_loss(text: str, db=None, option: str = "--speed-loss") -> SpeedLossChoice:
+def resolve_speed_loss(text, db=None, option: str = "--speed-loss") -> SpeedLossChoice:
     """The one resolution of ``--speed-loss`` for route, audit, deviate and nightly: a formula's
     name (:data:`routing.speed_loss.MODELS`) or ``learned:NAME``, a model stored in the workspace
-    ``db`` (checked now: an unknown name is one line listing the stored models)."""
+    ``db`` (checked now: an unknown name is one line listing the stored models); a choice already
+    resolved is returned as it is."""
     from routing.speed_loss import MODELS
+
+    if isinstance(text, SpeedLossChoice):
+        return text
 
     name = parse_learned(text)
     if name is None:
@@ -419,8 +473,5 @@ def table_lines(summary: dict) -> list[str]:
     if summary.get("limits"):
         lines.append("beside the configured operator limits (head-to-bow seas):")
     for r in summary.get("limits", []):
-        op = "none" if r["operator_hs_max_m"] is None else f"Hs {r['operator_hs_max_m']:.2f} m"
-        got = "no voluntary slow-down found" if r["learned_hs_m"] is None else f"masters slow down above Hs {r['learned_hs_m']:.2f} m"
-        lines.append(f"  {r['ship_class']:<10} {got}; operator limit {op} "
-                     f"({r['operator_profile']}: {r['limits']}, profile {r['vessel_profile']})")
+        lines.append(f"  {limit_line(r)}")
     return lines

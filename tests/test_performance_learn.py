@@ -254,3 +254,24 @@ def test_deviate_and_nightly_sail_by_the_learned_model_and_say_so(world, tmp_pat
     assert night["adverse"] >= 1  # storm A on the lane: a case to carry the band
     report = Path(night["model"]).read_text(encoding="utf-8")
     assert "sailing time P10-P50-P90 by learned:fleet's quantiles" in report
+    # the learned voluntary slow-down beside the operator limits, for the night's vessel
+    head = {r["ship_class"]: r["threshold_hs_m"] for r in world["summary"]["voluntary"] if r["sector"] == "head-bow"}
+    rows = night["learned_limits"]["rows"]
+    assert night["learned_limits"]["model"] == "learned:fleet" and rows
+    assert all(r["learned_hs_m"] == head[r["ship_class"]] and r["operator_hs_max_m"] for r in rows)
+    assert "AIS voluntary slow-down (learned:fleet" in report
+
+
+def test_the_thresholds_output_shows_the_learned_slow_down_beside_the_operator_limit(world):
+    weather = [str(p) for p in sorted((world["out"] / "weather").glob("*.nc"))]
+    code, out, err = run_cli(["weather", "exceedance", *weather, "--vessel", "tanker-aframax", "--learned", "fleet",
+                              "--db", str(world["db"]), "--json"])
+    assert code == 0, err
+    data = json.loads(out)
+    (row,) = data["learned_limits"]["rows"]
+    head = {r["ship_class"]: r for r in world["summary"]["voluntary"] if r["sector"] == "head-bow"}
+    assert row["ship_class"] == "tanker" and row["learned_hs_m"] == head["tanker"]["threshold_hs_m"] is not None
+    assert row["operator_hs_max_m"] is not None and row["limits"] == data["limits"]
+    code, out, err = run_cli(["weather", "exceedance", *weather, "--vessel", "tanker-aframax", "--learned", "fleet",
+                              "--db", str(world["db"])])
+    assert code == 0 and f"masters slow down above Hs {row['learned_hs_m']:.2f} m in head-to-bow seas" in out, err

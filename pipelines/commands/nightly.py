@@ -186,6 +186,11 @@ def print_summary(summary: dict) -> None:
                    f"{_num(s['risk_avoided_h'], '.1f', ' h')} "
                    f"at risk avoided, {s['events_avoided']} IMO events avoided, time {_num(s['delta_time_h'], '+.1f', ' h')}, "
                    f"fuel {_num(s['delta_fuel_t'], '+.1f', ' t')}, CO2 {_num(s['delta_co2_t'], '+.1f', ' t')}")
+    beside = s.get("learned_limits")
+    for r in (beside or {}).get("rows", []):
+        from pipelines.learn import limit_line
+
+        typer.echo(f"beside the limits, {beside['model']} (AIS evidence, not a limit): {limit_line(r)}")
     if s["top"]:
         typer.echo(f"  {'#':>3}  {'lane':<10} {'departure':<17} {'at risk avoided':>15}  {'proposed':<14} {'time':>7}  rules")
     for row in s["top"]:

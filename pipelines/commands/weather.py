@@ -15,7 +15,7 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import (VESSEL_WITHOUT_AIS, DbOption, DbReadOption, JsonOption, ProfileOption, check_choice,
+from pipelines.commands._common import (VESSEL_WITHOUT_AIS, DbOption, DbReadOption, JsonOption, LearnedDbOption, ProfileOption, check_choice,
                                         check_output_dir, check_output_file, emit_json, progress, vessel_option,
                                         xarray_without_dask_arrays)
 
@@ -287,9 +287,18 @@ def exceedance(
     vessel: str = vessel_option(VESSEL_WITHOUT_AIS),
     profile: str = ProfileOption,
     headings: int = typer.Option(0, "--headings", metavar="N", show_default=True, help="Evaluate N equally spaced headings (0 = heading-free rules only)."),
+    learned: str = typer.Option(None, "--learned", metavar="NAME", help="Also print, beside the vessel's operator limits, the sea state "
+                                "above which AIS shows its class slowing down voluntarily, as the stored model NAME learned it "
+                                "(`stormlane learn performance`; read from --db): evidence, not a limit."),
+    db: Path = LearnedDbOption,
     json_out: bool = JsonOption,
 ) -> None:
     """Per time step: share of sea cells breaking the vessel's operator limits and IMO rules.
+
+    With --learned NAME, the learned voluntary slow-down of the vessel's class (Hs and heading
+    sector, from the fleet's AIS) is printed beside the operator's Hs limit (--json:
+    learned_limits with model and rows: ship_class, operator_hs_max_m, learned_hs_m,
+    learned_interval_hs_m, learned_sectors).
 
     Example (Storm Gloria for a large container ship):
 
@@ -311,13 +320,26 @@ def exceedance(
     hdg = None if headings <= 0 else np.arange(headings) * 360.0 / headings
     table, skipped = exceedance_by_time(ds, v, prof, headings_deg=hdg)
     limits = prof.limits_for(v.vessel_class, v.lpp_m)
+    beside = None
+    if learned is not None:
+        from pipelines.commands._common import check_workspace
+        from pipelines.learn import learned_limits
+        from pipelines.storage.performance import check_name
+
+        beside = learned_limits(check_workspace(db), check_name(learned), profile=profile, vessels=[v])
     if json_out:
         rows = [{"time_utc": t.strftime("%Y-%m-%dT%H:%MZ"), **{k: (float(x) if k == "unsafe_frac" else int(x)) for k, x in r.items()}}
                 for t, r in table.iterrows()]
         emit_json({"product": meta["product"], "vessel": v.name, "profile": prof.name, "limits": limits.name,
-                   "skipped": list(skipped), "mean_unsafe_frac": float(table.unsafe_frac.mean()), "steps": rows})
+                   "skipped": list(skipped), "mean_unsafe_frac": float(table.unsafe_frac.mean()), "steps": rows,
+                   **({"learned_limits": beside} if beside is not None else {})})
         return
     typer.echo(f"{meta['product']} | vessel {v.name} | profile {prof.name}: {limits.name}")
+    if beside is not None:
+        from pipelines.learn import limit_line
+
+        for r in beside["rows"]:
+            typer.echo(f"  beside the limits, {beside['model']} (AIS evidence, not a limit): {limit_line(r)}")
     for s in skipped:
         typer.echo(f"  not evaluated: {s}")
     rule_cols = [c for c in table.columns if c.startswith("n_") and c not in ("n_sea", "n_unsafe")]

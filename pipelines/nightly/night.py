@@ -155,6 +155,7 @@ class Night:
     limits: object  # OperatorProfile
     out: Path
     speed_model: object = None  # pipelines.learn.SpeedLossChoice of params.speed_loss (resolved once)
+    learned_limits: dict | None = None  # pipelines.learn.learned_limits: AIS voluntary slow-down beside the limits
 
     def path_departures(self, p: NightPath) -> list:
         return list(p.departures) or list(self.departures)

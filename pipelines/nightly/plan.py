@@ -93,7 +93,7 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
         its grid misses the lanes.
     """
     from pipelines.config import load_operator_profile, load_vessel
-    from pipelines.learn import resolve_speed_loss
+    from pipelines.learn import learned_limits, resolve_speed_loss
     from weather.coverage import check_coverage
     from weather.errors import CoverageError
 
@@ -113,6 +113,8 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
     for name in sorted({p.vessel_profile for p in paths}):
         vessels[name] = load_vessel(name)
     limits = load_operator_profile(params.profile)
+    # the voluntary slow-down AIS shows, beside the limits: the model sailed by, else the newest stored one
+    beside = learned_limits(params.db, speed_model.learned_name, profile=params.profile, vessels=list(vessels.values()))
     wd = weather_digest(sub)
     ld = lanes_digest(paths)
     rid = _digest(now.isoformat(), [t.isoformat() for t in departures], params.window_h, params.step_h, ld, wd,
@@ -121,4 +123,4 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
     out = Path(params.out) if params.out else default_out(now, params.out_root)
     return Night(run_id=run_id, now_utc=now, departures=departures, params=params, paths=paths, weather_ds=sub,
                  weather_meta=dict(meta), weather_source=source, weather_digest=wd, lanes_digest=ld, vessels=vessels,
-                 limits=limits, out=out, speed_model=speed_model)
+                 limits=limits, out=out, speed_model=speed_model, learned_limits=beside)

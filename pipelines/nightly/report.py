@@ -92,13 +92,20 @@ def _vessels(night: Night) -> list[dict]:
     lanes: dict = {}
     for p in night.paths:
         lanes[p.vessel_profile] = lanes.get(p.vessel_profile, 0) + 1
+    beside = night.learned_limits or {}
+    learned = {r["vessel_profile"]: r for r in beside.get("rows", [])}
     out = []
     for name, vessel in sorted(night.vessels.items()):
         limits = _limits_of(night, vessel)
         d = vessel.to_dict()
+        shown = limits_for_report(limits)
+        if name in learned:  # beside the configured limits: evidence, not a limit
+            r = learned[name]
+            shown[f"AIS voluntary slow-down ({beside['model']}, {r['ship_class']})"] = (
+                "none found" if r["learned_hs_m"] is None else f"above Hs {r['learned_hs_m']:.2f} m, head-to-bow seas")
         out.append({"name": name, "lanes": lanes.get(name, 0),
                     "thresholds_profile": f"{getattr(night.limits, 'name', '')}: {getattr(limits, 'name', '')}".strip(": "),
-                    "limits": limits_for_report(limits),
+                    "limits": shown,
                     "particulars": {k: d[k] for k in ("vessel_class", "speed_kn", "lpp_m", "beam_m", "draught_m", "dwt_t",
                                                       "installed_power_kw", "gm_m") if d.get(k) is not None}})
     return out
@@ -115,6 +122,10 @@ def _models(night: Night) -> dict:
                   + ("" if p.safety == "none" else f"and safe time-optimal A* ({p.safety} limits, soft when hard finds none) ")
                   + "on a lat/lon mesh (SIMROUTE)",
         "land": "global-land-mask 30\" raster, one check of every great-circle leg",
+        **({"learned limits": f"{night.learned_limits['model']}: per ship class, the Hs above which the fleet's AIS shows masters "
+                              "slowing down voluntarily (head-to-bow seas), listed beside each vessel's operator limits: evidence "
+                              "for the operator, not a replacement (the screen uses the configured limits)"}
+           if night.learned_limits else {}),
     }
 
 

@@ -65,6 +65,7 @@ def summary_of(night: Night, result: NightResult, report: dict | None, timings: 
         "exports_zip": rep.get("exports_zip"),
         "out": str(night.out),
         "speed_loss_model": night.params.speed_loss,
+        "learned_limits": night.learned_limits,
         "timings_s": timings,
         "reference": "lane: the lane as planned, sailed by the same vessel model (the lane's typical AIS speed minus the speed "
                      "loss) from the same departure in the same weather; every delta is proposed minus it",
