@@ -26,13 +26,18 @@ _OK = f"kind = '{C.KIND_POSITION}' AND reason0 IS NULL"
 
 def _dedupe_sql(has_old: bool, stage: str = "ais_stage") -> str:
     """Rows (line, reason) that repeat the (mmsi, time) of an earlier row of the file or of a
-    stored row: ``duplicate`` when all normalised values agree, else ``duplicate_time``."""
+    stored row: ``duplicate`` when all normalised values agree, else ``duplicate_time``.
+
+    Stored rows are read only for the MMSIs whose latest stored fix (``ais_track_ends``) is at
+    or after their first staged fix: the others' stored keys are all earlier than any of theirs."""
     firsts = ", ".join(f"first_value({v}) OVER w AS f_{v}" for v in _VALUES)
     if has_old:
         same = " AND ".join(f"(CASE WHEN in_db THEN p_{v} ELSE f_{v} END) IS NOT DISTINCT FROM {v}" for v in _VALUES)
         old = f"""old AS (
             SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS time_utc, {", ".join(f"p.{v} AS p_{v}" for v in _VALUES)}
-            FROM ais_positions p SEMI JOIN (SELECT DISTINCT mmsi FROM {stage} WHERE {_OK}) USING (mmsi)
+            FROM ais_positions p SEMI JOIN (
+                SELECT s.mmsi FROM (SELECT mmsi, min(time_utc) AS t0 FROM {stage} WHERE {_OK} GROUP BY mmsi) s
+                JOIN ais_track_ends e USING (mmsi) WHERE make_timestamp(epoch_us(e.time_utc)) >= s.t0) USING (mmsi)
             WHERE p.time_utc BETWEEN (SELECT min(time_utc) FROM {stage} WHERE {_OK})
                                  AND (SELECT max(time_utc) FROM {stage} WHERE {_OK})
         ),"""
@@ -69,24 +74,33 @@ def _track_sql(has_old: bool, stage: str = "ais_stage") -> str:
 
     A track is fetched when any consecutive pair implies more than 0.999 x the limit: a superset
     of what the numpy kernel flags (the margin absorbs float differences between SQL and numpy).
+
+    The stored context of an MMSI is its last stored fix before its first fix in the stage, its
+    stored fixes within the stage's span and its first stored fix after it. When the MMSI's
+    latest stored fix (``ais_track_ends``) is before its first staged fix (a file continuing
+    the stored track, the daily case) that fix is the whole context; only the other MMSIs
+    (stored fixes at or after their first staged one: overlapping or out-of-order files) read
+    their stored history. So a file's check costs its own rows plus one row per vessel, not the
+    stored table (issue 23: the whole-history join grew with the workspace).
     """
     r = float(EARTH_RADIUS_NMI)
     lon = _NORM["lon_deg"]
     new = (f"SELECT s.line, s.mmsi, s.time_utc, s.lat_deg, {lon.replace('lon_deg', 's.lon_deg')} AS lon_deg "
            f"FROM {stage} s ANTI JOIN ais_dup d USING (line) WHERE s.kind = '{C.KIND_POSITION}' AND s.reason0 IS NULL")
-    ctx = ""
     if has_old:
-        ctx = f"""
-        UNION ALL SELECT -1, mmsi, time_utc, lat_deg, lon_deg FROM ex WHERE time_utc BETWEEN t0 AND t1
-        UNION ALL SELECT -1, mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc) FROM ex
-            WHERE time_utc < t0 GROUP BY mmsi
-        UNION ALL SELECT -1, mmsi, min(time_utc), arg_min(lat_deg, time_utc), arg_min(lon_deg, time_utc) FROM ex
-            WHERE time_utc > t1 GROUP BY mmsi"""
         pre = f"""new AS ({new}),
         span AS (SELECT mmsi, min(time_utc) AS t0, max(time_utc) AS t1 FROM new GROUP BY mmsi),
-        ex AS (SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS time_utc, p.lat_deg, p.lon_deg, s.t0, s.t1
-               FROM ais_positions p JOIN span s USING (mmsi)),
-        t AS (SELECT * FROM new {ctx}),"""
+        te AS (SELECT span.*, make_timestamp(epoch_us(e.time_utc)) AS te_t, e.lat_deg, e.lon_deg
+               FROM span JOIN ais_track_ends e USING (mmsi)),
+        ex AS (SELECT p.mmsi, make_timestamp(epoch_us(p.time_utc)) AS time_utc, p.lat_deg, p.lon_deg, o.t0, o.t1
+               FROM ais_positions p JOIN (SELECT mmsi, t0, t1 FROM te WHERE te_t >= t0) o USING (mmsi)),
+        t AS (SELECT * FROM new
+            UNION ALL SELECT -1, mmsi, te_t, lat_deg, lon_deg FROM te WHERE te_t < t0
+            UNION ALL SELECT -1, mmsi, time_utc, lat_deg, lon_deg FROM ex WHERE time_utc BETWEEN t0 AND t1
+            UNION ALL SELECT -1, mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc) FROM ex
+                WHERE time_utc < t0 GROUP BY mmsi
+            UNION ALL SELECT -1, mmsi, min(time_utc), arg_min(lat_deg, time_utc), arg_min(lon_deg, time_utc) FROM ex
+                WHERE time_utc > t1 GROUP BY mmsi),"""
     else:
         pre = f"t AS ({new}),"
     return f"""

@@ -1,0 +1,83 @@
+"""The speed-jump check against stored tracks reads each vessel's latest stored fix
+(``ais_track_ends``), not the stored history, when a file continues the tracks (issue 23).
+
+Reference: the pure path (:func:`ais.clean.clean_positions` with every stored position of file 1
+as context), i.e. what the whole-history join of the previous SQL gave. Three vessels cross the
+file boundary: A jumps with the first fix of file 2 (context = its track end only), B's file-2
+fixes fall between its stored fixes (overlap: the stored history is read) with one jump, C
+continues cleanly, D's only fix in file 2 is a jump that only its track end shows. Both staging paths of file 2 (raw lines: SQL for every MMSI; compiled scan:
+the streaming pass, SQL for B) must quarantine the same lines.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from ais.clean import clean_positions
+from ais.io.csv_formats import read_csv_stage
+from ais_fixtures import DMA_HEADER, dma_row, write_dma
+from pipelines import ingest_stage as stage_mod
+from pipelines.ingest import ingest_paths
+from pipelines.storage import open_workspace
+
+A, B, C, D = "219000001", "219000002", "219000003", "219000004"
+
+
+def _ts(minute: int) -> str:
+    return f"01/01/2025 {minute // 60:02d}:{minute % 60:02d}:00"
+
+
+def _file1() -> list[str]:
+    rows = [DMA_HEADER]
+    for m in range(0, 21, 2):  # 0.005 deg lon per minute at 55 N: about 10.3 kn
+        rows.append(dma_row(_ts(m), A, "55.000000", f"{11.0 + 0.005 * m:.6f}"))
+        rows.append(dma_row(_ts(m), B, "56.000000", f"{11.0 + 0.005 * m:.6f}"))
+        rows.append(dma_row(_ts(m), C, "57.000000", f"{11.0 + 0.005 * m:.6f}"))
+        rows.append(dma_row(_ts(m), D, "58.000000", f"{11.0 + 0.005 * m:.6f}"))
+    return rows
+
+
+def _file2() -> list[str]:
+    rows = [DMA_HEADER,
+            dma_row(_ts(21), A, "56.000000", "11.105000"),   # line 2: 60 nmi in 1 min from A's track end
+            dma_row(_ts(22), A, "55.000000", "11.110000"),   # line 3: back on track
+            dma_row(_ts(24), A, "55.000000", "11.120000"),   # line 4
+            dma_row(_ts(5), B, "56.000000", "11.025000"),    # line 5: between stored 4 and 6 min
+            dma_row(_ts(7), B, "56.500000", "11.035000"),    # line 6: 30 nmi off between stored fixes
+            dma_row(_ts(9), B, "56.000000", "11.045000"),    # line 7
+            dma_row(_ts(23), B, "56.000000", "11.115000"),   # line 8: after B's track end
+            dma_row(_ts(22), C, "57.000000", "11.110000"),   # line 9
+            dma_row(_ts(24), C, "57.000000", "11.120000"),   # line 10
+            dma_row(_ts(21), D, "58.500000", "11.105000")]   # line 11: D's only fix, 30 nmi off its end
+    return rows
+
+
+@pytest.mark.parametrize("staging", ["lines", "scan"])
+def test_jump_across_files_same_as_whole_history(tmp_path, monkeypatch, staging):
+    if staging == "scan":
+        monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0)
+        monkeypatch.setattr(stage_mod, "FAST_CSV_ENGINES", ("scan",))
+    else:
+        monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 1 << 40)
+    f1 = write_dma(tmp_path / "day1.csv", _file1())
+    f2 = write_dma(tmp_path / "day2.csv", _file2())
+    db = tmp_path / "ws.duckdb"
+    ingest_paths([f1], db)
+    with open_workspace(db) as ws:
+        stored = ws.con.execute(
+            "SELECT mmsi, time_utc, lat_deg, lon_deg, sog_kn, cog_deg, heading_deg, nav_status FROM ais_positions"
+        ).fetchdf()
+        ends = dict(ws.con.execute("SELECT mmsi, epoch(time_utc) FROM ais_track_ends").fetchall())
+    assert len(stored) == 44 and set(ends) == {int(A), int(B), int(C), int(D)}
+    s2 = ingest_paths([f2], db)
+    assert s2["per_file"][0]["staging"] == staging
+    with open_workspace(db) as ws:
+        got = dict(ws.con.execute("SELECT line, reason FROM ais_quarantine WHERE file_id = 2").fetchall())
+        ends2 = dict(ws.con.execute("SELECT mmsi, epoch(time_utc) FROM ais_track_ends").fetchall())
+    pure = clean_positions(read_csv_stage(f2)[0], existing=stored)
+    assert got == dict(zip(pure.quarantine.line, pure.quarantine.reason))
+    assert got == {2: "speed_jump", 6: "speed_jump", 11: "speed_jump"}
+    assert s2["loaded"] == 7
+    # the track ends moved to each vessel's latest kept fix (B's 23 min, not the stored 20 min)
+    assert ends2 == {int(A): ends[int(A)] + 240, int(B): ends[int(B)] + 180, int(C): ends[int(C)] + 240,
+                     int(D): ends[int(D)]}
