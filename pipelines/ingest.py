@@ -19,11 +19,14 @@ from __future__ import annotations
 import contextlib
 import logging
 import time
+from pathlib import Path
 from typing import Callable, Iterable, Optional
 
 from ais.clean import DEFAULT_MAX_SPEED_KN
 from ais.io.files import expand_paths, inspect
-from pipelines.ingest_stage import check_inputs, loaded_record, skipped_counts, stage_or_gzip_error
+from pipelines.ingest_stage import (
+    check_inputs, loaded_record, plain_copy, skipped_counts, stage_file, stage_or_gzip_error, wants_plain_copy,
+)
 from pipelines.runners import retry_transient
 from thresholds.errors import StormlaneError
 
@@ -88,14 +91,24 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         if progress is not None:
             progress(f.size_bytes)
         return skipped_counts(f.path, f.format, done["file_id"])
-    if full is None and f.gzip:
-        # A gzip file's fingerprint reads the whole stream, which proves it complete: started
-        # at once, beside the staging (whose gzip reading is single-threaded).
-        full = pool.submit(content_fingerprint)
-    info = None
+    info = plain = None
     t_stage = time.perf_counter()
     try:
-        info = stage_or_gzip_error(ws, f, full, progress)
+        if full is None and wants_plain_copy(f):
+            # A large gzip CSV file: decompressed once into a plain copy beside the workspace
+            # (hashed on the way: its fingerprint), which the fast stage reads.
+            plain, fp = plain_copy(f, _scratch_folder(ws))
+            full = pool.submit(lambda: fp + suffix)
+        elif full is None and f.gzip:
+            # A gzip file's fingerprint reads the whole stream, which proves it complete: started
+            # at once, beside the staging (whose gzip reading is single-threaded).
+            full = pool.submit(content_fingerprint)
+        if plain is not None:
+            info = stage_file(ws, plain)
+            if progress is not None:
+                progress(f.size_bytes // 2)
+        else:
+            info = stage_or_gzip_error(ws, f, full, progress)
         t_stage = time.perf_counter() - t_stage
         if full is None:
             full = pool.submit(content_fingerprint)
@@ -118,6 +131,8 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         pool.shutdown(wait=True)
         if info is not None and info.get("line_index") is not None:
             info["line_index"].close()
+        if plain is not None:
+            plain.path.unlink(missing_ok=True)
     if progress is not None:
         progress(f.size_bytes - f.size_bytes // 2)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", f.path, f.format, counts["read"],
@@ -127,6 +142,13 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
                **meta.get("timings", {})}
     return {"path": str(f.path), "format": f.format, **counts, "already_loaded": False,
             "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping"), "timings": timings}
+
+
+def _scratch_folder(ws):
+    """Where temporary copies of inputs go: beside the workspace file (on disk, not in a RAM
+    temporary folder), else the temporary folder."""
+    path = getattr(ws, "path", None)
+    return None if path is None or str(path) in ("", ":memory:") else Path(path).parent
 
 
 def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,

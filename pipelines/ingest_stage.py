@@ -29,6 +29,52 @@ FAST_CSV_MIN_BYTES = 16 << 20
 FAST_CSV_ENGINES = ("scan", "duckdb")
 
 
+#: gzip DMA/NOAA files from this compressed size on are decompressed once into a temporary plain
+#: file, hashed on the way (that is their fingerprint), and take the fast CSV stage
+#: (:func:`plain_copy`); smaller ones are read by the raw-lines path straight from the gzip stream.
+#: Measured on the 300-ship fleet's daily files (12 MB gzip, 0.29 M rows, issue 23): the
+#: raw-lines stage of the gzip stream took 2.3 s wall per file, the decompression 0.3 s and the
+#: compiled scan of the plain copy 0.3 s. At AIS CSV's compression (about 5:1) 4 MiB of gzip is
+#: about the fast stage's own threshold (:data:`FAST_CSV_MIN_BYTES`) of content.
+GZIP_PLAIN_MIN_BYTES = 4 << 20
+
+
+def wants_plain_copy(f: AisFile) -> bool:
+    """Whether :func:`plain_copy` is the way to stage ``f`` (a large gzip DMA/NOAA CSV file)."""
+    return bool(f.gzip and f.format in ("dma", "noaa") and f.size_bytes >= GZIP_PLAIN_MIN_BYTES
+                and FAST_CSV_ENGINES)
+
+
+def plain_copy(f: AisFile, folder=None) -> tuple[AisFile, str]:
+    """Decompress the gzip file ``f`` into a temporary plain file in ``folder`` (default: the
+    temporary folder) and hash the content on the way: returns the plain file (its
+    :class:`AisFile`; the caller removes it) and the content's fingerprint, the same
+    ``"blake3:<hex>"`` as :func:`ais.io.files.fingerprint` of ``f`` (BLAKE3 of the decompressed
+    bytes), so that the file is decompressed once. A truncated or corrupt stream raises
+    :class:`ais.errors.AisInputError` naming ``f`` (:func:`ais.io.files.gunzip_into`)."""
+    import tempfile
+    from dataclasses import replace
+
+    import blake3
+
+    from ais.io.files import gunzip_into
+
+    fd, tmp = tempfile.mkstemp(prefix=".stormlane-gunzip-", suffix=".csv", dir=folder)
+    h = blake3.blake3(max_threads=1)
+    try:
+        with os.fdopen(fd, "wb") as out:
+
+            def sink(block: bytes) -> None:
+                h.update(block)
+                out.write(block)
+
+            size = gunzip_into(f.path, sink)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return replace(f, path=Path(tmp), gzip=False, size_bytes=int(size)), "blake3:" + h.hexdigest()
+
+
 class _Scratch:
     """A private in-memory DuckDB in the place of a workspace (the readers only use ``con``)."""
 

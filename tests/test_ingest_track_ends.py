@@ -81,3 +81,47 @@ def test_jump_across_files_same_as_whole_history(tmp_path, monkeypatch, staging)
     # the track ends moved to each vessel's latest kept fix (B's 23 min, not the stored 20 min)
     assert ends2 == {int(A): ends[int(A)] + 240, int(B): ends[int(B)] + 180, int(C): ends[int(C)] + 240,
                      int(D): ends[int(D)]}
+
+
+def test_large_gzip_is_decompressed_once_and_loads_like_the_gzip_stream(tmp_path, monkeypatch):
+    # A gzip file at or above GZIP_PLAIN_MIN_BYTES is decompressed into a plain copy (hashed
+    # on the way) and scanned; below it the raw-lines path reads the gzip stream. Same
+    # workspace, same fingerprint as ais.io.files.fingerprint, the copy removed afterwards.
+    import gzip
+
+    from ais.io.files import fingerprint
+    from pipelines.ingest import ingest_file
+    from test_ais_fast_csv import DIRTY, _mix, _rows, _snapshot
+
+    data = ("\n".join([DMA_HEADER] + _mix(_rows(), DIRTY)) + "\n").encode()
+    gz = tmp_path / "day.csv.gz"
+    gz.write_bytes(gzip.compress(data[: len(data) // 2]) + gzip.compress(data[len(data) // 2:]))  # 2 members
+    monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0)
+    snaps = {}
+    for label, min_gz in (("copy", 0), ("stream", 1 << 40)):
+        monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", min_gz)
+        (tmp_path / label).mkdir()
+        db = tmp_path / label / "ws.duckdb"
+        with open_workspace(db) as ws:
+            counts = ingest_file(ws, gz)
+            fp = ws.con.execute("SELECT fingerprint FROM ais_files").fetchone()[0]
+        assert counts["staging"] == ("scan" if label == "copy" else "lines")
+        assert fp == fingerprint(gz)
+        assert sorted(p.name for p in (tmp_path / label).iterdir()) == ["ws.duckdb", "ws.parquet"]
+        snaps[label] = _snapshot(db)
+    assert counts["quarantined"] >= 10 and snaps["copy"] == snaps["stream"]
+
+
+def test_truncated_large_gzip_is_an_error_naming_it(tmp_path, monkeypatch):
+    import gzip
+
+    from ais.errors import AisInputError
+    from test_ais_fast_csv import _rows
+
+    data = ("\n".join([DMA_HEADER] + _rows()) + "\n").encode()
+    gz = tmp_path / "cut.csv.gz"
+    gz.write_bytes(gzip.compress(data)[:-100])
+    monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0)
+    with pytest.raises(AisInputError, match="cut.csv.gz.*truncated gzip"):
+        ingest_paths([gz], tmp_path / "ws.duckdb")
+    assert not list(tmp_path.glob(".stormlane-gunzip-*"))
