@@ -222,5 +222,5 @@ def _drop_temp(con) -> None:
         except Exception:  # noqa: BLE001 - not registered
             pass
     for t in ("ais_stage_t", "ais_dup", "ais_out", "ais_q", "ais_stage_info", "ais_fast", "ais_exact", "ais_spot", "ais_latest", "ais_rejects",
-              "ais_reject_scans", "ais_fb"):
+              "ais_reject_scans", "ais_fb", "ais_new"):
         con.execute(f"DROP TABLE IF EXISTS temp.{_q(t)}")

@@ -373,11 +373,12 @@ def _write_file_row(ws, meta: dict, fingerprint: str, file_id: int, counts: dict
 
 
 def _update_track_ends(con, file_id: int) -> None:
-    """Each MMSI's latest stored fix, after the file's positions were inserted (same transaction)."""
+    """Each MMSI's latest stored fix, after the file's positions (``ais_new``) were inserted
+    (same transaction)."""
     con.execute(
         """INSERT INTO ais_track_ends
            SELECT mmsi, max(time_utc), arg_max(lat_deg, time_utc), arg_max(lon_deg, time_utc)
-           FROM ais_positions WHERE file_id = ? GROUP BY mmsi
+           FROM ais_new WHERE file_id = ? GROUP BY mmsi
            ON CONFLICT (mmsi) DO UPDATE SET time_utc = excluded.time_utc, lat_deg = excluded.lat_deg,
                lon_deg = excluded.lon_deg
            WHERE excluded.time_utc > ais_track_ends.time_utc""", [int(file_id)])
@@ -413,12 +414,17 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
         _rules_7_8(con, meta, max_speed_kn)
         lap("rules_7_8")
-        loaded = con.execute(
-            f"""INSERT INTO ais_positions
-            SELECT mmsi, make_timestamptz(epoch_us(time_utc)), {_norm()}, ?, line
+        # The file's rows once, in a temporary table: inserted, then read again for the track
+        # ends and the Parquet parts without scanning the stored positions (issue 23: that
+        # scan grew with the workspace).
+        con.execute(
+            f"""CREATE OR REPLACE TEMP TABLE ais_new AS
+            SELECT mmsi, make_timestamptz(epoch_us(time_utc)) AS time_utc, {_norm()},
+                   CAST(? AS INTEGER) AS file_id, line AS source_line
             FROM ais_stage ANTI JOIN ais_out USING (line) WHERE {_OK}""",
             [file_id],
-        ).fetchone()[0]
+        )
+        loaded = con.execute("INSERT INTO ais_positions SELECT * FROM ais_new").fetchone()[0]
         _update_track_ends(con, file_id)
         lap("insert")
         reasons, read, static, ignored = _write_quarantine(con, meta, file_id)
@@ -443,7 +449,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             fingerprint = fingerprint.result()
         lap("fingerprint_wait")
         _write_file_row(ws, meta, fingerprint, file_id, counts, max_speed_kn)
-        parts = parquet.write_file_parts(ws, file_id)
+        parts = parquet.write_file_parts(ws, file_id, source="ais_new")
         lap("parquet")
         if before_commit is not None:
             before_commit()

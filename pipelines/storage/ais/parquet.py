@@ -147,10 +147,9 @@ def write_geoparquet(table, path: Path) -> None:
                    column_encoding=encodings)
 
 
-def _file_rows_sql() -> str:
+def _file_rows_sql(source: str = "ais_positions") -> str:
     cols = ", ".join(CANONICAL_COLUMNS)
-    return (f"SELECT CAST(timezone('UTC', time_utc) AS DATE) AS day, {cols} FROM ais_positions "
-            "WHERE file_id = ? ORDER BY day, mmsi, time_utc")
+    return f"SELECT {cols} FROM {source} WHERE file_id = ?"
 
 
 def _fetch_arrow(con, sql: str, params: list):
@@ -159,42 +158,59 @@ def _fetch_arrow(con, sql: str, params: list):
     return table.read_all() if hasattr(table, "read_all") else table
 
 
-def _write_parts(con, root: Path, file_id: int, tmp: bool, days: set | None = None) -> list[Part]:
-    """The parts of one committed or being-committed file, from ``ais_positions`` (only those
-    of ``days``, ``YYYY-MM-DD`` strings, when given)."""
-    import pyarrow.compute as pc
+_US_PER_DAY = 86_400_000_000
 
-    table = _fetch_arrow(con, _file_rows_sql(), [int(file_id)])
+
+def _sorted_by_day(table):
+    """(table sorted by UTC day, ``mmsi``, ``time_utc``; [(day "YYYY-MM-DD", first row, rows)]).
+
+    Sorted in numpy (one lexsort of integer keys: (mmsi, time_utc) is unique within a file, so
+    the order is total and the same as SQL's ``ORDER BY day, mmsi, time_utc``), measured about
+    3 times cheaper than DuckDB's sort of a transaction's fresh rows into Arrow."""
+    t_us = table.column("time_utc").combine_chunks().cast("int64").to_numpy()
+    mmsi = table.column("mmsi").combine_chunks().to_numpy()
+    day = np.floor_divide(t_us, _US_PER_DAY)
+    order = np.lexsort((t_us, mmsi, day))
+    table = table.take(order).combine_chunks()
+    values, first, counts = np.unique(day[order], return_index=True, return_counts=True)
+    names = np.datetime_as_string(values.astype("datetime64[D]"), unit="D")
+    return table, [(str(d), int(i), int(n)) for d, i, n in zip(names, first, counts)]
+
+
+def _write_parts(con, root: Path, file_id: int, tmp: bool, days: set | None = None,
+                 source: str = "ais_positions") -> list[Part]:
+    """The parts of one committed or being-committed file, from ``source`` (``ais_positions``,
+    or a table of just the file's rows in its columns; only the parts of ``days``,
+    ``YYYY-MM-DD`` strings, when given)."""
+    table = _fetch_arrow(con, _file_rows_sql(source), [int(file_id)])
     if table.num_rows == 0:
         return []
-    row_days = table.column("day").combine_chunks()
-    table = table.drop_columns(["day"])
-    values, counts = np.unique(pc.cast(row_days, "string").to_numpy(zero_copy_only=False), return_counts=True)
-    parts, start = [], 0
-    for day, n in zip(values, counts):  # rows are sorted by day, so each day is one slice
+    table, slices = _sorted_by_day(table)
+    parts = []
+    for day, start, n in slices:
         if days is not None and day not in days:
-            start += int(n)
             continue
         folder = root / f"day={day}"
         folder.mkdir(parents=True, exist_ok=True)
         final = folder / part_name(file_id)
         target = folder / f".{final.name}.{os.getpid()}.tmp"
-        write_geoparquet(geoparquet_table(table.slice(start, int(n))), target)
+        write_geoparquet(geoparquet_table(table.slice(start, n)), target)
         if not tmp:
             os.replace(target, final)
-        parts.append(Part(final, target, int(n)))
-        start += int(n)
+        parts.append(Part(final, target, n))
     return parts
 
 
-def write_file_parts(ws, file_id: int) -> list[Part]:
+def write_file_parts(ws, file_id: int, source: str = "ais_positions") -> list[Part]:
     """Inside the file's transaction: write its parts under temporary names and record them in
-    ``ais_parquet_parts``; :func:`publish` them after the commit. No-op in memory."""
+    ``ais_parquet_parts``; :func:`publish` them after the commit. No-op in memory. ``source``:
+    a table holding the rows just inserted (the same rows as ``ais_positions`` holds for the
+    file, read without scanning the stored table)."""
     root = positions_root(getattr(ws, "path", None))
     if root is None:
         return []
     try:
-        parts = _write_parts(ws.con, root, file_id, tmp=True)
+        parts = _write_parts(ws.con, root, file_id, tmp=True, source=source)
     except BaseException:
         for tmp in root.glob(f"day=*/.{part_name(file_id)}.{os.getpid()}.tmp"):
             tmp.unlink(missing_ok=True)
