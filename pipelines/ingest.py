@@ -175,13 +175,14 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
         "ignored", "already_loaded"}`` summed over the files, plus ``"per_file"``.
     """
     from pipelines.storage import open_workspace
-    from pipelines.storage.ais import sync_positions_parquet
+    from pipelines.storage.ais import limit_ingest_memory, sync_positions_parquet
 
     files = expand_paths(paths)
     check_inputs(files, fmt)
     summary = empty_summary()
     per_file = []
     with open_workspace(db) as ws:
+        limit_ingest_memory(ws)
         sync_positions_parquet(ws)  # the positions dataset as the workspace says (after a crash)
         for p in files:
             try:
@@ -313,11 +314,12 @@ def _commit_one(db: str, staged: dict, max_speed_kn: float) -> dict:
 def _flow_workspace(db: str):
     from pipelines.storage import open_workspace
 
-    from pipelines.storage.ais import sync_positions_parquet
+    from pipelines.storage.ais import limit_ingest_memory, sync_positions_parquet
 
     ws = _FLOW_WORKSPACES.get(db)
     if ws is None:
         ws = _FLOW_WORKSPACES[db] = open_workspace(db)
+        limit_ingest_memory(ws)
         sync_positions_parquet(ws)  # the positions dataset as the workspace says (after a crash)
     return ws
 

@@ -465,7 +465,38 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     parquet.publish(parts)
     lap("commit")
     _drop_temp(con)
+    _checkpoint(con)
+    lap("checkpoint")
     return counts
+
+
+#: DuckDB's memory limit on the workspace connection of an ingest [MB]. DuckDB keeps the blocks
+#: it wrote cached while it is under its limit (default 80 % of RAM): about 20 bytes per loaded
+#: row, 169 MB after 8.61 M rows, so the ingest's peak grew with the rows. With this limit the
+#: cache is evicted (the blocks are on disk) and larger temporary tables spill to
+#: ``<workspace>.tmp``. Measured (300-ship fleet, issue 23): peak RSS 613 MB at 2.05 M rows and
+#: 628 MB at 8.61 M rows with a 100 MB limit, the same CPU time.
+INGEST_MEMORY_LIMIT_MB = 256
+
+
+def limit_ingest_memory(ws) -> None:
+    """Cap DuckDB's memory on a workspace opened for an ingest (:data:`INGEST_MEMORY_LIMIT_MB`)."""
+    ws.con.execute(f"SET memory_limit = '{int(INGEST_MEMORY_LIMIT_MB)}MB'")
+
+
+def _checkpoint(con) -> None:
+    """Checkpoint after each file, so that each checkpoint folds one file's rows into the
+    database file. DuckDB writes a large insert's row groups straight to the file and logs only
+    their metadata, so the write-ahead log never reaches the automatic checkpoint threshold
+    during an ingest: the checkpoint at close then processed every file at once and its peak
+    memory grew with the rows loaded (measured, 300-ship fleet: +60 MB after 2.05 M rows,
+    +490 MB after 8.61 M rows; issue 23). Skipped when another transaction is open."""
+    import duckdb
+
+    try:
+        con.execute("CHECKPOINT")
+    except duckdb.TransactionException:
+        pass
 
 
 def discard_stage(ws) -> None:
