@@ -472,11 +472,13 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
 
 #: DuckDB's memory limit on the workspace connection of an ingest [MB]. DuckDB keeps the blocks
 #: it wrote cached while it is under its limit (default 80 % of RAM): about 20 bytes per loaded
-#: row, 169 MB after 8.61 M rows, so the ingest's peak grew with the rows. With this limit the
+#: row, 169 MB after 8.61 M rows, so the ingest's peak grew with the rows. Under this limit the
 #: cache is evicted (the blocks are on disk) and larger temporary tables spill to
-#: ``<workspace>.tmp``. Measured (300-ship fleet, issue 23): peak RSS 613 MB at 2.05 M rows and
-#: 628 MB at 8.61 M rows with a 100 MB limit, the same CPU time.
-INGEST_MEMORY_LIMIT_MB = 256
+#: ``<workspace>.tmp``. Measured (300-ship fleet, issue 23): with a 100 MB limit the peak RSS was
+#: 613 MB at 2.05 M rows and 628 MB at 8.61 M rows, the same CPU time; but the raw-lines CSV
+#: reader allocates 256 MiB buffers (a 256 MB limit failed on it), hence 1 GB: the cache
+#: grows to it (about 50 M rows) and no further.
+INGEST_MEMORY_LIMIT_MB = 1024
 
 
 def limit_ingest_memory(ws) -> None:
