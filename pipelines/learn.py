@@ -172,6 +172,7 @@ def _fit_and_store(req: LearnRequest, table: pd.DataFrame, funnel: dict, grid: d
         prior_ratio = formula_kn[f"speed_{prior}_kn"].to_numpy(float) / seg["v0_kn"].to_numpy(float)
         model = fit_model(seg, kind, settings, prior=prior, prior_ratio=prior_ratio)
         model.band_scale = cv["band_scale"]
+        model.band_scales = cv["band_scales"]
         timings["final_fit_s"] = time.perf_counter() - t
     from performance.tabulate import sea_context
 

@@ -77,8 +77,13 @@ def test_on_held_out_vessels_the_model_beats_every_formula_as_the_issue_asks(wor
 
 
 def test_the_p10_p90_band_covers_80_to_90_percent_of_held_out_speeds(world):
-    cov = {c["group"]: c["coverage"] for c in world["summary"]["grouped_cv"]["coverage"]}
+    rows = world["summary"]["grouped_cv"]["coverage"]
+    cov = {c["group"]: c["coverage"] for c in rows}
     assert 0.8 <= cov["all"] <= 0.9, cov
+    # calibrated per sea-state band: heavy seas too (one margin for all left them at 48-77 % on the demo)
+    bands = [c for c in rows if c["scope"] == "band" and c["n"] >= 500]
+    assert any(c["group"] in ("Hs 3-4 m", "Hs >= 4 m") for c in bands), rows
+    assert all(0.75 <= c["coverage"] <= 0.95 for c in bands), rows
 
 
 def test_learned_voluntary_slow_down_within_half_a_metre_of_the_generators(world):

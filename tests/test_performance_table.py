@@ -151,10 +151,25 @@ def test_band_scale_is_the_finite_sample_conformal_quantile():
     scores = np.arange(-10, 10) / 10.0
     assert band_scale(scores) == pytest.approx(0.7)
     assert band_scale(np.array([np.nan])) == 0.0
-    s = conformity([1.0, 0.5, 2.5], [0.0, 1.0, 0.0], [2.0, 2.0, 2.0])
-    np.testing.assert_allclose(s, [-0.5, 0.5, 0.25])
+    s = conformity([1.0, 0.5, 2.5], [0.0, 1.0, 0.0], [2.0, 2.0, 2.0])  # additive (CQR, Romano et al. Eq. 6)
+    np.testing.assert_allclose(s, [-1.0, 0.5, 0.5])
     lo, hi = widen([0.0], [2.0], 0.25)
-    assert (lo[0], hi[0]) == (-0.5, 2.5)
+    assert (lo[0], hi[0]) == (-0.25, 2.25)
+
+
+def test_the_conformal_margin_is_found_per_sea_state_band():
+    from performance.fit import scale_at
+    from performance.validate import MIN_BAND_SCORES, band_scale, band_scales
+
+    rng = np.random.default_rng(0)
+    hs = np.r_[np.full(400, 0.5), np.full(400, 3.5), np.full(10, 5.0)]
+    # calm seas: scores 0..0.01; heavy seas: ten times larger; Hs >= 4 m: too few scores of its own
+    score = np.r_[rng.uniform(0, 0.01, 400), rng.uniform(0, 0.1, 400), np.full(10, 9.0)]
+    got = dict((lo, v) for lo, v in band_scales(score, hs))
+    assert got[0.0] == band_scale(score[:400]) and got[3.0] == band_scale(score[400:800])
+    assert got[3.0] > 5 * got[0.0]
+    assert 10 < MIN_BAND_SCORES and got[1.0] == got[2.0] == got[4.0] == band_scale(score)  # too few: the overall margin
+    np.testing.assert_allclose(scale_at([0.2, 3.9, 7.0, np.nan], band_scales(score, hs)), [got[0.0], got[3.0], got[4.0], got[0.0]])
 
 
 def test_scores_are_r2_mae_and_bias_in_knots():
