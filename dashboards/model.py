@@ -35,7 +35,8 @@ from routing.route import Route
 #: ``as_sailed_modelled`` (audit) are the like-for-like references: sailed by the same vessel
 #: model as the alternatives; ``as_sailed`` is the AIS track at its AIS times (the truth);
 #: ``historical`` is the role of reports written before the like-for-like comparison.
-ROUTE_ROLES = ("as_sailed", "as_sailed_modelled", "lane", "historical", "deviation", "safe_optimal", "optimal", "min_distance")
+ROUTE_ROLES = ("as_sailed", "as_sailed_modelled", "lane", "historical", "deviation", "safe_optimal", "optimal", "least_fuel",
+               "min_distance")
 #: Roles a RouteSet takes as its reference when none is named, first present wins.
 REFERENCE_ROLES = ("lane", "as_sailed_modelled", "historical", "as_sailed")
 ROLE_LABELS = {
@@ -46,6 +47,7 @@ ROLE_LABELS = {
     "deviation": "cargo-safe deviation",
     "safe_optimal": "safe time-optimal A* (vessel limits)",
     "optimal": "time-optimal A*",
+    "least_fuel": "least fuel, same arrival (speed per leg)",
     "min_distance": "minimum-distance A*",
 }
 

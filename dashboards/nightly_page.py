@@ -245,6 +245,35 @@ def overview(model: NightlyReport) -> Markup:
     return join(parts)
 
 
+def departure_windows(model: NightlyReport) -> Markup:
+    """Per lane ranked (``summary["departure_windows"]``, ``stormlane nightly --rank-departures``): every
+    departure of the window with its route's arrival, time, distance, fuel, CO2, max Hs and hours over the
+    limits, the best marked."""
+    windows = (model.summary or {}).get("departure_windows") or []
+    if not windows:
+        return Markup("")
+    parts = [el("h2", "Departure windows per lane", id="windows")]
+    head = ["", "departure [UTC]", "arrival [UTC]", "time [h]", "distance [nmi]", "fuel [t]", "CO2 [t]", "max Hs [m]", "over limits [h]"]
+    for w in windows:
+        parts.append(el("h3", f"Lane {w['lane']}: objective {w['objective']}"))
+        if w.get("error"):
+            parts.append(el("p", f"not ranked: {w['error']}", class_="muted"))
+            continue
+        rows = []
+        for i, r in enumerate(w["rows"]):
+            mark = el("b", "best") if i == w.get("best") else ""
+            if r.get("arrive_utc") is None:
+                rows.append([mark, _when(pd.Timestamp(r["depart_utc"])), el("span", f"error: {r.get('error')}", class_="status-failed"), DASH, DASH,
+                             DASH, DASH, DASH, DASH])
+                continue
+            rows.append([mark, _when(pd.Timestamp(r["depart_utc"])), _when(pd.Timestamp(r["arrive_utc"])), fmt(r["time_h"], 2), fmt(r["dist_nmi"], 1),
+                         fmt(r.get("fuel_t"), 2), fmt(r.get("co2_t"), 2), fmt(r.get("max_hs_m"), 2), fmt(r.get("hours_over_limits"), 1)])
+        parts.append(table(head, rows, numeric={3, 4, 5, 6, 7, 8}))
+        parts.append(el("p", f"Ranked on {w.get('basis', '')}; best: least {'time' if w['objective'] == 'time' else 'fuel'} "
+                        "(ties: the earlier departure).", class_="muted small"))
+    return join(parts)
+
+
 # ----------------------------------------------------------------------------- all cases, compact
 
 
@@ -337,6 +366,7 @@ def nightly_html(model: NightlyReport) -> str:
         raise ReportError(f"render_nightly_report needs a NightlyReport, got {type(model).__name__}")
     parts = [overview(model), el("h2", "Adverse lane-departures"), all_cases_table(model) if model.departures else
              el("p", "No adverse lane-departure in the window: every lane passed every threshold.")]
+    parts.append(departure_windows(model))
     drawn = drawn_cases(model)
     if model.departures:
         n_held = sum(1 for d in model.departures if d.status == "adverse" and d.routes is not None and d.routes.detailed)

@@ -27,6 +27,7 @@ ROLE_STYLE = {
     "optimal": {"color": "#0072B2", "linestyle": "-", "linewidth": 2.4},
     "safe_optimal": {"color": "#56B4E9", "linestyle": (0, (8, 2)), "linewidth": 2.6},
     "min_distance": {"color": "#CC79A7", "linestyle": (0, (6, 2, 1, 2)), "linewidth": 2.0},
+    "least_fuel": {"color": "#D55E00", "linestyle": (0, (3, 1.5)), "linewidth": 2.2},
 }
 OTHER_STYLE = {"color": "#7f7f7f", "linestyle": ":", "linewidth": 1.8}
 HS_CMAP = "YlOrRd"

@@ -291,11 +291,16 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
     plan_stats: dict = {}
     deviation = modelled = None
     optimality: list = []
+    twin = None
     if alternatives:
         plan, modelled, alts, optimality = _alternatives(inputs, track, vessel, field_, sampler, choice.ship(vessel, table=table), safety,
                                                          notes)
         plan_stats = dict(plan.stats) if plan is not None else {}
         deviation = alts.get("deviation")
+        if plan is not None and table is None:
+            twin = _least_fuel(plan, track, vessel, alts, notes)
+        elif plan is not None:
+            notes.append("least-fuel route not computed with a learned speed-loss model (its table is for the voyage's one speed)")
     detour = detour_factor(track)
     if detour > DETOUR_FACTOR_NOTE:
         notes.append(f"the sailed track ({track.dist_nmi:.0f} nmi) is {detour:.1f} times the distance between its ends: "
@@ -308,6 +313,9 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
     unc = audit_uncertainty(out["evaluations"], out["proposed"], out["reference"], track, plan if alternatives else None, sampler,
                             vessel, label=choice.label, limits=inputs.limits)
     out["findings"] = out["findings"] + unc["findings"] + notes
+    if "least_fuel" in out["evaluations"]:
+        out["least_fuel"] = _least_fuel_saving(out, twin, sampler, vessel, inputs.limits, choice.label, table)
+        out["findings"].append(f"least-fuel: {out['least_fuel']['note']}")
     out.update({"model_check": unc["model_check"], "bands": unc["bands"]})
     out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler,
                 "calm_water": calm, "optimality": optimality, "speed_loss_model": choice.label, "learned_table": table})
@@ -362,6 +370,43 @@ def _alternatives(inputs: AuditInputs, track, vessel, field_, sampler, ship, saf
     return plan, modelled, alts, gaps
 
 
+def _least_fuel(plan, track, vessel, alts: dict, notes: list):
+    """The least-fuel alternative arriving by the voyage's real (AIS) arrival (into ``alts``), and the fair reference
+    of its saving: the sailed track at the one constant setting that meets that arrival, same model and weather
+    (:func:`routing.planner_fuel.same_arrival_twin`; None when no setting does)."""
+    from routing.emissions import Engine
+    from routing.planner_fuel import least_fuel_role, same_arrival_twin
+
+    arrive = track.time_utc[-1]
+    lf = least_fuel_role(plan, vessel, arrive)
+    if lf["least_fuel"] is None:
+        notes.append(f"least-fuel route not computed: {lf['error']}")
+        return None
+    alts["least_fuel"] = _renamed(lf["least_fuel"], "least_fuel")
+    return same_arrival_twin(plan, track.lat_deg, track.lon_deg, track.time_utc[0], arrive, Engine.from_vessel(vessel),
+                             "as_sailed_same_arrival")
+
+
+def _least_fuel_saving(out: dict, twin, sampler, vessel, limits, speed_loss_model: str, learned=None) -> dict:
+    """The least-fuel role's saving against the sailed track at the constant setting meeting the real arrival
+    (both evaluated like every route), why it was or was not proposed, and the limits it ignores."""
+    from routing.audit import fuel_saving, least_fuel_note, proposal_words
+    from routing.evaluate import evaluate_route
+    from routing.planner_fuel import LIMITS_NOTE
+
+    evs = out["evaluations"]
+    words = "the sailed track at a constant setting arriving at the voyage's AIS arrival"
+    ref = None
+    if twin is not None:
+        ref = evaluate_route(twin, sampler, vessel, limits=limits, speed_loss_model=speed_loss_model, learned=learned)
+        words = f"the sailed track at a constant {twin.properties['planned_setting_kn'][0]:.2f} kn arriving at the voyage's AIS arrival"
+    saving = fuel_saving(evs, "least_fuel", ref, words)
+    saving["proposal"] = proposal_words(evs, "least_fuel", out["proposed"], out["reference"])
+    saving["note"] = least_fuel_note(saving, saving["proposal"], LIMITS_NOTE, evs["least_fuel"].route.properties.get("speed_cap"))
+    evs["least_fuel"].route.properties["note"] = saving["note"]
+    return saving
+
+
 def _renamed(route, name):
     from routing.route import Route
 
@@ -389,7 +434,11 @@ JSON_KEYS = {
     "as_sailed_modelled": "the same track re-timed by the vessel model from the same departure (same keys)",
     "bias": "the model's bias on this voyage, modelled minus AIS: time_h, time_pct, fuel_t, fuel_pct, co2_t, co2_pct",
     "reference": "the role every delta is measured against (as_sailed_modelled; as_sailed when the model could not run)",
-    "optimal, safe_optimal, min_distance, deviation": "the alternatives, sailed by the same model (same keys)",
+    "optimal, safe_optimal, least_fuel, min_distance, deviation": "the alternatives, sailed by the same model (same keys); "
+                                                                  "least_fuel arrives by the voyage's AIS arrival",
+    "least_fuel_saving": "fuel_t, co2_t, arrive_utc, reference (the sailed track at the constant setting meeting the AIS "
+                         "arrival), reference_fuel_t, saving_fuel_t, saving_co2_t, saving_pct (null with saving_note when no "
+                         "fair reference), proposal (why least_fuel was or was not proposed), note",
     "proposed": "the recommended alternative or null (never one that is not sea-only or has more no_weather_h)",
     "comparison": "per role: the values and d_<metric> deltas (route minus reference), d_<metric>_pct",
     "optimality": "per route: gap_h (time-optimal minus it), tolerance_h (the mesh's discretisation), holds, constraint",
@@ -434,6 +483,7 @@ def audit_summary(inputs: AuditInputs, result: dict) -> dict:
     out["optimality"] = result.get("optimality") or []
     out["model_check"] = result.get("model_check") or []
     out["bands"] = result.get("bands") or {}
+    out["least_fuel_saving"] = result.get("least_fuel")
     out["findings"] = result["findings"]
     return out
 
@@ -468,7 +518,10 @@ def audit_model(inputs: AuditInputs, result: dict, speed_loss_model: str | None 
             "the time-optimal A* route under the vessel's operator and IMO limits (safe-optimal: cells over the limits "
             "forbidden, or penalised when no route avoids them); "
             "cargo-safe deviation of the voyage's lane, or of the sailed track when there is no lane "
-            "(Spyrou-Sioula et al. 2022, Alg. 1, with sea legs and recomputed ETAs).",
+            "(Spyrou-Sioula et al. 2022, Alg. 1, with sea legs and recomputed ETAs); "
+            "the least-fuel route (a speed setting per leg, STEAM2 fuel) arriving by the voyage's AIS arrival, its saving "
+            "measured against the sailed track at the one constant setting meeting that arrival (never against a route "
+            "arriving at another time); it does not avoid the vessel's limits, the proposal rules (safety first) decide.",
         ] + [f"Note: {n}" for n in result.get("notes", [])],
     )
 

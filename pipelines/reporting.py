@@ -120,6 +120,7 @@ def route_notes_of(evaluations: dict, reference: str | None, optimality=(), weat
             held = (ev.route.time_utc[-1] - end).total_seconds() / 3600.0
         if held:
             parts.append(held_weather_note(float(held)))
+        parts.append(props.get("note"))  # a role's own line (least_fuel: its saving, why (not) proposed, the limits)
         parts = [x for x in parts if x]
         fixes = ev.route.properties.get("land_repairs") or []
         if fixes:

@@ -132,6 +132,9 @@ class RoutePlan:
     ship: ShipModel | None = None
     #: What the times rest on (the speed-loss model and its range, assumptions), said in every output.
     notes: list = field(default_factory=list)
+    #: The planner's stage (mesh, end points, node paths), for a later least-fuel search on the same
+    #: mesh (:func:`routing.planner_fuel.least_fuel_role`).
+    stage: object = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict:
         """The CLI's JSON object (with safety: the safe routes, each route's hours over the limits,
@@ -183,6 +186,7 @@ class _Stage:
     t0_h: float = 0.0
     t_node_h: float = 0.0
     notes: list = field(default_factory=list)
+    paths: dict = field(default_factory=dict)  # cost -> node path of the plan's searches
 
     def polyline(self, nodes):
         """Node path -> (lat, lon) in the mesh's frame, with the off-node start and goal legs."""
@@ -436,6 +440,7 @@ def plan_routes(
     with _Clock(st.timings, "search_distance"):
         results["distance"] = search(st.mesh, st.wx, req.ship, st.start_node, st.goal_node, cost="distance")
     routes = plain_routes(st, results)
+    st.paths = {k: r.nodes for k, r in results.items()}
     safety_stats = {}
     if spec.mode != "none":
         safety_stats = safe_routes(
@@ -461,4 +466,4 @@ def plan_routes(
         **safety_stats,
     }
     gc_nmi = float(haversine_nmi(req.start[0], req.start[1], req.goal[0], req.goal[1]))
-    return RoutePlan(gc_nmi, routes, st.mesh, stats, st.wx, req.ship, model_notes(req, st.mw) + st.notes)
+    return RoutePlan(gc_nmi, routes, st.mesh, stats, st.wx, req.ship, model_notes(req, st.mw) + st.notes, stage=st)

@@ -7,8 +7,10 @@ objective, the least-fuel search of :mod:`routing.planner_fuel` (with ``FuelSpec
 fixed arrival for every departure; without it each departure's own time-optimal arrival). Each row
 gives the route's arrival, time, distance, fuel, CO2, max Hs and (with ``vessel``) the hours over
 the vessel's limits at its own ETAs (:func:`routing.safety.limits_exposure`, operator profile +
-IMO rules); the best departure (least time for ``time``, least fuel otherwise; ties: the earlier) is
-marked. A departure no route serves (an arrival it cannot meet) is a row with its error, never
+IMO rules), and with a fuel objective the saving against that departure's own same-arrival reference
+(``saving_pct``, ``reference_fuel_t``: :mod:`routing.planner_fuel`); the best departure (least time for
+``time``, least fuel otherwise; ties: the earlier) is marked. A departure no route serves (an arrival
+it cannot meet) is a row with its error, never
 dropped.
 """
 
@@ -62,12 +64,14 @@ def plan_window(req: RouteRequest, weather, times: list, *, objective: str = "ti
         try:
             opt = search(st.mesh, st.wx, req.ship, st.start_node, st.goal_node, t_start_h=st.t_node_h, cost="time")
             routes = plain_routes(st, {"time": opt, "distance": md})
-            name = "optimal_smoothed"
+            name, saving = "optimal_smoothed", {}
             if objective != "time":
-                fuel_routes(st, routes, opt.nodes, md.nodes, fuel, _props_maker(st))
+                stats = fuel_routes(st, routes, opt.nodes, md.nodes, fuel, _props_maker(st))
                 name = "least_fuel"
+                # against this departure's own same-arrival reference (never against another departure)
+                saving = {"saving_pct": stats.get("saving_pct"), "reference_fuel_t": (stats.get("reference") or {}).get("fuel_t")}
             r = routes[name]
-            row.update(_row(r, exposure))
+            row.update(_row(r, exposure), **saving)
         except NoRouteError as e:
             row.update({"route": None, "error": str(e)})
         rows.append(row)

@@ -48,6 +48,13 @@ SafetyOption = typer.Option("hard", "--safety", metavar="hard|soft|none", show_d
                                  "soft if none; none: skip it).")
 MaxDetailOption = typer.Option(10, "--max-detail", min=0, metavar="N", show_default=True,
                                help="Adverse lane-departures drawn with a map and plots in the report.")
+LeastFuelOption = typer.Option(True, "--least-fuel/--no-least-fuel", show_default=True,
+                               help="Also route the least-fuel route (speed setting per leg) arriving by the lane's arrival "
+                                    "(role least_fuel; it ignores the vessel's limits, the safety-first proposal rules decide).")
+RankDeparturesOption = typer.Option("none", "--rank-departures", metavar="time|fuel|none", show_default=True,
+                                    help="Per lane with adverse departures, route every departure of the window (least time, or "
+                                         "least fuel arriving by its own time-optimal arrival) and rank them, best marked: in "
+                                         "--json (departure_windows) and the report.")
 NoReportOption = typer.Option(False, "--no-report", help="Store the results only (no HTML report or exports).")
 ExportsOption = typer.Option("proposed", "--exports", metavar="proposed|all|none", show_default=True,
                              help="Route exports in DIR/exports.zip (with index.csv): the proposed routes only (RTZ, GPX, "
@@ -73,6 +80,8 @@ def register(app: typer.Typer) -> None:
         speed_loss: str = SpeedLossOption,
         safety: str = SafetyOption,
         max_detail: int = MaxDetailOption,
+        least_fuel: bool = LeastFuelOption,
+        rank_departures: str = RankDeparturesOption,
         no_report: bool = NoReportOption,
         exports: str = ExportsOption,
         task_runner: str = TaskRunnerOption,
@@ -98,7 +107,7 @@ def register(app: typer.Typer) -> None:
             db=str(db), out=str(out) if out else None, weather=paths_text(weather), weather_source=source, now=now,
             window_h=window_h, step_h=step_h, voyages=str(voyages) if voyages else None, lanes=list(lane or []) or None,
             vessel=vessel, profile=profile, speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report,
-            exports=exports,
+            exports=exports, least_fuel=least_fuel, rank_departures=rank_departures,
         )
         make_task_runner(task_runner)  # validate before starting anything
         preflight(params)
@@ -132,6 +141,8 @@ def register(app: typer.Typer) -> None:
         speed_loss: str = SpeedLossOption,
         safety: str = SafetyOption,
         max_detail: int = MaxDetailOption,
+        least_fuel: bool = LeastFuelOption,
+        rank_departures: str = RankDeparturesOption,
         no_report: bool = NoReportOption,
         exports: str = ExportsOption,
     ) -> None:
@@ -163,6 +174,7 @@ def register(app: typer.Typer) -> None:
             weather_source="fetch" if fetch else ("files" if weather else "auto"), window_h=window_h, step_h=step_h,
             voyages=str(voyages.resolve()) if voyages else None, lanes=list(lane or []) or None, vessel=vessel, profile=profile,
             speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report, exports=exports,
+            least_fuel=least_fuel, rank_departures=rank_departures,
         )
         params = checked.model_dump(exclude={"now", "out", "cache_dir"}, exclude_none=True)
         from prefect.deployments.runner import EntrypointType

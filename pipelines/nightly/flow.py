@@ -107,11 +107,12 @@ def _flow():
                         step_h: float = DEFAULT_STEP_H, voyages: str | None = None, lanes: list[str] | None = None,
                         vessel: str | None = None, profile: str | None = None, speed_loss: str = "bowditch",
                         safety: str = "hard", max_detail: int = 20, report: bool = True, cache_dir: str | None = None,
-                        exports: str = "proposed") -> dict:
+                        exports: str = "proposed", least_fuel: bool = True, rank_departures: str = "none") -> dict:
         """Screen every lane x departure of the forecast window, reroute the adverse ones, rank, store, report."""
         p = NightlyParams(db=db, out=out, out_root=out_root, weather=weather or [], weather_source=weather_source, now=now, window_h=window_h,
                           step_h=step_h, voyages=voyages, lanes=lanes, vessel=vessel, profile=profile, speed_loss=speed_loss,
-                          safety=safety, max_detail=max_detail, report=report, cache_dir=cache_dir, exports=exports)
+                          safety=safety, max_detail=max_detail, report=report, cache_dir=cache_dir, exports=exports,
+                          least_fuel=least_fuel, rank_departures=rank_departures)
         started, timings, t = pd.Timestamp.now(tz="UTC"), {}, time.perf_counter()
         the_now, source = resolve_now(p.now), choose_weather_source(p)
         paths = load_task(p.db, voyages=p.voyages, lanes=p.lanes, vessel=p.vessel)

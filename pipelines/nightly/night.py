@@ -33,7 +33,8 @@ FETCH_RETRY_DELAYS_S = (2, 5, 15)
 #: Route roles evaluated for an adverse lane-departure, in report order; every delta is against
 #: ``lane``: the lane as planned (its centroids, legs over land repaired) sailed at the lane's
 #: typical AIS speed minus the vessel model's speed loss, exactly as the alternatives are sailed.
-ROLES = ("lane", "deviation", "safe_optimal", "optimal", "min_distance")
+#: ``least_fuel``: the least-fuel route arriving by the lane's arrival (speed setting per leg).
+ROLES = ("lane", "deviation", "safe_optimal", "optimal", "least_fuel", "min_distance")
 REFERENCE = "lane"
 
 
@@ -63,6 +64,10 @@ class NightlyParams(BaseModel):
     speed_loss: str = "bowditch"
     safety: Literal["hard", "soft", "none"] = "hard"
     max_detail: int = Field(20, ge=0)
+    least_fuel: bool = True
+    #: Rank every departure of the window per lane with adverse departures (its route of this objective
+    #: from each departure, :func:`routing.planner_window.plan_window`); "none": no ranking.
+    rank_departures: Literal["none", "time", "fuel"] = "none"
     report: bool = True
     exports: Literal["proposed", "all", "none"] = "proposed"
     cache_dir: str | None = None
@@ -175,6 +180,9 @@ class LaneJob:
     weather: object  # routing.field.WeatherField
     safety: str = "hard"
     learned: object = None  # learned:NAME: its LearnedSpeedTable for this lane's vessel and speed (or the error why none)
+    least_fuel: bool = True
+    rank_departures: str = "none"
+    window: list = field(default_factory=list)  # every departure of the lane tonight (for the ranking)
 
 
 @dataclass
@@ -186,3 +194,4 @@ class NightResult:
     events: pd.DataFrame
     cases: list  # dicts (adverse/failed lane-departures) in rank order
     counts: dict
+    windows: list = field(default_factory=list)  # per lane: its departures ranked (rank_departures)

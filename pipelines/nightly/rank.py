@@ -96,8 +96,9 @@ def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightR
         "failed": int((deps["status"] == "failed").sum()),
         "reroutes": int(((deps["status"] == "adverse") & deps["proposed"].notna()).sum()),
     }
+    windows = sorted((o["lane_window"] for o in outcomes if o.get("lane_window")), key=lambda w: w["lane"])
     return NightResult(deps, pd.DataFrame(route_rows, columns=list(ROUTE_COLUMNS)),
-                       pd.DataFrame(event_rows, columns=list(EVENT_COLUMNS)), cases, counts)
+                       pd.DataFrame(event_rows, columns=list(EVENT_COLUMNS)), cases, counts, windows)
 
 
 def overview_of(result: NightResult, top: int = 10) -> dict:
@@ -131,6 +132,7 @@ def overview_of(result: NightResult, top: int = 10) -> dict:
                  "events_avoided": None if r["events_avoided"] is None or pd.isna(r["events_avoided"]) else int(r["events_avoided"]),
                  "delta_time_h": _num(r["delta_time_h"]), "delta_fuel_t": _num(r["delta_fuel_t"]), "error": r["error"]}
                 for r in ranked.to_dict("records")],
+        **({"departure_windows": result.windows} if result.windows else {}),
     }
 
 

@@ -26,7 +26,8 @@ def lane_jobs(night: Night, screen: pd.DataFrame) -> list[LaneJob]:
         jobs.append(LaneJob(path_id=pid, lane_id=p.lane_id, centroids=p.centroids, vessel=night.vessels[p.vessel_profile],
                             limits=night.limits, speed_loss=night.params.speed_loss,
                             departures=sorted(pd.Timestamp(t) for t in g["depart_utc"]), weather=field_,
-                            safety=night.params.safety, learned=_lane_table(night, p)))
+                            safety=night.params.safety, learned=_lane_table(night, p), least_fuel=night.params.least_fuel,
+                            rank_departures=night.params.rank_departures, window=night.path_departures(p)))
     return jobs
 
 
@@ -117,16 +118,88 @@ def reroute_lane(job: LaneJob) -> list[dict]:
                 routes["safe_optimal"] = _clean_route(plan.routes["safe_optimal_smoothed"], "safe_optimal")
             routes["optimal"] = _clean_route(plan.routes["optimal_smoothed"], "optimal")
             routes["min_distance"] = _clean_route(plan.routes["min_distance"])
+            lf = least_fuel_routes(plan, vessel, routes[REFERENCE].time_utc[-1], job)
+            if lf is not None and lf["least_fuel"] is not None:
+                routes["least_fuel"] = _clean_route(lf["least_fuel"])
             evs = {role: evaluate_route(r, sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss, learned=job.learned)
                    for role, r in routes.items()}
             proposed = propose(evs, reference=REFERENCE)
+            fuel = None if lf is None else least_fuel_outcome(lf, evs, proposed, sampler, vessel, job)
             out.append({"path_id": job.path_id, "depart_utc": t, "status": "adverse", "evaluations": evs,
                         "table": comparison_table(evs, reference=REFERENCE), "proposed": proposed,
-                        "optimality": optimality_gaps(routes, plan), "error": None,
+                        "optimality": optimality_gaps(routes, plan), "least_fuel": fuel, "error": None,
                         "bands": _bands(evs, proposed, plan, sampler, vessel, job)})
         except Exception as err:  # noqa: BLE001 - one departure fails, the others run
             log.warning("lane %s departing %s failed: %s", job.path_id, t, err)
             out.append({"path_id": job.path_id, "depart_utc": t, "status": "failed", "error": f"{type(err).__name__}: {err}"})
+    if job.rank_departures != "none" and out:
+        out[0]["lane_window"] = lane_window(job, vessel, ship, start, goal, bbox)
+    return out
+
+
+def lane_window(job: LaneJob, vessel, ship, start, goal, bbox) -> dict:
+    """Every departure of the lane's window routed with one objective on one mesh and ranked
+    (:func:`routing.planner_window.plan_window`: arrival, time, distance, fuel, CO2, max Hs, hours over the
+    vessel's limits; the best marked). With ``fuel`` each departure's least-fuel route arrives by its own
+    time-optimal arrival, so the fuel figures of different departures compare different arrivals: a ranking,
+    never a saving. A lane whose window cannot be routed gets its error."""
+    from routing.emissions import Engine
+    from routing.fuel import FuelSpec, max_power_speed_kn, speed_settings
+    from routing.planner import RouteRequest
+    from routing.planner_window import plan_window
+
+    head = {"lane": job.path_id, "objective": job.rank_departures}
+    try:
+        fuel = None
+        if job.rank_departures == "fuel":
+            engine = Engine.from_vessel(vessel)
+            v_max = max_power_speed_kn(engine)
+            fuel = FuelSpec(speed_settings(vessel if vessel.speed_kn <= v_max else dataclasses.replace(vessel, speed_kn=v_max), engine), engine)
+        req = RouteRequest(start, goal, min(job.window), ship, vessel_name=vessel.name, bbox=bbox)
+        res = plan_window(req, job.weather, sorted(job.window), objective=job.rank_departures, fuel=fuel, vessel=vessel, limits=job.limits)
+    except Exception as err:  # noqa: BLE001 - the ranking is extra: the lane's cases stand without it
+        log.warning("lane %s: departure window not ranked: %s", job.path_id, err)
+        return {**head, "rows": [], "best": None, "error": f"{type(err).__name__}: {err}"}
+    rows = [{k: v for k, v in r.items() if k != "route"} for r in res["rows"]]
+    return {**head, "rows": rows, "best": res["best"], "error": None,
+            "basis": "the least-time route of each departure" if job.rank_departures == "time" else
+                     "the least-fuel route of each departure arriving by its own time-optimal arrival (different arrivals: "
+                     "the fuel figures rank departures, they are not savings)"}
+
+
+def least_fuel_routes(plan, vessel, arrive_utc, job: LaneJob) -> dict | None:
+    """The least-fuel route of the departure's plan arriving by the lane's arrival, and its reference
+    (:func:`routing.planner_fuel.least_fuel_role`); None without ``least_fuel``. Not with a learned speed
+    model (its table holds the vessel's one speed, the settings need the loss at every speed): said."""
+    from routing.planner_fuel import least_fuel_role
+
+    if not job.least_fuel:
+        return None
+    if job.learned is not None:
+        return {"least_fuel": None, "min_distance_same_arrival": None, "stats": {},
+                "error": "not computed with a learned speed-loss model (its table is for the lane's one speed)"}
+    return least_fuel_role(plan, vessel, arrive_utc)
+
+
+def least_fuel_outcome(lf: dict, evs: dict, proposed, sampler, vessel, job: LaneJob) -> dict:
+    """The least-fuel role's line: its fuel, the saving against the minimum-distance route at the constant
+    setting arriving when it does (evaluated like every route), why it was or was not proposed, the limits."""
+    from routing.audit import fuel_saving, least_fuel_note, proposal_words
+    from routing.evaluate import evaluate_route
+    from routing.planner_fuel import LIMITS_NOTE
+
+    if lf["least_fuel"] is None:
+        return {"note": f"no least-fuel route arriving by the lane's arrival: {lf['error']}", "saving_pct": None}
+    ref = lf["min_distance_same_arrival"]
+    words = "the minimum-distance route at a constant setting arriving at the same time"
+    if ref is not None:
+        ref = evaluate_route(_clean_route(ref), sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss, learned=job.learned)
+        words = f"the minimum-distance route at a constant {ref.route.properties['planned_setting_kn'][0]:.2f} kn arriving at the same time"
+    out = fuel_saving(evs, "least_fuel", ref, words)
+    out["arrive_by_utc"] = evs["least_fuel"].route.properties.get("arrive_by_utc")
+    out["proposal"] = proposal_words(evs, "least_fuel", proposed, REFERENCE)
+    out["note"] = least_fuel_note(out, out["proposal"], LIMITS_NOTE, evs["least_fuel"].route.properties.get("speed_cap"))
+    evs["least_fuel"].route.properties["note"] = out["note"]
     return out
 
 
