@@ -265,6 +265,7 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
 
     from pipelines.routing_weather import field_from_dataset
     from routing.audit import audit_routes, calm_water_speed, detour_factor, track_to_route, trim_stationary_ends
+    from routing.least_fuel_role import audit_least_fuel, audit_least_fuel_saving
     from routing.sampling import PointSampler
 
     track = track_to_route(inputs.positions)
@@ -298,7 +299,7 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
         plan_stats = dict(plan.stats) if plan is not None else {}
         deviation = alts.get("deviation")
         if plan is not None and table is None:
-            twin = _least_fuel(plan, track, vessel, alts, notes)
+            twin = audit_least_fuel(plan, track, vessel, alts, notes)
         elif plan is not None:
             notes.append("least-fuel route not computed with a learned speed-loss model (its table is for the voyage's one speed)")
     detour = detour_factor(track)
@@ -314,7 +315,7 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
                             vessel, label=choice.label, limits=inputs.limits)
     out["findings"] = out["findings"] + unc["findings"] + notes
     if "least_fuel" in out["evaluations"]:
-        out["least_fuel"] = _least_fuel_saving(out, twin, sampler, vessel, inputs.limits, choice.label, table)
+        out["least_fuel"] = audit_least_fuel_saving(out, twin, sampler, vessel, inputs.limits, choice.label, table)
         out["findings"].append(f"least-fuel: {out['least_fuel']['note']}")
     out.update({"model_check": unc["model_check"], "bands": unc["bands"]})
     out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler,
@@ -368,43 +369,6 @@ def _alternatives(inputs: AuditInputs, track, vessel, field_, sampler, ship, saf
         notes.append(f"deviation of {what} not computed: {err}")
     gaps = optimality_gaps({"as_sailed_modelled": modelled, **alts}, plan)
     return plan, modelled, alts, gaps
-
-
-def _least_fuel(plan, track, vessel, alts: dict, notes: list):
-    """The least-fuel alternative arriving by the voyage's real (AIS) arrival (into ``alts``), and the fair reference
-    of its saving: the sailed track at the one constant setting that meets that arrival, same model and weather
-    (:func:`routing.planner_fuel.same_arrival_twin`; None when no setting does)."""
-    from routing.emissions import Engine
-    from routing.planner_fuel import least_fuel_role, same_arrival_twin
-
-    arrive = track.time_utc[-1]
-    lf = least_fuel_role(plan, vessel, arrive)
-    if lf["least_fuel"] is None:
-        notes.append(f"least-fuel route not computed: {lf['error']}")
-        return None
-    alts["least_fuel"] = _renamed(lf["least_fuel"], "least_fuel")
-    return same_arrival_twin(plan, track.lat_deg, track.lon_deg, track.time_utc[0], arrive, Engine.from_vessel(vessel),
-                             "as_sailed_same_arrival")
-
-
-def _least_fuel_saving(out: dict, twin, sampler, vessel, limits, speed_loss_model: str, learned=None) -> dict:
-    """The least-fuel role's saving against the sailed track at the constant setting meeting the real arrival
-    (both evaluated like every route), why it was or was not proposed, and the limits it ignores."""
-    from routing.audit import fuel_saving, least_fuel_note, proposal_words
-    from routing.evaluate import evaluate_route
-    from routing.planner_fuel import LIMITS_NOTE
-
-    evs = out["evaluations"]
-    words = "the sailed track at a constant setting arriving at the voyage's AIS arrival"
-    ref = None
-    if twin is not None:
-        ref = evaluate_route(twin, sampler, vessel, limits=limits, speed_loss_model=speed_loss_model, learned=learned)
-        words = f"the sailed track at a constant {twin.properties['planned_setting_kn'][0]:.2f} kn arriving at the voyage's AIS arrival"
-    saving = fuel_saving(evs, "least_fuel", ref, words)
-    saving["proposal"] = proposal_words(evs, "least_fuel", out["proposed"], out["reference"])
-    saving["note"] = least_fuel_note(saving, saving["proposal"], LIMITS_NOTE, evs["least_fuel"].route.properties.get("speed_cap"))
-    evs["least_fuel"].route.properties["note"] = saving["note"]
-    return saving
 
 
 def _renamed(route, name):

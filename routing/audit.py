@@ -227,63 +227,6 @@ def _safety_key(s: dict) -> tuple:
     return (round(s["adverse_h"], 6), s["n_safety_events"], round(s["max_hs_m"], 3) if np.isfinite(s["max_hs_m"]) else np.inf)
 
 
-def proposal_words(evaluations: dict, role: str, proposed: str | None, reference: str) -> str:
-    """Why ``role`` was or was not proposed under :func:`propose`'s rules (safety first, then time)."""
-    s, r = evaluations[role].summary, evaluations[reference].summary
-
-    def risk(x):
-        return (f"{x['adverse_h']:.1f} h over the limits or in IMO situations, {x['n_safety_events']} IMO events, "
-                f"max Hs {x['max_hs_m']:.2f} m")
-
-    safer, same = _safety_key(s) < _safety_key(r), _safety_key(s) <= _safety_key(r)
-    if role == proposed:
-        return f"proposed: {'safer than' if safer else 'as safe as and faster than'} {reference} ({risk(s)} against {risk(r)})"
-    why = not_proposable({**s, **{k: v for k, v in evaluations[role].route.properties.items() if k == "not_proposed"}}, r)
-    if why:
-        return f"not proposed: {why}"
-    if not (safer or (same and s["time_h"] < r["time_h"] - 1e-6)):
-        return f"not proposed: neither safer than {reference} nor as safe and faster ({risk(s)} against {risk(r)})"
-    p = evaluations[proposed].summary
-    return (f"not proposed: {proposed} ranks first (safety first, then time): {proposed} {risk(p)}, {p['time_h']:.2f} h; "
-            f"{role} {risk(s)}, {s['time_h']:.2f} h")
-
-
-#: Arrival difference within which two routes count as arriving together (the same-arrival bisection's tolerance). [h]
-SAME_ARRIVAL_TOL_H = 1.0 / 60.0
-
-
-def fuel_saving(evaluations: dict, role: str, reference, reference_words: str) -> dict:
-    """The fuel and CO2 saving of ``role`` against ``reference`` (a RouteEvaluation arriving at the same time),
-    both evaluated by the same model in the same weather: ``saving_fuel_t`` and ``saving_pct`` (reference minus route,
-    positive = less fuel), or ``saving_note`` why none is shown (no reference, or the route arrives later: a
-    difference at different arrival times is never a saving)."""
-    s = evaluations[role].summary
-    planned = evaluations[role].route.properties.get("planned_fuel_t")
-    out = {"fuel_t": round(float(s["fuel_t"]), 6), "co2_t": round(float(s["co2_t"]), 6), "arrive_utc": evaluations[role].route.time_utc[-1].isoformat(),
-           "planned_fuel_t": None if planned is None else round(float(planned), 6), "reference": reference_words}
-    if reference is None:
-        return {**out, "saving_pct": None, "saving_note": f"no {reference_words}: no saving shown"}
-    late_h = (evaluations[role].route.time_utc[-1] - reference.route.time_utc[-1]).total_seconds() / 3600.0
-    rf = float(reference.summary["fuel_t"])
-    out.update(reference_fuel_t=round(rf, 6), reference_arrive_utc=reference.route.time_utc[-1].isoformat())
-    if late_h > SAME_ARRIVAL_TOL_H:
-        return {**out, "saving_pct": None, "saving_note": f"it arrives {late_h:.2f} h after the reference: no saving shown"}
-    return {**out, "saving_fuel_t": round(rf - out["fuel_t"], 6), "saving_co2_t": round(float(reference.summary["co2_t"]) - out["co2_t"], 6),
-            "saving_pct": round(100.0 * (rf - out["fuel_t"]) / rf, 4) if rf > 0 else None}
-
-
-def least_fuel_note(saving: dict, proposal: str, limits: str, cap: str | None = None) -> str:
-    """One line on the least-fuel role: its fuel, the fair saving (or why none), the proposal decision, the limits
-    (and ``cap``: its speed settings capped at the engine's maximum power below the speed sailed)."""
-    planned = "" if saving.get("planned_fuel_t") is None else f" (planned {saving['planned_fuel_t']:.3f} t)"
-    fuel = f"least fuel {saving['fuel_t']:.3f} t as the table evaluates every route{planned}"
-    if saving.get("saving_pct") is not None:
-        fuel += f", saving {saving['saving_pct']:.2f} % ({saving['saving_fuel_t']:.3f} t) against {saving['reference']}"
-    else:
-        fuel += f"; {saving['saving_note']}"
-    return "; ".join(filter(None, [fuel, proposal, limits, cap]))
-
-
 def _hours(h: float) -> str:
     return f"{h:.1f} h"
 

@@ -24,7 +24,6 @@ from routing.fuel import (FuelProblem, FuelSpec, InfeasibleArrivalError, corrido
                           legs_fuel, retime_constant, same_arrival_reference, saving_pct)
 from routing.planner_parts import make_route
 from routing.emissions import steam2_totals
-from routing.errors import NoRouteError
 from routing.field import NS_PER_HOUR
 
 FUEL_ROUTE_NAMES = ("least_fuel", "min_distance_same_arrival")
@@ -208,89 +207,4 @@ def _legs_nmi(lat, lon):
     return np.asarray(haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]))
 
 
-#: What the least-fuel role of the nightly run and the audit does not do, said on the route itself.
-LIMITS_NOTE = ("the least-fuel search does not avoid the vessel's operator or IMO limits: its hours over them are evaluated "
-               "like every route's and the safety-first proposal rules decide")
-
-
-def _copy(route, name: str | None = None):
-    from routing.route import Route
-
-    return Route(name or route.name, route.lat_deg, route.lon_deg, route.time_utc, route.leg_speed_kn, dict(route.weather),
-                 dict(route.properties))
-
-
-def for_table(route):
-    """The route as a comparison table of the nightly run or the audit evaluates every route: its planned
-    settings and fuel kept as ``planned_setting_kn`` and ``planned_fuel_t`` (exports carry them), so
-    :func:`routing.evaluate.evaluate_route` charges its fuel the way it charges the lane's, the track's and the
-    A* routes' (each leg's speed over ground plus the model's loss), like for like within the table."""
-    r = _copy(route)
-    p = r.properties
-    p["planned_setting_kn"] = p.pop("speed_setting_kn", None)
-    p["planned_fuel_t"] = p.pop("fuel_t", None)
-    p.pop("co2_t", None)
-    return r
-
-
-def least_fuel_role(plan, vessel, arrive_utc) -> dict:
-    """The least-fuel route of a finished plan (same mesh, weather and vessel model) arriving no later than
-    ``arrive_utc`` (the lane's or the voyage's arrival), with the vessel's default speed settings
-    (:func:`routing.fuel.speed_settings`) and its STEAM2 engine; and its fair reference, the minimum-distance
-    route at the one constant setting arriving when it does (``min_distance_same_arrival``).
-
-    Returns ``{"least_fuel": Route | None, "min_distance_same_arrival": Route | None, "stats": dict,
-    "error": str | None}``; ``error`` says why there is no route (an arrival no route can meet: the earliest
-    possible one is named). The route's properties carry ``arrive_by_utc`` and ``limits`` (:data:`LIMITS_NOTE`); both
-    routes are :func:`for_table` copies (planned settings and fuel under ``planned_*``).
-    """
-    from routing.emissions import Engine
-    import dataclasses
-
-    from routing.fuel import max_power_speed_kn, speed_settings
-    from routing.planner import _props_maker
-
-    st = plan.stage
-    engine = Engine.from_vessel(vessel)
-    arrive = pd.Timestamp(arrive_utc)
-    v_max = max_power_speed_kn(engine)
-    capped = vessel if vessel.speed_kn <= v_max else dataclasses.replace(vessel, speed_kn=v_max)  # a lane sailed faster than the engine allows
-    spec = FuelSpec(speed_settings(capped, engine), engine, arrive)
-    routes = {n: _copy(plan.routes[n]) for n in ("optimal", "optimal_smoothed", "min_distance")}
-    try:
-        stats = fuel_routes(st, routes, st.paths["time"], st.paths["distance"], spec, _props_maker(st))
-    except NoRouteError as e:  # no arrival by the deadline (InfeasibleArrivalError), or the label budget
-        cap = "" if capped is vessel else f" (settings capped at the engine's maximum-power speed {v_max:.2f} kn, below the {vessel.speed_kn:.2f} kn sailed)"
-        return {"least_fuel": None, "min_distance_same_arrival": None, "stats": {}, "error": f"{e}{cap}"}
-    lf = for_table(routes["least_fuel"])
-    lf.properties.update(arrive_by_utc=arrive.isoformat(), limits=LIMITS_NOTE)
-    if capped is not vessel:
-        lf.properties["speed_cap"] = (f"the {vessel.speed_kn:.2f} kn sailed is above the engine's maximum-power speed {v_max:.2f} kn: "
-                                      f"the settings stop there (the legs off the mesh's nodes keep {vessel.speed_kn:.2f} kn)")
-    ref = routes.get("min_distance_same_arrival")
-    return {"least_fuel": lf, "min_distance_same_arrival": None if ref is None else for_table(ref), "stats": stats, "error": None}
-
-
-def same_arrival_twin(plan, lat_deg, lon_deg, depart_utc, arrive_utc, engine, name: str):
-    """A polyline (the sailed track) sailed by the plan's vessel model at the one constant setting that arrives at
-    ``arrive_utc`` (the voyage's real arrival; :func:`routing.fuel.same_arrival_reference`), or None when no setting
-    from 0.5 kn to the maximum-power speed does."""
-    from routing.planner import _props_maker
-
-    st = plan.stage
-    lat = np.asarray(lat_deg, dtype=float)
-    lon = np.asarray(lon_deg, dtype=float)
-    lon = lon + 360.0 * np.round((st.start[1] - lon) / 360.0)  # the mesh's longitude frame
-    depart = pd.Timestamp(depart_utc)
-    t0_h = st.wx.rel_h(int(depart.value))
-    ref = same_arrival_reference(st.mesh, st.wx, plan.ship, lat, lon, t0_h, st.wx.rel_h(int(pd.Timestamp(arrive_utc).value)), engine)
-    if ref is None:
-        return None
-    s_kn, times, fuel_t = ref
-    route = make_route(name, st.mesh, st.mw, lat, lon, times, depart,
-                       _props_maker(st)("constant", None, times, 0.0, speed_setting_kn=[round(s_kn, 6)] * (times.size - 1)))
-    route.properties.update(fuel_summary(fuel_t, engine))
-    return for_table(route)
-
-
-__all__ = ["FUEL_ROUTE_NAMES", "LIMITS_NOTE", "fuel_routes", "least_fuel_role", "route_fuel", "same_arrival_twin"]
+__all__ = ["FUEL_ROUTE_NAMES", "fuel_routes", "route_fuel"]

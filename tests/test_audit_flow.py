@@ -149,7 +149,13 @@ def test_audit_of_a_voyage_through_the_storm(workspace, tmp_path):
     with open_workspace(workspace) as ws:
         routes = read_audit_routes(ws, "voyage:v1")
         events = read_audit_events(ws, "voyage:v1")
-    assert set(routes["role"]) == {"as_sailed", "as_sailed_modelled", "optimal", "safe_optimal", "min_distance", "deviation"}
+    assert set(routes["role"]) == {"as_sailed", "as_sailed_modelled", "optimal", "safe_optimal", "min_distance", "deviation", "least_fuel"}
+    # issue 20: least fuel by the voyage's AIS arrival, its saving against the sailed track at the one constant setting
+    # that meets that arrival (or why none), in the JSON
+    lf = out["least_fuel_saving"]
+    assert out["least_fuel"]["waypoints"][-1][2] <= hist["waypoints"][-1][2] and lf["fuel_t"] == pytest.approx(out["least_fuel"]["fuel_t"], abs=1e-6)
+    assert lf["saving_pct"] is None or lf["saving_pct"] == pytest.approx(100 * (lf["reference_fuel_t"] - lf["fuel_t"]) / lf["reference_fuel_t"], abs=1e-3)
+    assert "the sailed track at a constant" in lf["reference"] and "proposed" in lf["proposal"]
     assert (events["role"] == "as_sailed").any()
     html = report.read_text()
     assert "TEST &lt;b&gt;SHIP&lt;/b&gt;" in html and "<b>SHIP</b>" not in html

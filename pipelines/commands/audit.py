@@ -53,8 +53,8 @@ def register(app: typer.Typer) -> None:
         start_utc, end_utc, lane_id, origin, destination); vessel_profile; operator_profile;
         speed_loss_model (a formula's name or learned:NAME: every route is sailed by it);
         weather; calm_water_speed (speed_kn, source: ais_low_sea or profile, low_sea_h, low_hs_m);
-        as_sailed and as_sailed_modelled, and optimal, safe_optimal, min_distance, deviation when
-        computed (each: time_h, dist_nmi, max_hs_m, mean_hs_m, fuel_t, co2_t, exposure_h,
+        as_sailed and as_sailed_modelled, and optimal, safe_optimal, least_fuel (by the voyage's AIS
+        arrival, a speed setting per leg), min_distance, deviation when computed (each: time_h, dist_nmi, max_hs_m, mean_hs_m, fuel_t, co2_t, exposure_h,
         adverse_h, n_safety_events, no_weather_h, sea_only, land_legs, land_nmi, events,
         waypoints ...); bias (modelled minus AIS: time_h, time_pct, fuel_t, fuel_pct, co2_t,
         co2_pct); reference (the role of the deltas); proposed (a role or null: never a route
@@ -62,7 +62,9 @@ def register(app: typer.Typer) -> None:
         values and d_<metric> deltas against the reference); optimality (per route: gap_h,
         tolerance_h, holds, constraint); model_check (the sailed track re-timed by each wave
         formula and the learned model against its AIS time); bands (with learned:NAME: P10/P50/P90 time
-        and fuel of the reference and the proposed route); findings.
+        and fuel of the reference and the proposed route); least_fuel_saving (fuel_t, reference: the sailed
+        track at the constant setting meeting the AIS arrival, reference_fuel_t, saving_pct or saving_note,
+        proposal: why least_fuel was or was not proposed); findings.
 
         Example (a ship through a storm, between two times):
 

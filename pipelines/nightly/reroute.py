@@ -171,7 +171,7 @@ def least_fuel_routes(plan, vessel, arrive_utc, job: LaneJob) -> dict | None:
     """The least-fuel route of the departure's plan arriving by the lane's arrival, and its reference
     (:func:`routing.planner_fuel.least_fuel_role`); None without ``least_fuel``. Not with a learned speed
     model (its table holds the vessel's one speed, the settings need the loss at every speed): said."""
-    from routing.planner_fuel import least_fuel_role
+    from routing.least_fuel_role import least_fuel_role
 
     if not job.least_fuel:
         return None
@@ -184,9 +184,8 @@ def least_fuel_routes(plan, vessel, arrive_utc, job: LaneJob) -> dict | None:
 def least_fuel_outcome(lf: dict, evs: dict, proposed, sampler, vessel, job: LaneJob) -> dict:
     """The least-fuel role's line: its fuel, the saving against the minimum-distance route at the constant
     setting arriving when it does (evaluated like every route), why it was or was not proposed, the limits."""
-    from routing.audit import fuel_saving, least_fuel_note, proposal_words
     from routing.evaluate import evaluate_route
-    from routing.planner_fuel import LIMITS_NOTE
+    from routing.least_fuel_role import LIMITS_NOTE, fuel_saving, least_fuel_note, proposal_words
 
     if lf["least_fuel"] is None:
         return {"note": f"no least-fuel route arriving by the lane's arrival: {lf['error']}", "saving_pct": None}
