@@ -310,6 +310,8 @@ def run_group(cfg: Config, group: Group) -> dict:
                 out["skipped"] = f"preparing the inputs failed: {prep['failed']}"
                 return out
             out["prepare"] = {"info": prep["runs"][0]["info"], "wall_s": prep["runs"][0]["wall_s"]}
+            if isinstance(out["prepare"]["info"], dict) and out["prepare"]["info"].get("summary"):
+                _log(cfg, f"  {group.key}: {out['prepare']['info']['summary']}")  # a group whose figures are its preparation's
         recs = {s.key: {"cold": [], "cold_empty_cache": [], "empty_cache_na": ""} for s in group.sides}
         env = {s.key: dict(s.env) for s in group.sides}
         for side in group.sides:

@@ -138,15 +138,24 @@ def measure(cache: Path, quick: bool = False) -> tuple[dict, list]:
     return d, rows
 
 
-def build(cfg):
-    """No timed group: the distribution, computed once, goes into the section's notes."""
+def prepare(cache: str, quick: bool = False) -> dict:
+    """The distribution (its own process, untimed): the figures, and ``summary`` the line the harness prints."""
+    d, _ = measure(Path(cache), quick=quick)
     import os
 
+    d["summary"] = words(d, d["seconds"]) + f" (load {os.getloadavg()[0]:.1f})"
+    return d
+
+
+def build(cfg):
+    """One group without timed sides: its preparation computes the distribution (in bench/results.json under
+    the group's ``prepare.info``; printed by the harness)."""
+    from bench._harness import Group
+
     cache = Path(cfg.cache_dir) / f"fuel-savings-world-{source_stamp('lanes', 'scenario', 'weather', 'tests/nightly_world.py')}"
-    d, _ = measure(cache, quick=cfg.quick)
-    line = words(d, d["seconds"])
-    print(line, flush=True)
-    return [], [line + f" (load {os.getloadavg()[0]:.1f})"]
+    group = Group("fuel_savings_month", "least fuel vs minimum distance at the same arrival, every lane x departure of the demo month",
+                  sides=[], measures=[], prepare="bench.fuel_savings:prepare", prepare_kwargs={"cache": str(cache), "quick": cfg.quick})
+    return [group], ["not a timing: the distribution of fuel savings at the same arrival (issue 20), in the group's prepare.info"]
 
 
 if __name__ == "__main__":
