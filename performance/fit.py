@@ -101,6 +101,7 @@ class PerformanceModel:
     features: tuple = FEATURES
     band_scale: float = 0.0  # the conformal widening, in speed ratio (performance.validate.band_scale)
     band_scales: list = field(default_factory=list)  # [hs_lo_m, scale] per sea-state band (validate.band_scales)
+    scale_in_widths: bool = False  # a model stored before the per-band margins: its one scale is in band widths
 
     def predict(self, df: pd.DataFrame, prior_ratio=None) -> pd.DataFrame:
         """``p50`` (the point model), and ``p10``/``p90`` (the bands) of the speed ratio per row.
@@ -119,6 +120,8 @@ class PerformanceModel:
         scale = self.band_scale
         if self.band_scales:  # per sea-state band (performance.validate.band_scales)
             scale = scale_at(df["hs_m"].to_numpy(float), self.band_scales)
+        if self.scale_in_widths:
+            scale = scale * np.maximum(high - low, 1e-6)
         out["p10"] = np.minimum(low - scale, p50)  # additive, in speed ratio (performance.validate.conformity)
         out["p90"] = np.maximum(high + scale, p50)
         return out
@@ -141,7 +144,7 @@ class PerformanceModel:
             raise ValueError(f"the model was fitted on features {state['features']}, this code uses {list(FEATURES)}")
         return cls(kind=state["kind"], prior=state["prior"] or None, point=state["point"],
                    bands=dict(zip(state["band_quantiles"], state["band_models"])), settings=FitSettings(**s),
-                   band_scale=float(state.get("band_scale", 0.0)),
+                   band_scale=float(state.get("band_scale", 0.0)), scale_in_widths="band_scale_by_hs" not in state,
                    band_scales=[[float(lo), float(v)] for lo, v in zip(state.get("band_scale_hs_lo_m", []),
                                                                         state.get("band_scale_by_hs", []))])
 

@@ -240,7 +240,8 @@ def _check_coverage(sampler, start_utc: pd.Timestamp, end_utc: pd.Timestamp, wha
         )
 
 
-def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternatives: bool = True, safety: str = "hard") -> dict:
+def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternatives: bool = True, safety: str = "hard",
+                 check_with=None) -> dict:
     """The audit itself (plain function): track, its modelled twin, alternatives, evaluations, comparison.
 
     Like for like: the vessel sails at the voyage's calm-water speed (its AIS speeds in low sea
@@ -251,7 +252,8 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
     of the ``safe_optimal`` A* alternative (none: no such alternative). ``speed_loss_model``: a
     formula's name or a resolved :class:`pipelines.learn.SpeedLossChoice` (``learned:NAME``: the
     model is tabulated once for this vessel at the voyage's calm-water speed, and every route is
-    sailed and evaluated by that table).
+    sailed and evaluated by that table). ``check_with`` (a learned choice, when the audit sails a
+    formula): its model is also compared with the AIS time of the voyage (``model_check``).
 
     Returns
     -------
@@ -312,7 +314,7 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
     from routing.bands import audit_uncertainty
 
     unc = audit_uncertainty(out["evaluations"], out["proposed"], out["reference"], track, plan if alternatives else None, sampler,
-                            vessel, label=choice.label, limits=inputs.limits)
+                            vessel, label=choice.label, limits=inputs.limits, check_learned=_check_table(check_with, vessel, notes))
     out["findings"] = out["findings"] + unc["findings"] + notes
     if "least_fuel" in out["evaluations"]:
         out["least_fuel"] = audit_least_fuel_saving(out, twin, sampler, vessel, inputs.limits, choice.label, table)
@@ -321,6 +323,18 @@ def audit_voyage(inputs: AuditInputs, *, speed_loss_model="bowditch", alternativ
     out.update({"track": track, "plan_stats": plan_stats, "deviation": deviation, "notes": notes, "sampler": sampler,
                 "calm_water": calm, "optimality": optimality, "speed_loss_model": choice.label, "learned_table": table})
     return out
+
+
+def _check_table(check_with, vessel, notes: list):
+    """The table of the stored model compared with the formulas on the voyage (None when there is
+    none, or the vessel lies outside what it was trained on: said in the notes)."""
+    if check_with is None:
+        return None
+    try:
+        return check_with.table(vessel, vessel.speed_kn)
+    except StormlaneError as err:
+        notes.append(f"{check_with.label} not compared with the AIS time: {err}")
+        return None
 
 
 def _alternatives(inputs: AuditInputs, track, vessel, field_, sampler, ship, safety: str, notes: list):
@@ -517,12 +531,12 @@ def run_audit(db, *, voyage_id: str | None = None, mmsi: int | None = None, star
     """Plain entry point (CLI, demo, tests): read, audit, store; returns :func:`audit_summary`.
     ``speed_loss_model``: a formula's name, ``learned:NAME`` (a model stored in ``db``) or a resolved
     :class:`pipelines.learn.SpeedLossChoice`."""
-    from pipelines.learn import resolve_speed_loss
+    from pipelines.learn import newest_learned, resolve_speed_loss
 
     choice = resolve_speed_loss(speed_loss_model, db)
     inputs = load_audit_inputs(db, voyage_id=voyage_id, mmsi=mmsi, start=start, end=end, weather_paths=weather or (),
                                vessel=vessel, profile=profile)
-    result = audit_voyage(inputs, speed_loss_model=choice)
+    result = audit_voyage(inputs, speed_loss_model=choice, check_with=None if choice.learned_name else newest_learned(db))
     return store_audit(db, inputs, result, report=report)
 
 

@@ -232,19 +232,14 @@ def learned_limits(db, name: str | None = None, *, profile: str | None = None, v
     (:func:`beside_operator_limits`), None when the workspace holds no model. Reads the model's row
     only (its stored metrics), not its file."""
     from pipelines.storage import open_workspace
-    from pipelines.storage.performance import list_models, read_model
+    from pipelines.storage.performance import read_model
 
-    if db is None or not Path(db).exists():
-        return None
+    if name is None:
+        newest = newest_learned(db)
+        if newest is None:
+            return None
+        name = newest.learned_name
     with open_workspace(db, read_only=True) as ws:
-        if name is None:
-            try:
-                names = list_models(ws)["name"].tolist()
-            except Exception:  # noqa: BLE001 - a workspace without the models table holds no model
-                return None
-            if not names:
-                return None
-            name = names[0]
         row = read_model(ws, name)
     return {"model": f"learned:{name}", "rows": beside_operator_limits(row["metrics"]["voluntary"], profile, vessels)}
 
@@ -400,6 +395,21 @@ def resolve_speed_loss(text, db=None, option: str = "--speed-loss") -> SpeedLoss
     with open_workspace(db, read_only=True) as ws:
         read_model(ws, name)  # one line naming the stored models when there is no such model
     return SpeedLossChoice(f"learned:{name}", db=Path(db))
+
+
+def newest_learned(db) -> SpeedLossChoice | None:
+    """The newest model stored in the workspace as a choice (None when it holds none)."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.performance import list_models
+
+    if db is None or not Path(db).exists():
+        return None
+    try:
+        with open_workspace(db, read_only=True) as ws:
+            names = list_models(ws)["name"].tolist()
+    except Exception:  # noqa: BLE001 - a workspace without the models table holds no model
+        return None
+    return SpeedLossChoice(f"learned:{names[0]}", db=Path(db)) if names else None
 
 
 def eta_band(plan, name: str = "optimal_smoothed") -> dict | None:

@@ -91,23 +91,28 @@ def _leg_nmi(route: Route) -> np.ndarray:
     return np.asarray(haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]), dtype=float).reshape(-1)
 
 
-def model_check(track: Route, plan, vessel) -> list[dict]:
+def model_check(track: Route, plan, vessel, learned=None) -> list[dict]:
     """Each speed model's time for the sailed track against its AIS time (module notes).
 
     Rows: ``model``, ``time_h`` (modelled), ``ais_time_h``, ``bias_h`` and ``bias_pct`` (modelled
     minus AIS), or ``error`` when the model cannot sail this vessel (outside its published range).
-    With a learned plan, the learned row also has ``time_h_p10``/``time_h_p90`` and ``inside_band``
-    (the AIS time within them)."""
+    The learned row (a learned plan's model, else ``learned``: a table of a stored model for this
+    vessel, compared though the plan sails by a formula) also has ``time_h_p10``/``time_h_p90`` and
+    ``inside_band`` (the AIS time within them)."""
     from routing.astar import ShipModel
 
     ais_h = float(track.time_h)
     rows = []
     base = plan.ship
-    models = list(CHECK_FORMULAS) + (["learned"] if base is not None and base.model == "learned" else [])
+    if base.model != "learned" and learned is not None:
+        base_learned = ShipModel.from_vessel(vessel, "learned", speed_kn=base.speed_kn, learned=learned)
+    else:
+        base_learned = base if base.model == "learned" else None
+    models = list(CHECK_FORMULAS) + (["learned"] if base_learned is not None else [])
     for m in models:
-        name = f"learned:{base.learned.name}" if m == "learned" else m
+        name = f"learned:{base_learned.learned.name}" if m == "learned" else m
         try:
-            ship = base if m == "learned" else ShipModel.from_vessel(vessel, m, speed_kn=base.speed_kn)
+            ship = base_learned if m == "learned" else ShipModel.from_vessel(vessel, m, speed_kn=base.speed_kn)
             t = _timed(plan, ship, track.lat_deg, track.lon_deg, track.time_utc[0])
         except ValueError as err:  # a formula outside its published range (SpeedLossRangeError)
             rows.append({"model": name, "error": str(err)})
@@ -117,7 +122,7 @@ def model_check(track: Route, plan, vessel) -> list[dict]:
                "bias_pct": 100.0 * (h - ais_h) / ais_h if ais_h > 0 else None}
         if m == "learned":
             for q, which in (("p10", "p90"), ("p90", "p10")):
-                tq = _timed(plan, _band_ship(base, which), track.lat_deg, track.lon_deg, track.time_utc[0])
+                tq = _timed(plan, _band_ship(base_learned, which), track.lat_deg, track.lon_deg, track.time_utc[0])
                 row[f"time_h_{q}"] = float((tq[-1] - tq[0]).total_seconds() / 3600.0)
             row["inside_band"] = bool(row["time_h_p10"] <= ais_h <= row["time_h_p90"])
         rows.append(row)
@@ -156,13 +161,14 @@ def band_line(band: dict, role: str) -> str:
 
 
 def audit_uncertainty(evaluations: dict, proposed: str | None, reference: str, track: Route, plan, weather_at, vessel,
-                      *, label: str, limits=None) -> dict:
+                      *, label: str, limits=None, check_learned=None) -> dict:
     """What an audit adds for its speed models: ``model_check`` (:func:`model_check` of the sailed
-    track), ``bands`` (role -> :func:`quantile_bands`, for the reference and the proposed route, with
-    a learned model) and ``findings`` (their sentences)."""
+    track; ``check_learned``: a stored model's table compared too when the audit sails a formula),
+    ``bands`` (role -> :func:`quantile_bands`, for the reference and the proposed route, with a
+    learned model) and ``findings`` (their sentences)."""
     if plan is None:
         return {"model_check": [], "bands": {}, "findings": []}
-    rows = model_check(track, plan, vessel)
+    rows = model_check(track, plan, vessel, learned=check_learned)
     bands = {}
     for role in dict.fromkeys([reference, proposed]):
         if role in evaluations:

@@ -280,3 +280,15 @@ def test_the_thresholds_output_shows_the_learned_slow_down_beside_the_operator_l
     code, out, err = run_cli(["weather", "exceedance", *weather, "--vessel", "tanker-aframax", "--learned", "fleet",
                               "--db", str(world["db"])])
     assert code == 0 and f"masters slow down above Hs {row['learned_hs_m']:.2f} m in head-to-bow seas" in out, err
+
+
+def test_a_formula_audit_also_compares_the_stored_model_with_the_ais_time(world):
+    code, out, err = run_cli(["audit", *STORM_A_SHIP, "--db", str(world["db"]), "--json"])
+    assert code == 0, err
+    a = json.loads(out)
+    assert a["speed_loss_model"] == "bowditch" and a["bands"] == {}
+    check = {r["model"]: r for r in a["model_check"]}
+    # the audit's own model re-times the track exactly as its modelled row; the stored model is beside it
+    assert check["bowditch"]["time_h"] == pytest.approx(a["as_sailed_modelled"]["time_h"], rel=1e-6)
+    lr = check["learned:fleet"]
+    assert lr["time_h_p10"] < lr["time_h"] < lr["time_h_p90"] and lr["ais_time_h"] == pytest.approx(a["as_sailed"]["time_h"])
