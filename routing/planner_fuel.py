@@ -21,9 +21,8 @@ import pandas as pd
 
 from routing.astar import evaluate_path, search
 from routing.fuel import (FuelProblem, FuelSpec, InfeasibleArrivalError, corridor_edges, earliest_arrival_h, fuel_summary, least_fuel,
-                          legs_fuel, retime_constant, same_arrival_reference, saving_pct)
+                          fuel_rates_t_per_h, retime_constant, same_arrival_reference, saving_pct)
 from routing.planner_parts import make_route
-from routing.emissions import steam2_totals
 from routing.field import NS_PER_HOUR
 
 FUEL_ROUTE_NAMES = ("least_fuel", "min_distance_same_arrival")
@@ -40,8 +39,14 @@ def _utc(st, t_h: float) -> pd.Timestamp:
 
 
 def route_fuel(times_h, setting_kn, engine) -> float:
-    """Fuel [t] of a schedule: each leg at its setting over its time (:func:`routing.fuel.legs_fuel`)."""
-    return steam2_totals(legs_fuel(np.diff(np.asarray(times_h, dtype=float)), setting_kn, engine))["fuel_t"]
+    """Fuel [t] of a schedule: each leg at its setting over its time, the sum of :func:`routing.fuel.legs_fuel`'s legs
+    (STEAM2 in calm water is linear in the leg's time, so each leg is its setting's hourly rate
+    (:func:`routing.fuel.fuel_rates_t_per_h`) times its hours; waits, NaN or 0, burn nothing), without a table per call."""
+    s = np.nan_to_num(np.asarray(setting_kn, dtype=float), nan=0.0)
+    if s.size == 0:
+        return 0.0
+    u, inv = np.unique(s, return_inverse=True)
+    return float(np.sum(fuel_rates_t_per_h(u, engine)[inv] * np.diff(np.asarray(times_h, dtype=float))))
 
 
 def _tail_h(st, t_h: float) -> float:
@@ -99,9 +104,10 @@ def _candidates(st, routes: dict, opt_nodes, spec: FuelSpec, deadline_h: float) 
     return out
 
 
-def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props) -> dict:
+def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props, *, bound: bool = True) -> dict:
     """Add ``least_fuel`` and ``min_distance_same_arrival`` to ``routes`` (and ``fuel_t``/``co2_t`` to every
-    route); returns the ``fuel`` stats. Raises :class:`routing.fuel.InfeasibleArrivalError`."""
+    route); returns the ``fuel`` stats. ``bound=False`` skips the relaxation's lower bound (no gap reported: a
+    departure window's ranking, which shows none). Raises :class:`routing.fuel.InfeasibleArrivalError`."""
     req, mesh, wx, engine = st.req, st.mesh, st.wx, spec.engine
     prob = FuelProblem.build(mesh, wx, req.ship, spec)
     v0 = req.ship.speed_kn
@@ -124,7 +130,8 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props) ->
         prob.allowed = corridor_edges(mesh, paths, spec.corridor)
     f_upper = min((c[5] for c in cands), default=np.inf) - f_tail
     try:
-        res = least_fuel(prob, st.start_node, st.goal_node, st.t_node_h, f_lead, node_deadline, spec, earliest=earliest, f_upper=f_upper)
+        res = least_fuel(prob, st.start_node, st.goal_node, st.t_node_h, f_lead, node_deadline, spec, earliest=earliest, f_upper=f_upper,
+                         bound=bound)
     except InfeasibleArrivalError as e:
         raise InfeasibleArrivalError(f"no route arrives by {_utc(st, deadline_h).isoformat()}: {str(e).split(': ', 1)[-1]}") from None
     if res.schedule is not None:
