@@ -69,13 +69,11 @@ def lane_cases(db, weather_dir, *, max_lanes: int | None = None, max_departures:
     from pipelines.routing_weather import field_from_dataset
     from routing.astar import ShipModel
     from routing.compare import plan_bbox
-    from routing.emissions import Engine
-    from routing.fuel import FuelSpec, max_power_speed_kn, speed_settings
+    from routing.fuel import FuelSpec
+    from routing.least_fuel_role import default_settings
     from routing.planner import RouteRequest
     from routing.planner_window import plan_window
     from weather.io import read_local
-
-    import dataclasses
 
     ds, _ = read_local([str(p) for p in sorted(Path(weather_dir).glob("*.nc"))])
     field_ = field_from_dataset(ds)
@@ -86,9 +84,7 @@ def lane_cases(db, weather_dir, *, max_lanes: int | None = None, max_departures:
         c = p.centroids.sort_values("seq")
         lat, lon = c["lat_deg"].to_numpy(float), c["lon_deg"].to_numpy(float)
         vessel = lane_speed_vessel(load_vessel(p.vessel_profile), c)
-        engine = Engine.from_vessel(vessel)
-        v_max = max_power_speed_kn(engine)
-        capped = vessel if vessel.speed_kn <= v_max else dataclasses.replace(vessel, speed_kn=v_max)
+        engine, settings, capped, _ = default_settings(vessel)
         ship = ShipModel.from_vessel(capped, "bowditch")
         last = end - pd.Timedelta(hours=1.5 * p.hours + 6.0)  # its routes end inside the weather
         times = list(pd.date_range(MONTH_START, last, freq=f"{STEP_H:g}h"))[:max_departures]
@@ -96,7 +92,7 @@ def lane_cases(db, weather_dir, *, max_lanes: int | None = None, max_departures:
             continue
         start, goal = (float(lat[0]), float(lon[0])), (float(lat[-1]), float(lon[-1]))
         req = RouteRequest(start, goal, times[0], ship, vessel_name=vessel.name, bbox=plan_bbox(start, goal, lat, lon, field_))
-        spec = FuelSpec(speed_settings(capped, engine), engine)
+        spec = FuelSpec(settings, engine)
         try:
             res = plan_window(req, field_, times, objective="fuel", fuel=spec)
         except Exception as err:  # noqa: BLE001 - a lane the planner refuses is counted, not dropped

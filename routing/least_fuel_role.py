@@ -55,6 +55,19 @@ def for_table(route):
     return r
 
 
+def default_settings(vessel) -> tuple:
+    """``(engine, settings_kn, capped_vessel, v_max_kn)``: the vessel's STEAM2 engine and its default speed settings
+    (:func:`routing.fuel.speed_settings`) up to its maximum-power speed; a vessel sailed faster than that (a lane's
+    typical AIS speed above the profile's engine) is capped there (``capped_vessel`` is then a copy)."""
+    from routing.fuel import speed_settings
+
+    engine = Engine.from_vessel(vessel)
+    v_max = max_power_speed_kn(engine)
+    # floored to the settings' 6 decimals, so the cap and the range's top setting are one setting, not two
+    capped = vessel if vessel.speed_kn <= v_max else dataclasses.replace(vessel, speed_kn=np.floor(v_max * 1e6) / 1e6)
+    return engine, speed_settings(capped, engine), capped, v_max
+
+
 def least_fuel_role(plan, vessel, arrive_utc) -> dict:
     """The least-fuel route of a finished plan (same mesh, weather and vessel model) arriving no later than
     ``arrive_utc`` (the lane's or the voyage's arrival), with the vessel's default speed settings
@@ -67,15 +80,12 @@ def least_fuel_role(plan, vessel, arrive_utc) -> dict:
     routes are :func:`for_table` copies (planned settings and fuel under ``planned_*``).
     """
     from routing.emissions import Engine
-    from routing.fuel import max_power_speed_kn, speed_settings
     from routing.planner import _props_maker
 
     st = plan.stage
-    engine = Engine.from_vessel(vessel)
+    engine, settings, capped, v_max = default_settings(vessel)
     arrive = pd.Timestamp(arrive_utc)
-    v_max = max_power_speed_kn(engine)
-    capped = vessel if vessel.speed_kn <= v_max else dataclasses.replace(vessel, speed_kn=v_max)  # a lane sailed faster than the engine allows
-    spec = FuelSpec(speed_settings(capped, engine), engine, arrive)
+    spec = FuelSpec(settings, engine, arrive)
     routes = {n: _copy(plan.routes[n]) for n in ("optimal", "optimal_smoothed", "min_distance")}
     try:
         stats = fuel_routes(st, routes, st.paths["time"], st.paths["distance"], spec, _props_maker(st))
@@ -204,5 +214,5 @@ def audit_least_fuel_saving(out: dict, twin, sampler, vessel, limits, speed_loss
     return saving
 
 
-__all__ = ["LIMITS_NOTE", "SAME_ARRIVAL_TOL_H", "audit_least_fuel", "audit_least_fuel_saving", "for_table", "fuel_saving",
+__all__ = ["LIMITS_NOTE", "SAME_ARRIVAL_TOL_H", "audit_least_fuel", "audit_least_fuel_saving", "default_settings", "for_table", "fuel_saving",
            "least_fuel_note", "least_fuel_role", "proposal_words", "same_arrival_twin"]

@@ -143,8 +143,8 @@ def lane_window(job: LaneJob, vessel, ship, start, goal, bbox) -> dict:
     vessel's limits; the best marked). With ``fuel`` each departure's least-fuel route arrives by its own
     time-optimal arrival, so the fuel figures of different departures compare different arrivals: a ranking,
     never a saving. A lane whose window cannot be routed gets its error."""
-    from routing.emissions import Engine
-    from routing.fuel import FuelSpec, max_power_speed_kn, speed_settings
+    from routing.fuel import FuelSpec
+    from routing.least_fuel_role import default_settings
     from routing.planner import RouteRequest
     from routing.planner_window import plan_window
 
@@ -152,9 +152,8 @@ def lane_window(job: LaneJob, vessel, ship, start, goal, bbox) -> dict:
     try:
         fuel = None
         if job.rank_departures == "fuel":
-            engine = Engine.from_vessel(vessel)
-            v_max = max_power_speed_kn(engine)
-            fuel = FuelSpec(speed_settings(vessel if vessel.speed_kn <= v_max else dataclasses.replace(vessel, speed_kn=v_max), engine), engine)
+            engine, settings, _, _ = default_settings(vessel)
+            fuel = FuelSpec(settings, engine)
         req = RouteRequest(start, goal, min(job.window), ship, vessel_name=vessel.name, bbox=bbox)
         res = plan_window(req, job.weather, sorted(job.window), objective=job.rank_departures, fuel=fuel, vessel=vessel, limits=job.limits)
     except Exception as err:  # noqa: BLE001 - the ranking is extra: the lane's cases stand without it
