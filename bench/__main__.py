@@ -40,9 +40,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     known = _report.scripts()
     names = [n for n in args.only.split(",") if n] or known
-    unknown = [n for n in names if n not in known]
+    unknown = [n for n in names if n not in known + list(_report.APART_SECTIONS)]
     if unknown:
-        ap.error(f"unknown benchmark(s) {', '.join(unknown)}; choose from {', '.join(known)}")
+        ap.error(f"unknown benchmark(s) {', '.join(unknown)}; choose from {', '.join(known + list(_report.APART_SECTIONS))}")
     args.quick = args.quick or args.smoke
     cfg = _harness.Config.make(args.quick, smoke=args.smoke)
     waited = _wait_quiet(args.wait_quiet) if args.wait_quiet > 0 else ""

@@ -26,9 +26,13 @@ README_END = "<!-- bench-table:end -->"
 #: The order of the scripts in ``make bench``, the README's table and the page; a script not listed
 #: here (a new ``bench/<name>.py``) runs after these, in alphabetical order (:func:`scripts`).
 SCRIPT_ORDER = ("ingest", "ingest_dask", "lanes", "weather", "routing", "evaluate", "report", "nightly")
-#: Scripts run apart from ``make bench``, with their own result file: ``scale.py`` (issue 23: one
-#: 100 M-row run takes hours on 2 cores; bench/results-scale.json, docs/scale.md).
-APART = ("scale",)
+#: Scripts run apart from ``make bench``: ``scale.py`` (issue 23: one 100 M-row run takes hours on
+#: 2 cores; its own file bench/results-scale.json, docs/scale.md) and ``fuel_savings.py`` (issue 20:
+#: not a timing but the demo month's distribution of fuel savings, 4-9 min of routing; its section
+#: is merged into bench/results.json by ``python -m bench --only fuel_savings``).
+APART = ("scale", "fuel_savings")
+#: The scripts of :data:`APART` that ``python -m bench --only NAME`` runs into bench/results.json.
+APART_SECTIONS = ("fuel_savings",)
 
 
 def scripts() -> list[str]:

@@ -30,7 +30,7 @@ if __name__ == "__main__":  # run as a file: the project's packages, not bench/*
 
 from pathlib import Path
 
-from bench._harness import Group, Measure, Side, Target, script_main, source_stamp
+from bench._harness import BATCH, Group, Measure, Side, Target, script_main, source_stamp
 
 DAYS = 51.0  # about 1.0 M clean fixes (30 days: 590 k)
 START = "2025-01-01T00:00Z"
@@ -133,10 +133,10 @@ def build(cfg):
         prepare=f"{here}:prepare", prepare_kwargs={"folder": folder, "days": days},
         sides=[Side("learn", "learn performance: table, features, formulas, grouped CV, time split, final model, "
                     "voluntary thresholds, model file", setup=f"{here}:setup_learn", kwargs={"folder": folder},
-                    run=f"{here}:run_learn", work="fixes in the span"),
+                    run=f"{here}:run_learn", work="fixes in the span", **BATCH),
                Side("one_fit", "one unconstrained HistGradientBoostingRegressor on the same segments (no validation)",
                     setup=f"{here}:setup_fit", kwargs={"folder": folder}, run=f"{here}:run_fit", ours=False,
-                    work="fixes in the span")],
+                    work="fixes in the span", **BATCH)],
         measures=[Measure("learn", "learning a performance model from AIS x weather", "learn", "one_fit",
                           relation="not the same output: one fit on segments already built, against the table, 27 fits "
                                    "of the validation and the final model",
