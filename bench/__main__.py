@@ -49,6 +49,12 @@ def main(argv: list[str] | None = None) -> int:
     path = _report.RESULTS_QUICK if args.quick else _report.RESULTS
     partial = bool(args.only)
     results = _report.load_results(path) if (partial and path.exists()) else _report.new_results("quick" if args.quick else "full")
+    if not partial and path.exists():  # sections run apart (not part of make bench) keep their figures, marked run alone
+        earlier = _report.load_results(path)
+        for name in _report.APART_SECTIONS:
+            if name in earlier["benchmarks"]:
+                results["benchmarks"][name] = earlier["benchmarks"][name]
+                results.setdefault("sections_run_alone", []).append(name)
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
