@@ -41,7 +41,9 @@ whatever its speed or the step, and ``min_density`` is the number of voyages tha
 by (in position, speed and course) for a point to be a core point. The same threshold then means
 the same thing at a 60 s step in a harbour and at a 300 s step at sea.
 
-Memory bound. DBSCAN memory grows with the neighbours per point. A partition with more than
+Memory bound. DBSCAN memory grows with the neighbours per point: the neighbourhoods are
+computed in chunks of query points (:mod:`lanes.dbscan`, the same labels as scikit-learn's
+``DBSCAN``), held all at once only while they fit in :data:`lanes.dbscan.KEEP_PAIRS`. A partition with more than
 ``max_points`` points is clustered on a deterministic uniform sample of ``max_points`` points,
 their weights multiplied by ``n / max_points``, so the core-point condition (sum of weights in
 the eps-ball >= ``min_density``) estimates the same density; the other points take the label of
@@ -202,24 +204,26 @@ def point_weights(speed_kn: np.ndarray, step_s: float, eps_nmi: float) -> np.nda
 def dbscan_labels(features: np.ndarray, weights: np.ndarray, params: LaneParams,
                   key: tuple[int, int]) -> tuple[np.ndarray, bool]:
     """DBSCAN labels with ``eps = 1`` in the scaled space, weighted, sampled above ``max_points``."""
-    from sklearn.cluster import DBSCAN
     from sklearn.neighbors import KDTree
+
+    from lanes.dbscan import dbscan_chunked
 
     n = features.shape[0]
     if n == 0:
         return np.empty(0, dtype=np.int64), False
     min_samples = max(1, int(round(params.min_density * _WEIGHT_SCALE)))
-    db = DBSCAN(eps=1.0, min_samples=min_samples, algorithm="kd_tree")
+    # scikit-learn's DBSCAN (k-d tree) labels, computed in chunks of query points so that a
+    # dense partition never holds every neighbourhood at once (lanes.dbscan)
     if n <= params.max_points:
-        labels = db.fit(features, sample_weight=weights * _WEIGHT_SCALE).labels_
-        return labels.astype(np.int64), False
+        return dbscan_chunked(features, 1.0, min_samples, weights * _WEIGHT_SCALE)[0], False
     rng = np.random.default_rng(_seed(key, params.seed))
     sample = np.sort(rng.choice(n, size=params.max_points, replace=False))
     scale = n / params.max_points
-    sample_labels = db.fit(features[sample], sample_weight=weights[sample] * scale * _WEIGHT_SCALE).labels_
+    sample_labels, sample_core = dbscan_chunked(features[sample], 1.0, min_samples,
+                                                weights[sample] * scale * _WEIGHT_SCALE)
     labels = np.full(n, -1, dtype=np.int64)
     labels[sample] = sample_labels
-    core = sample[db.core_sample_indices_]
+    core = sample[sample_core]
     rest = np.setdiff1d(np.arange(n), sample, assume_unique=True)
     if core.size and rest.size:
         tree = KDTree(features[core])
