@@ -35,9 +35,9 @@ from __future__ import annotations
 import numpy as np
 
 #: Query points per chunk (one chunk's neighbourhoods are held at a time).
-CHUNK_POINTS = 4096
+CHUNK_POINTS = 1024
 #: Neighbour pairs kept from step 1 for step 2 (int32: 4 bytes each); beyond, step 2 queries again.
-KEEP_PAIRS = 25_000_000
+KEEP_PAIRS = 16_000_000
 
 
 def _neighbour_model(features: np.ndarray, eps: float, leaf_size: int):
