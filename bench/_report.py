@@ -153,8 +153,9 @@ def load_note(before: float, after: float, sections, what: str = "the run") -> s
     """What the load was: before and after ``what`` and the range around its runs; says when the
     machine was not quiet."""
     lo, hi = load_range(sections)
-    note = (f"1-minute load average {before:.2f} before {what}, {after:.2f} after it, {lo:.2f}-{hi:.2f} "
-            f"around the runs ({os.cpu_count()} cores; the benchmark's own process counts about 1 in it)")
+    around = f", {lo:.2f}-{hi:.2f} around the runs" if lo == lo else ""  # NaN: no timed runs (a section of figures only)
+    note = (f"1-minute load average {before:.2f} before {what}, {after:.2f} after it{around} "
+            f"({os.cpu_count()} cores; the benchmark's own process counts about 1 in it)")
     if hi >= 2.0:
         note += ("; the machine was NOT quiet (other work was running on its cores): wall times "
                  "are inflated, compare the CPU seconds and the ratios of the interleaved pairs")
