@@ -136,8 +136,8 @@ def new_results(mode: str) -> dict:
             "git": git_state(), "machine": machine(), "scripts": scripts(), "benchmarks": {}}
 
 
-def load_range(sections) -> tuple[float, float]:
-    """Lowest and highest 1-minute load average recorded before or after any run of ``sections``."""
+def load_values(sections) -> list[float]:
+    """Every 1-minute load average recorded before or after a run of ``sections``."""
     values = []
     for sec in sections:
         for g in sec["groups"]:
@@ -146,19 +146,37 @@ def load_range(sections) -> tuple[float, float]:
                     ph = side.get(phase) or {}
                     for key in ("load_1min_before", "load_1min_after"):
                         values += [v for v in ((ph.get(key) or {}).get("values") or []) if v is not None]
+    return values
+
+
+def load_range(sections) -> tuple[float, float]:
+    """Lowest and highest 1-minute load average recorded before or after any run of ``sections``."""
+    values = load_values(sections)
     return (min(values), max(values)) if values else (float("nan"), float("nan"))
+
+
+#: A run is busy when the load reaches this (the benchmark's own process is about 1 of it; a Dask
+#: side's own workers add up to 2 more for a moment), and the machine not quiet when more than
+#: :data:`BUSY_SHARE` of the runs were busy.
+BUSY_LOAD = 2.0
+BUSY_SHARE = 0.1
 
 
 def load_note(before: float, after: float, sections, what: str = "the run") -> str:
     """What the load was: before and after ``what`` and the range around its runs; says when the
-    machine was not quiet."""
+    machine was not quiet (more than a tenth of the runs at load >= 2 on these 2 cores)."""
+    values = load_values(sections)
     lo, hi = load_range(sections)
     around = f", {lo:.2f}-{hi:.2f} around the runs" if lo == lo else ""  # NaN: no timed runs (a section of figures only)
     note = (f"1-minute load average {before:.2f} before {what}, {after:.2f} after it{around} "
             f"({os.cpu_count()} cores; the benchmark's own process counts about 1 in it)")
-    if hi >= 2.0:
-        note += ("; the machine was NOT quiet (other work was running on its cores): wall times "
-                 "are inflated, compare the CPU seconds and the ratios of the interleaved pairs")
+    busy = sum(v >= BUSY_LOAD for v in values) / len(values) if values else 0.0
+    if busy > BUSY_SHARE:
+        note += (f"; the machine was NOT quiet ({busy:.0%} of the runs at load >= {BUSY_LOAD:g}: other work, or this "
+                 "benchmark's own Dask workers, ran on its cores): wall times may be inflated, compare the CPU seconds and "
+                 "the ratios of the interleaved pairs")
+    elif hi >= BUSY_LOAD:
+        note += f"; {busy:.0%} of the runs saw load >= {BUSY_LOAD:g} (too few to call the machine busy; a Dask side's own workers reach it)"
     return note
 
 
