@@ -276,6 +276,49 @@ def run_r6_feeder(st: dict) -> dict:
     return info
 
 
+# --------------------------------------------------------------------------- learned speed table (issue 21)
+
+
+def _bowditch_table(v0_kn: float):
+    """A learned-model table holding Bowditch's speed ratios on a 0.5 m x 15 deg grid: the search then
+    reads the table (bilinear, in the compiled kernels) where the formula was computed. Same weather,
+    same mesh; the speeds differ only between grid points (Bowditch's sectors are steps in the
+    encounter angle, the table interpolates across them)."""
+    import numpy as np
+
+    from routing.learned import LearnedSpeedTable
+    from routing.speed_loss import speed_loss_bowditch
+
+    hs = np.arange(0.0, 15.01, 0.5)
+    enc = np.arange(0.0, 180.01, 15.0)
+    h, e = np.meshgrid(hs, enc, indexing="ij")
+    ratio = np.clip((v0_kn - np.asarray(speed_loss_bowditch(v0_kn, h, e))) / v0_kn, 0.05, 1.0)
+    return LearnedSpeedTable("bowditch-as-table", hs, enc, ratio, ratio, ratio, hs_max_trained_m=15.0,
+                             note="Bowditch's ratios tabulated (benchmark)")
+
+
+def setup_r6_learned(learned: bool) -> dict:
+    """R6's request with the ship sailing a learned table (or Bowditch itself), the files to read."""
+    from dataclasses import replace
+
+    from routing.astar import ShipModel
+
+    req, v = cases.r6_request()
+    if learned:
+        req = replace(req, ship=ShipModel.from_vessel(v, "learned", learned=_bowditch_table(v.speed_kn)))
+    return {"req": req, "files": [str(f) for f in cases.r6_files()]}
+
+
+def run_r6_plan(st: dict) -> dict:
+    """From the NetCDF files to the four plain routes."""
+    from pipelines.routing_weather import load_weather
+    from routing.planner import plan_routes
+
+    field, _ = load_weather(st["files"])
+    plan = plan_routes(st["req"], field)
+    return {k: round(v.time_h, 3) for k, v in plan.routes.items()}
+
+
 # --------------------------------------------------------------------------- fuel objective (issue 20)
 
 #: R6 with 8 speed settings (9.66 .. 26.93 kn: 60 % of service to maximum power) and a fixed arrival.
@@ -479,10 +522,28 @@ def _fuel_group(r6, route):
         ])
 
 
+def _learned_group(r6):
+    """A route sailed by a learned model's table against the same route by Bowditch (issue 21: <= 1.5x)."""
+    here = HERE
+    return Group(
+        "learned", "R6 sailed by a learned model's table against Bowditch (issue 21)", needs=r6,
+        sides=[
+            Side("r6_learned", "NetCDF to the four plain routes, the ship sailing a learned table (Bowditch's ratios on a "
+                 "0.5 m x 15 deg grid, interpolated between them, so the routes differ a little)", setup=f"{here}:setup_r6_learned", kwargs={"learned": True},
+                 run=f"{here}:run_r6_plan"),
+            Side("r6_bowditch", "the same plan with the Bowditch formula in the kernels", setup=f"{here}:setup_r6_learned",
+                 kwargs={"learned": False}, run=f"{here}:run_r6_plan", empty_cache=SAME_KERNELS),
+        ],
+        measures=[Measure("r6_learned", "R6 plan, learned table against Bowditch", "r6_learned", "r6_bowditch",
+                          relation="the same plan, weather and mesh; the speed comes from the table instead of the formula",
+                          targets=[Target("<= 1.5 x Bowditch (warm)", "speedup.warm", ">=", 1 / 1.5, "x", "issue 21")])])
+
+
 def build(cfg):
     r6 = cases.r6_files()
     route = _stormlane() + cases.r6_route_args()
-    groups = [_r6_group(r6, route), _safe_group(r6), _reference_group(), _medsea_group(), _fuel_group(r6, route)]
+    groups = [_r6_group(r6, route), _safe_group(r6), _reference_group(), _medsea_group(), _fuel_group(r6, route),
+              _learned_group(r6)]
     notes = ["SIMROUTE's figures are external (ANCHORS.md): measured by a coordinator on these machines, not in this run; "
              "compared cold with cold only.",
              "Throughput counts edges whose cost was computed (routing._kernels.astar's counter): edges to settled nodes "
