@@ -377,26 +377,25 @@ HERE = "bench.routing"
 
 def _r6_group(r6, route):
     """The R6 CLI (cold and warm), its searches and the weather onto the mesh; SIMROUTE's external figures."""
-    here = HERE
     return Group(
         "r6", "R6 (Palma -> Barcelona, Storm Gloria): the CLI, the searches, weather onto the mesh", needs=r6,
         sides=[
             Side("route_cli", "`stormlane route` R6 --json, a fresh process (NetCDF read, land mask, weather on the mesh, "
-                 "both searches, smoothing, JSON out)", argv=route, parse=f"{here}:parse_route_json",
-                 warm_setup=f"{here}:setup_cli", warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args()}),
+                 "both searches, smoothing, JSON out)", argv=route, parse=f"{HERE}:parse_route_json",
+                 warm_setup=f"{HERE}:setup_cli", warm_run=f"{HERE}:run_cli", warm_kwargs={"argv": cases.r6_route_args()}),
             Side("help_cli", "`stormlane --help`, a fresh process", argv=_stormlane() + ["--help"],
-                 warm_setup=f"{here}:setup_cli", warm_run=f"{here}:run_cli", warm_kwargs={"argv": ["--help"]}),
+                 warm_setup=f"{HERE}:setup_cli", warm_run=f"{HERE}:run_cli", warm_kwargs={"argv": ["--help"]}),
             Side("python_start", "`python -c pass`: the interpreter's own start (the floor of any Python command)",
                  argv=[sys.executable, "-c", "pass"], ours=False, warm_na="a bare interpreter start has no warm state"),
-            Side("searches", "both R6 A* searches (time, then distance) on the built mesh", setup=f"{here}:setup_r6_mesh",
-                 run=f"{here}:run_searches", work="edges whose cost was computed (both searches)", empty_cache=SAME_KERNELS),
+            Side("searches", "both R6 A* searches (time, then distance) on the built mesh", setup=f"{HERE}:setup_r6_mesh",
+                 run=f"{HERE}:run_searches", work="edges whose cost was computed (both searches)", empty_cache=SAME_KERNELS),
             Side("searches_no_wait", "both R6 A* searches, the ship never waits (ShipModel.wait=False: not optimal where "
-                 "edge times jump with time)", setup=f"{here}:setup_r6_mesh", kwargs={"wait": False}, run=f"{here}:run_searches",
+                 "edge times jump with time)", setup=f"{HERE}:setup_r6_mesh", kwargs={"wait": False}, run=f"{HERE}:run_searches",
                  work="edges whose cost was computed (both searches)", empty_cache=SAME_KERNELS),
             Side("w2m", "R6 weather onto the mesh (WeatherField.on_mesh: bilinear over sea points, hourly steps)",
-                 setup=f"{here}:setup_r6_grid", run=f"{here}:run_w2m", work="node-times filled (sea nodes x time steps)"),
+                 setup=f"{HERE}:setup_r6_grid", run=f"{HERE}:run_w2m", work="node-times filled (sea nodes x time steps)"),
             Side("w2m_xarray", "xarray Dataset.interp (linear) of Hs and the direction's unit vector onto every mesh node",
-                 setup=f"{here}:setup_r6_grid", run=f"{here}:run_w2m_xarray", ours=False,
+                 setup=f"{HERE}:setup_r6_grid", run=f"{HERE}:run_w2m_xarray", ours=False,
                  work="node-times (sea nodes x time steps, for comparison)"),
         ],
         measures=[
@@ -420,15 +419,14 @@ def _r6_group(r6, route):
 
 def _reference_group():
     """Our time-dependent Dijkstra against a plain-Python one on a small mesh (same optimum)."""
-    here = HERE
     return Group(
         "reference", "Time-dependent Dijkstra against a plain-Python reference (small mesh)",
         sides=[
             Side("td_ours", "our time-dependent Dijkstra (compiled core, no heuristic), 0.1 deg Balearic mesh, 48 edges",
-                 setup=f"{here}:setup_small", run=f"{here}:run_small_ours", work="edges whose cost was computed",
+                 setup=f"{HERE}:setup_small", run=f"{HERE}:run_small_ours", work="edges whose cost was computed",
                  empty_cache=SAME_KERNELS),
             Side("td_python", "plain-Python time-dependent Dijkstra (bench/_td_reference.py), same mesh, weather and model",
-                 setup=f"{here}:setup_small", run=f"{here}:run_small_python", ours=False, work="edges whose cost was computed"),
+                 setup=f"{HERE}:setup_small", run=f"{HERE}:run_small_python", ours=False, work="edges whose cost was computed"),
         ],
         measures=[Measure("td_reference", "time-dependent Dijkstra, small mesh", "td_ours", "td_python",
                           relation="same algorithm, edge model and optimum (checked: time_h in both results)")])
@@ -436,21 +434,20 @@ def _reference_group():
 
 def _medsea_group():
     """MEDSEA size: the whole plan, safe mode and the core's throughput against scipy's static Dijkstra."""
-    here = HERE
     return Group(
         "medsea", "MEDSEA size (387 k nodes, generated storm): plan, safe mode, core throughput",
         sides=[
             Side("medsea_plan", "plan_routes: field to both routes (land mask, weather on the mesh, mesh, searches, smoothing)",
-                 setup=f"{here}:setup_medsea", run=f"{here}:run_medsea", empty_cache=SAME_KERNELS),
+                 setup=f"{HERE}:setup_medsea", run=f"{HERE}:run_medsea", empty_cache=SAME_KERNELS),
             Side("medsea_safe", "plan_routes with safety='hard' (hs-wind-only: Hs <= 6 m, wind)",
-                 setup=f"{here}:setup_medsea", kwargs={"safety": True}, run=f"{here}:run_medsea", empty_cache=SAFE_KERNELS),
-            Side("core_time", "core: time-dependent Dijkstra over the mesh to Port Said", setup=f"{here}:setup_medsea_mesh",
-                 run=f"{here}:run_core_time", work="edges whose cost was computed", empty_cache=SAME_KERNELS),
+                 setup=f"{HERE}:setup_medsea", kwargs={"safety": True}, run=f"{HERE}:run_medsea", empty_cache=SAFE_KERNELS),
+            Side("core_time", "core: time-dependent Dijkstra over the mesh to Port Said", setup=f"{HERE}:setup_medsea_mesh",
+                 run=f"{HERE}:run_core_time", work="edges whose cost was computed", empty_cache=SAME_KERNELS),
             Side("core_time_no_wait", "the same core, the ship never waits (ShipModel.wait=False)",
-                 setup=f"{here}:setup_medsea_mesh", kwargs={"wait": False}, run=f"{here}:run_core_time",
+                 setup=f"{HERE}:setup_medsea_mesh", kwargs={"wait": False}, run=f"{HERE}:run_core_time",
                  work="edges whose cost was computed", empty_cache=SAME_KERNELS),
             Side("scipy_dijkstra", "scipy.sparse.csgraph.dijkstra from the start over the same mesh's edges (CSR)",
-                 setup=f"{here}:setup_medsea_mesh", kwargs={"with_graph": True}, run=f"{here}:run_scipy_dijkstra", ours=False,
+                 setup=f"{HERE}:setup_medsea_mesh", kwargs={"with_graph": True}, run=f"{HERE}:run_scipy_dijkstra", ours=False,
                  work="edges (each undirected edge once, as our counter counts a full expansion)"),
         ],
         measures=[
@@ -471,14 +468,13 @@ def _medsea_group():
 
 def _safe_group(r6):
     """R6 in safe mode against the same plan without safety."""
-    here = HERE
     return Group(
         "r6_safe", "R6 safe mode (container feeder, default operator profile + IMO rules)", needs=r6,
         sides=[
-            Side("r6_safe", "NetCDF to all six routes, safety='hard'", setup=f"{here}:setup_r6_feeder",
-                 kwargs={"safety": True}, run=f"{here}:run_r6_feeder"),
-            Side("r6_plain", "NetCDF to the four plain routes, same vessel", setup=f"{here}:setup_r6_feeder",
-                 kwargs={"safety": False}, run=f"{here}:run_r6_feeder", empty_cache=SAME_KERNELS),
+            Side("r6_safe", "NetCDF to all six routes, safety='hard'", setup=f"{HERE}:setup_r6_feeder",
+                 kwargs={"safety": True}, run=f"{HERE}:run_r6_feeder"),
+            Side("r6_plain", "NetCDF to the four plain routes, same vessel", setup=f"{HERE}:setup_r6_feeder",
+                 kwargs={"safety": False}, run=f"{HERE}:run_r6_feeder", empty_cache=SAME_KERNELS),
         ],
         measures=[Measure("r6_safe", "R6 safe mode, NetCDF to all routes", "r6_safe", "r6_plain",
                           relation="the same case without safety: the ratio is what safe mode costs",
@@ -487,26 +483,25 @@ def _safe_group(r6):
 
 def _fuel_group(r6, route):
     """Least-fuel routes (issue 20), each beside the time objective in the same run."""
-    here = HERE
     fuel_route = _stormlane() + cases.r6_route_args() + R6_FUEL_ARGS
     return Group(
         "fuel", "Least-fuel routes (issue 20), each beside the time objective in the same run", needs=r6,
         sides=[
             Side("r6_fuel_cli", "`stormlane route` R6 --objective fuel, 8 settings, --arrive-by 02:00 (NetCDF to every route and "
-                 "the fuel search's bound)", argv=fuel_route, parse=f"{here}:parse_route_json", warm_setup=f"{here}:setup_cli",
-                 warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args() + R6_FUEL_ARGS}),
-            Side("r6_time_cli", "`stormlane route` R6 (time objective), the same process", argv=route, parse=f"{here}:parse_route_json",
-                 warm_setup=f"{here}:setup_cli", warm_run=f"{here}:run_cli", warm_kwargs={"argv": cases.r6_route_args()},
+                 "the fuel search's bound)", argv=fuel_route, parse=f"{HERE}:parse_route_json", warm_setup=f"{HERE}:setup_cli",
+                 warm_run=f"{HERE}:run_cli", warm_kwargs={"argv": cases.r6_route_args() + R6_FUEL_ARGS}),
+            Side("r6_time_cli", "`stormlane route` R6 (time objective), the same process", argv=route, parse=f"{HERE}:parse_route_json",
+                 warm_setup=f"{HERE}:setup_cli", warm_run=f"{HERE}:run_cli", warm_kwargs={"argv": cases.r6_route_args()},
                  empty_cache=SAME_KERNELS),
             Side("r6_window_fuel", "R6, 16 hourly departures with the fuel objective (arrival by 2020-01-21T12:00), ranked, hours over "
-                 "limits", setup=f"{here}:setup_r6_window", kwargs={"objective": "fuel"}, run=f"{here}:run_r6_window",
+                 "limits", setup=f"{HERE}:setup_r6_window", kwargs={"objective": "fuel"}, run=f"{HERE}:run_r6_window",
                  empty_cache=FUEL_KERNELS),
-            Side("r6_window_time", "R6, the same 16 departures with the time objective", setup=f"{here}:setup_r6_window",
-                 kwargs={"objective": "time"}, run=f"{here}:run_r6_window", empty_cache=SAME_KERNELS),
+            Side("r6_window_time", "R6, the same 16 departures with the time objective", setup=f"{HERE}:setup_r6_window",
+                 kwargs={"objective": "time"}, run=f"{HERE}:run_r6_window", empty_cache=SAME_KERNELS),
             Side("medsea_fuel", "MEDSEA-size plan with the least-fuel route (8 settings, arrival 115 h after departure)",
-                 setup=f"{here}:setup_medsea", run=f"{here}:run_medsea_fuel", empty_cache=FUEL_KERNELS),
-            Side("medsea_time", "MEDSEA-size plan, time objective (the medsea group's medsea_plan)", setup=f"{here}:setup_medsea",
-                 run=f"{here}:run_medsea", empty_cache=SAME_KERNELS),
+                 setup=f"{HERE}:setup_medsea", run=f"{HERE}:run_medsea_fuel", empty_cache=FUEL_KERNELS),
+            Side("medsea_time", "MEDSEA-size plan, time objective (the medsea group's medsea_plan)", setup=f"{HERE}:setup_medsea",
+                 run=f"{HERE}:run_medsea", empty_cache=SAME_KERNELS),
         ],
         measures=[
             Measure("r6_fuel", "R6 least fuel, 8 settings, fixed arrival", "r6_fuel_cli", "r6_time_cli",
@@ -524,15 +519,14 @@ def _fuel_group(r6, route):
 
 def _learned_group(r6):
     """A route sailed by a learned model's table against the same route by Bowditch (issue 21: <= 1.5x)."""
-    here = HERE
     return Group(
         "learned", "R6 sailed by a learned model's table against Bowditch (issue 21)", needs=r6,
         sides=[
             Side("r6_learned", "NetCDF to the four plain routes, the ship sailing a learned table (Bowditch's ratios on a "
-                 "0.5 m x 15 deg grid, interpolated between them, so the routes differ a little)", setup=f"{here}:setup_r6_learned", kwargs={"learned": True},
-                 run=f"{here}:run_r6_plan"),
-            Side("r6_bowditch", "the same plan with the Bowditch formula in the kernels", setup=f"{here}:setup_r6_learned",
-                 kwargs={"learned": False}, run=f"{here}:run_r6_plan", empty_cache=SAME_KERNELS),
+                 "0.5 m x 15 deg grid, interpolated between them, so the routes differ a little)", setup=f"{HERE}:setup_r6_learned", kwargs={"learned": True},
+                 run=f"{HERE}:run_r6_plan"),
+            Side("r6_bowditch", "the same plan with the Bowditch formula in the kernels", setup=f"{HERE}:setup_r6_learned",
+                 kwargs={"learned": False}, run=f"{HERE}:run_r6_plan", empty_cache=SAME_KERNELS),
         ],
         measures=[Measure("r6_learned", "R6 plan, learned table against Bowditch", "r6_learned", "r6_bowditch",
                           relation="the same plan, weather and mesh; the speed comes from the table instead of the formula",

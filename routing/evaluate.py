@@ -326,24 +326,24 @@ def _route_summary(route: Route, samples: pd.DataFrame, weather: dict) -> dict:
 
 def _exposure_summary(samples: pd.DataFrame, events: list[dict]) -> dict:
     """Hours over operator limits, under IMO rules and without weather; the events by kind."""
-
-    def hours(mask) -> float:
-        return float(samples.loc[mask, "dt_h"].sum()) if len(samples) else 0.0
-
-    op = samples["adverse_operator"] if len(samples) else None
-    imo = samples["adverse_imo"] if len(samples) else None
+    op_h = imo_h = any_h = no_weather_h = 0.0
+    if len(samples):
+        dt = samples["dt_h"]
+        op, imo = samples["adverse_operator"], samples["adverse_imo"]
+        op_h, imo_h, any_h, no_weather_h = (float(dt[m].sum()) for m in (op, imo, op | imo, samples["no_data"]))
     n_imo = sum(e["kind"] == "imo" for e in events)
     return {
         # hours over any operator limit, and IMO events: the report's "exposure_h" / "n_safety_events"
-        "exposure_h": hours(op),
+        "exposure_h": op_h,
         "n_safety_events": n_imo,
-        "adverse_h": hours(op | imo) if len(samples) else 0.0,
-        "operator_adverse_h": hours(op),
-        "imo_adverse_h": hours(imo),
+        "adverse_h": any_h,
+        "operator_adverse_h": op_h,
+        "imo_adverse_h": imo_h,
         "n_imo_events": n_imo,
         "n_operator_events": sum(e["kind"] == "operator" for e in events),
-        "no_weather_h": hours(samples["no_data"] if len(samples) else None),
+        "no_weather_h": no_weather_h,
     }
+
 
 def setting_legs(leg_dt, setting_kn, samples: pd.DataFrame, weather: dict, enc, model: str, vessel, learned=None) -> pd.DataFrame:
     """STEAM2 legs of a route sailed at a known setting per leg (``speed_setting_kn``, 0 on a wait).

@@ -137,7 +137,10 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
             from routing.planner_window import plan_window
 
             result = plan_window(req, field, window, objective=objective, fuel=fspec, vessel=ship_vessel, limits=limits)
-            emit_json(result) if json_out else echo_window(result)
+            if json_out:
+                emit_json(result)
+            else:
+                echo_window(result)
             return
         plan = plan_routes(req, field, safety=safety, vessel=ship_vessel, limits=limits, penalty_per_h=safety_penalty, fuel=fspec)
         show_plan(plan, ship_vessel, ship, safety=safety, fuel=fspec is not None, learned=learned is not None, out=out, json_out=json_out)

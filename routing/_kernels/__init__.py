@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 import time
 from pathlib import Path
 
@@ -59,8 +60,6 @@ def _kernel_cache_dir() -> Path:
         now = time.time()
         for old in base.glob("numba-*"):
             if old != folder and now - old.stat().st_mtime > STALE_CACHE_AGE_S:
-                import shutil
-
                 shutil.rmtree(old, ignore_errors=True)
         earlier = [*(here / "__pycache__").glob("*.nbi"), *(here / "__pycache__").glob("*.nbc"), here / "__pycache__" / "kernels.sources"]
         for f in earlier:  # the flat cache of earlier versions, keyed on one digest for all processes
