@@ -116,6 +116,43 @@ def test_rerun_writes_nothing_and_failed_load_leaves_nothing(loaded):
     assert len(files_state(root)) == len(before) + 2 and dataset(db) == stored(db)[0]
 
 
+@pytest.mark.parametrize("where", ["writer", "transaction"])
+def test_error_while_the_parts_are_written_in_their_thread_leaves_nothing(loaded, monkeypatch, where):
+    """The parts are written in a thread while the transaction goes on: an error in the writer
+    (its second part) or in the transaction (the vessels step, while the writer may still run)
+    rolls the file back and leaves no part and no temporary file."""
+    import pipelines.storage.ais.commit as commit
+    import pipelines.storage.ais.parquet as parquet
+
+    tmp_path, db = loaded
+    root = positions_root(db)
+    before, pos0 = files_state(root), stored(db)
+    c = two_day_file(tmp_path / "c.csv", mmsi="219000007")
+    if where == "writer":
+        write, calls = parquet.write_geoparquet, []
+
+        def write_then_fail(table, path):
+            write(table, path)  # the first part is on disk under its temporary name
+            calls.append(path)
+            if len(calls) == 2:
+                raise OSError("disk full")
+
+        monkeypatch.setattr(parquet, "write_geoparquet", write_then_fail)
+        expected = OSError
+    else:
+        def vessels_fail(*a, **k):
+            raise RuntimeError("vessels failed")
+
+        monkeypatch.setattr(commit, "_upsert_vessels", vessels_fail)
+        expected = RuntimeError
+    with open_workspace(db) as ws, pytest.raises(expected):
+        ingest_file(ws, c)
+    assert files_state(root) == before and stored(db) == pos0
+    monkeypatch.undo()
+    ingest_paths([c], db)
+    assert len(files_state(root)) == len(before) + 2 and dataset(db) == stored(db)[0]
+
+
 def test_sync_brings_a_damaged_folder_back_to_the_workspace(loaded):
     tmp_path, db = loaded
     root = positions_root(db)

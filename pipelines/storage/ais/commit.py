@@ -409,6 +409,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     # The transaction by hand (not ws.transaction()): the Parquet parts written inside it are
     # published after its commit, or removed after its rollback.
     parts: list = []
+    pending = None
     con.execute("BEGIN TRANSACTION")
     try:
         file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
@@ -424,6 +425,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             FROM ais_stage ANTI JOIN ais_out USING (line) WHERE {_OK}""",
             [file_id],
         )
+        pending = parquet.start_file_parts(ws, file_id, source="ais_new")
         loaded = con.execute("INSERT INTO ais_positions SELECT * FROM ais_new").fetchone()[0]
         _update_track_ends(con, file_id)
         lap("insert")
@@ -449,12 +451,15 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
             fingerprint = fingerprint.result()
         lap("fingerprint_wait")
         _write_file_row(ws, meta, fingerprint, file_id, counts, max_speed_kn)
-        parts = parquet.write_file_parts(ws, file_id, source="ais_new")
-        lap("parquet")
+        parts = pending.finish() if pending is not None else []
+        pending = None
+        lap("parquet_wait")
         if before_commit is not None:
             before_commit()
     except BaseException:
         con.execute("ROLLBACK")
+        if pending is not None:
+            pending.abandon()
         parquet.discard(parts)
         raise
     try:

@@ -23,9 +23,10 @@ zstd: about 25 bytes per position (the workspace holds about 32).
 
 Consistency with the workspace (one writer, crash-safe as the ingest):
 
-1. inside the file's transaction, :func:`write_file_parts` writes each part under a hidden
-   temporary name (``.file-<id>.parquet.<pid>.tmp``, which readers skip) from the rows just
-   inserted, and records it in ``ais_parquet_parts`` (file id, day, rows);
+1. inside the file's transaction, :func:`start_file_parts` writes each part under a hidden
+   temporary name (``.file-<id>.parquet.<pid>.tmp``, which readers skip) from the rows being
+   inserted (in a thread, while the transaction goes on) and :meth:`PendingParts.finish` records
+   it in ``ais_parquet_parts`` (file id, day, rows) before the commit;
 2. after the commit, :func:`publish` renames each part to its final name (atomic);
 3. :func:`sync_positions_parquet` (run by every ingest before it loads and by the lanes before
    they read) makes the folder what ``ais_parquet_parts`` says: a part recorded but missing is
@@ -182,43 +183,79 @@ def _write_parts(con, root: Path, file_id: int, tmp: bool, days: set | None = No
     """The parts of one committed or being-committed file, from ``source`` (``ais_positions``,
     or a table of just the file's rows in its columns; only the parts of ``days``,
     ``YYYY-MM-DD`` strings, when given)."""
-    table = _fetch_arrow(con, _file_rows_sql(source), [int(file_id)])
+    return _write_table_parts(_fetch_arrow(con, _file_rows_sql(source), [int(file_id)]), root, file_id, tmp, days)
+
+
+def _write_table_parts(table, root: Path, file_id: int, tmp: bool, days: set | None = None) -> list[Part]:
+    """Sort an Arrow table of one file's rows and write its parts (numpy, pyarrow and the file
+    system only: safe in a thread while the caller's DuckDB connection works on)."""
     if table.num_rows == 0:
         return []
     table, slices = _sorted_by_day(table)
     parts = []
-    for day, start, n in slices:
-        if days is not None and day not in days:
-            continue
-        folder = root / f"day={day}"
-        folder.mkdir(parents=True, exist_ok=True)
-        final = folder / part_name(file_id)
-        target = folder / f".{final.name}.{os.getpid()}.tmp"
-        write_geoparquet(geoparquet_table(table.slice(start, n)), target)
-        if not tmp:
-            os.replace(target, final)
-        parts.append(Part(final, target, n))
+    try:
+        for day, start, n in slices:
+            if days is not None and day not in days:
+                continue
+            folder = root / f"day={day}"
+            folder.mkdir(parents=True, exist_ok=True)
+            final = folder / part_name(file_id)
+            target = folder / f".{final.name}.{os.getpid()}.tmp"
+            parts.append(Part(final, target, n))
+            write_geoparquet(geoparquet_table(table.slice(start, n)), target)
+            if not tmp:
+                os.replace(target, final)
+    except BaseException:
+        if tmp:
+            discard(parts)
+        raise
     return parts
 
 
-def write_file_parts(ws, file_id: int, source: str = "ais_positions") -> list[Part]:
-    """Inside the file's transaction: write its parts under temporary names and record them in
-    ``ais_parquet_parts``; :func:`publish` them after the commit. No-op in memory. ``source``:
-    a table holding the rows just inserted (the same rows as ``ais_positions`` holds for the
-    file, read without scanning the stored table)."""
+class PendingParts:
+    """A file's parts being written in a thread inside its transaction (:func:`start_file_parts`).
+
+    Why a thread: sorting and writing the parts (numpy, pyarrow and zstd, which release the
+    GIL) is about 40 % of a single-file ingest's CPU time (4.2 of 9.9 s on the 5 M-row DMA
+    file of bench/ingest.py, measured 2026-11-27); it overlaps with the transaction's DuckDB
+    work (insert, track ends, quarantine, vessels) on the second core."""
+
+    def __init__(self, ws, file_id: int, table, root: Path):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._ws, self._file_id = ws, int(file_id)
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="stormlane-parquet")
+        self._future = self._pool.submit(_write_table_parts, table, root, file_id, True)
+
+    def finish(self) -> list[Part]:
+        """Wait for the parts (re-raising the writer's error) and record them in
+        ``ais_parquet_parts`` (still inside the transaction)."""
+        try:
+            parts = self._future.result()
+        finally:
+            self._pool.shutdown(wait=True)
+        for p in parts:
+            self._ws.con.execute("INSERT INTO ais_parquet_parts VALUES (?, ?, ?)",
+                                 [self._file_id, p.path.parent.name[4:], p.rows])
+        return parts
+
+    def abandon(self) -> None:
+        """After an error in the transaction: wait for the writer and remove what it wrote."""
+        self._pool.shutdown(wait=True)
+        if self._future.exception() is None:
+            discard(self._future.result())
+
+
+def start_file_parts(ws, file_id: int, source: str) -> PendingParts | None:
+    """Inside the file's transaction: read the file's rows from ``source`` (a table holding the
+    rows being inserted, in the canonical columns) and start writing its parts under temporary
+    names in a thread; :meth:`PendingParts.finish` records them, :func:`publish` renames them
+    after the commit. None for an in-memory workspace."""
     root = positions_root(getattr(ws, "path", None))
     if root is None:
-        return []
-    try:
-        parts = _write_parts(ws.con, root, file_id, tmp=True, source=source)
-    except BaseException:
-        for tmp in root.glob(f"day=*/.{part_name(file_id)}.{os.getpid()}.tmp"):
-            tmp.unlink(missing_ok=True)
-        raise
-    for p in parts:
-        ws.con.execute("INSERT INTO ais_parquet_parts VALUES (?, ?, ?)",
-                       [int(file_id), p.path.parent.name[4:], p.rows])
-    return parts
+        return None
+    table = _fetch_arrow(ws.con, _file_rows_sql(source), [int(file_id)])
+    return PendingParts(ws, file_id, table, root)
 
 
 def publish(parts: list[Part]) -> None:
