@@ -12,6 +12,15 @@ from routing.errors import WeatherCoverageError
 from routing.field import KNOWN_VARIABLES, WeatherField
 
 
+def require_weather_files(files, error: type[Exception] = WeatherCoverageError) -> None:
+    """Every weather file exists, else one ``error`` naming the missing ones (route, nightly)."""
+    from pathlib import Path
+
+    missing = [str(f) for f in files if not Path(f).exists()]
+    if missing:
+        raise error(f"weather file(s) not found: {', '.join(missing)}")
+
+
 def field_from_dataset(ds) -> WeatherField:
     """Convert a canonical weather Dataset into a :class:`WeatherField`.
 

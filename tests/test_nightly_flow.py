@@ -798,3 +798,37 @@ def test_fetched_weather_retries_network_failures_and_is_requested_for_the_night
     assert pd.Timestamp(calls[-1].end_utc) >= pd.Timestamp(NOW) + pd.Timedelta(hours=45)
     ref = cents[cents["path_id"] == lane]
     assert res["adverse"] == (ref["status"] == "adverse").sum()
+
+
+def test_cli_speed_model_the_lanes_cannot_use_is_refused_once_before_the_night(world, capsys):
+    """Khokhlov beyond its published D·v0 = 4.0e5 t·kn (Grifoll et al. 2022, Appendix I) for a
+    lane's vessel at the lane's median speed, and Kwon on weather without the 10 m wind, are one
+    error line before any lane runs (each lane failed on its own before)."""
+    import numpy as np
+
+    from pipelines.config import load_vessel
+    from pipelines.nightly import load_paths
+
+    paths = load_paths(world["db"])
+    beyond = []
+    for p in paths:
+        v = p.centroids["speed_kn"].to_numpy(float)
+        v = v[np.isfinite(v) & (v > 0)]
+        vessel = load_vessel(p.vessel_profile)
+        speed = float(np.median(v)) if v.size and np.median(v) > vessel.min_speed_kn else vessel.speed_kn
+        if vessel.dwt_t * speed > 4.0e5:
+            beyond.append(p.path_id)
+    assert 0 < len(beyond) < len(paths)  # the world's fleet has ships on both sides of the range
+    rc, out, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--weather", str(world["weather"]), "--now", NOW,
+                        "--speed-loss", "khokhlov", "--json")
+    lines = err.strip().splitlines()
+    assert rc == 2 and out == "" and len(lines) == 1 and "Traceback" not in err
+    assert lines[0].startswith(f"error: --speed-loss khokhlov cannot sail {len(beyond)} of tonight's {len(paths)} lane(s)")
+    assert f"{beyond[0]}: Khokhlov's speed loss is published for 4,000-20,000 dwt" in lines[0]
+
+    waves = [str(f) for f in sorted(world["weather"].glob("*.nc")) if "wind" not in f.name]
+    rc, out, err = _cli(capsys, "nightly", "--db", str(world["db"]), *[a for f in waves for a in ("--weather", f)],
+                        "--now", NOW, "--speed-loss", "kwon", "--json")
+    lines = err.strip().splitlines()
+    assert rc == 2 and out == "" and len(lines) == 1
+    assert lines[0].startswith("error: --speed-loss kwon reads the 10 m wind (wind_u_ms, wind_v_ms), which the weather")

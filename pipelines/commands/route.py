@@ -194,12 +194,8 @@ def _weather_field(files: list[Path], depart_utc, points):
     if not files:
         return None
     xarray_without_dask_arrays()
-    from pipelines.routing_weather import load_weather
+    from pipelines.routing_weather import load_weather, require_weather_files
 
-    missing = [str(f) for f in files if not Path(f).exists()]
-    if missing:
-        from routing.errors import WeatherCoverageError
-
-        raise WeatherCoverageError(f"weather file(s) not found: {', '.join(missing)}")
+    require_weather_files(files)
     field, _meta = load_weather([str(f) for f in files], depart_utc=depart_utc, points=points)
     return field

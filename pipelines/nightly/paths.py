@@ -22,9 +22,9 @@ def _require_workspace(db) -> None:
 
 
 def _require_weather_files(files) -> None:
-    missing = [str(f) for f in files if not Path(f).exists()]
-    if missing:
-        raise NightlyWeatherError(f"weather file(s) not found: {', '.join(missing)}")
+    from pipelines.routing_weather import require_weather_files
+
+    require_weather_files(files, NightlyWeatherError)
 
 
 def _require_voyages_file(path) -> None:

@@ -90,7 +90,9 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
     NightlyWeatherError
         The weather does not reach back to the first departure or forward to the last one
         (``weather.coverage.check_coverage`` names the product, the variable and the gap), or
-        its grid misses the lanes.
+        its grid misses the lanes, or lacks the wind a wind-driven speed-loss model reads.
+    NightlyError
+        The speed-loss formula is refused for some lanes' vessels (:func:`refuse_speed_model`).
     """
     from pipelines.config import load_operator_profile, load_vessel
     from pipelines.learn import learned_limits, resolve_speed_loss
@@ -112,6 +114,7 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
     vessels = {}
     for name in sorted({p.vessel_profile for p in paths}):
         vessels[name] = load_vessel(name)
+    refuse_speed_model(params.speed_loss, paths, vessels, sub, source)
     limits = load_operator_profile(params.profile)
     # the voluntary slow-down AIS shows, beside the limits: the model sailed by, else the newest stored one
     beside = learned_limits(params.db, speed_model.learned_name, profile=params.profile, vessels=list(vessels.values()))
@@ -124,3 +127,34 @@ def prepare_night(params: NightlyParams, now: pd.Timestamp, paths: list[NightPat
     return Night(run_id=run_id, now_utc=now, departures=departures, params=params, paths=paths, weather_ds=sub,
                  weather_meta=dict(meta), weather_source=source, weather_digest=wd, lanes_digest=ld, vessels=vessels,
                  limits=limits, out=out, speed_model=speed_model, learned_limits=beside)
+
+
+def refuse_speed_model(model: str, paths: list[NightPath], vessels: dict, ds, source: str) -> None:
+    """Refuse, once before any lane runs, a speed-loss formula that the lanes could not use: one
+    line naming every lane whose vessel (at the lane's typical speed, as each lane is sailed:
+    :func:`pipelines.nightly.reroute.lane_speed_vessel`) lies outside the formula's published
+    range (Khokhlov's D·v0, Kwon's block coefficient and Froude number:
+    :class:`routing.astar.ShipModel`), and a wind-driven model (Kwon) on weather without the
+    10 m wind. Without this, each lane failed on its own with the same reason."""
+    from pipelines.nightly.night import NightlyError
+    from pipelines.nightly.reroute import lane_speed_vessel
+    from routing.astar import ShipModel
+    from routing.speed_loss import MODELS, WIND_MODELS, SpeedLossRangeError
+
+    if model not in MODELS or model == "none":
+        return  # learned:NAME is resolved (and checked per vessel) by its own step
+    if model in WIND_MODELS and not {"wind_u_ms", "wind_v_ms"} <= set(ds.data_vars):
+        raise NightlyWeatherError(f"--speed-loss {model} reads the 10 m wind (wind_u_ms, wind_v_ms), which the weather "
+                                  f"({source}) lacks; it has {', '.join(sorted(ds.data_vars)) or 'no variable'}: "
+                                  "give wind files with --weather or choose a wave model (bowditch, aertssen, khokhlov)")
+    refused = []
+    for p in paths:
+        vessel = lane_speed_vessel(vessels[p.vessel_profile], p.centroids.sort_values("seq"))
+        try:
+            ShipModel.from_vessel(vessel, model)
+        except (SpeedLossRangeError, ValueError) as err:
+            refused.append(f"{p.path_id}: {err}")
+    if refused:
+        shown = "; ".join(refused[:3]) + (f"; and {len(refused) - 3} more" if len(refused) > 3 else "")
+        raise NightlyError(f"--speed-loss {model} cannot sail {len(refused)} of tonight's {len(paths)} lane(s) "
+                           f"(leave them out with --lanes or choose another model): {shown}")
