@@ -114,6 +114,10 @@ class FuelSpec:
     ``arrive_by``: None = the time-optimal route's arrival (at the service speed). ``objective``
     ``"co2"`` gives the same route (CO2 is proportional to fuel) and reports CO2 first.
     ``buckets_per_subslice``: the label time resolution (tau / k, see :mod:`routing._kernels.fuel`).
+    ``between_settings``: the settings sample a continuous range (``--speed-range``, the vessel's defaults), so
+    a route at one constant speed between them that arrives exactly at the deadline is a candidate too
+    (:func:`routing.planner_fuel._deadline_candidates`); False for a set of discrete settings (``--speeds``),
+    the model whose optimum the search's lower bound and the brute-force tests prove.
     """
 
     speeds_kn: tuple
@@ -128,6 +132,7 @@ class FuelSpec:
     #: The graph searched: None the whole mesh; w >= 0 the corridor of :func:`corridor_edges` (w grid steps around the
     #: time-optimal paths of every setting and the minimum-distance path).
     corridor: int | None = DEFAULT_CORRIDOR
+    between_settings: bool = True
 
     def __post_init__(self):
         if self.objective not in ("fuel", "co2"):

@@ -9,6 +9,9 @@ deadline), and keeps the least fuel arriving in time.
 
 from __future__ import annotations
 
+import dataclasses
+import json
+
 import math
 
 import numpy as np
@@ -135,7 +138,8 @@ def test_zermelo_uniform_current_time_and_fuel_match_the_closed_form():
     eng = Engine.from_vessel(v)
     speeds = (8.0, 10.0, 12.0, 14.0)
     T = d / (math.sqrt(11.0**2 - 4.0) + 2.0)  # between the 10 and 12 kn settings
-    spec = FuelSpec(speeds, eng, arrive_by=pd.Timestamp("2024-01-01T00:00Z") + pd.Timedelta(hours=T), buckets_per_subslice=20)
+    spec = FuelSpec(speeds, eng, arrive_by=pd.Timestamp("2024-01-01T00:00Z") + pd.Timedelta(hours=T), buckets_per_subslice=20,
+                    between_settings=False)
     plan, _ = zermelo_plan(spec)
     hx, hy = lower_envelope([math.sqrt(s * s - 4.0) + 2.0 for s in speeds], fuel_rates_t_per_h(speeds, eng))
     analytic = T * float(np.interp(d / T, hx, hy))
@@ -145,6 +149,15 @@ def test_zermelo_uniform_current_time_and_fuel_match_the_closed_form():
     assert analytic <= f["fuel_t"] + 1e-9 and f["fuel_t"] <= analytic * 1.01
     assert f["lower_bound_fuel_t"] <= f["fuel_t"]
     assert set(np.round(lf.properties["speed_setting_kn"], 6)) <= {10.0, 12.0}  # the two settings around 11 kn (no waits needed)
+    # the same settings sampling a continuous range: one constant 11 kn (sog d / T) meets the deadline exactly and,
+    # the rate being convex in the speed, costs T rate(11), below the two settings' mix (Jensen)
+    plan, _ = zermelo_plan(dataclasses.replace(spec, between_settings=True))
+    f, lf = plan.stats["fuel"], plan.routes["least_fuel"]
+    continuous = T * float(fuel_rates_t_per_h([11.0], eng)[0])
+    assert continuous < analytic and f["fuel_t"] == pytest.approx(continuous, rel=1e-6)
+    assert np.allclose(lf.properties["speed_setting_kn"], 11.0, atol=1e-6) and "between the offered settings" in f["least_fuel_from"]
+    # the relaxation's bound (over mesh routes at the offered settings) is looser still: a gap against it is claimed
+    assert f["bound_note"] is None and f["gap_pct"] == pytest.approx(100.0 * (1.0 - f["lower_bound_fuel_t"] / f["fuel_t"]), abs=1e-3)
 
 
 def test_planned_fuel_equals_evaluated_fuel_and_the_kernels_sum():
@@ -158,7 +171,7 @@ def test_planned_fuel_equals_evaluated_fuel_and_the_kernels_sum():
 
     v = load_vessel("container-feeder")
     eng = Engine.from_vessel(v)
-    spec = FuelSpec((9.0, 12.0, 15.0, 17.0), eng, arrive_by=pd.Timestamp("2024-01-01T17:00Z"))
+    spec = FuelSpec((9.0, 12.0, 15.0, 17.0), eng, arrive_by=pd.Timestamp("2024-01-01T17:00Z"), between_settings=False)
     plan, _ = zermelo_plan(spec, speed_kn=17.0, cur_east_kn=0.0, cur_north_kn=0.0, hs=3.0)
     f = plan.stats["fuel"]
     lf = plan.routes["least_fuel"]
@@ -176,6 +189,11 @@ def test_planned_fuel_equals_evaluated_fuel_and_the_kernels_sum():
     ref = plan.routes["min_distance_same_arrival"]
     assert abs((ref.time_utc[-1] - lf.time_utc[-1]) / pd.Timedelta(hours=1)) <= 1.0 / 60.0
     assert -5.0 < f["saving_pct"] <= 1e-6
+    # settings sampling a range: the constant speed meeting the deadline is a candidate, so least fuel never loses to
+    # its same-arrival reference (here they are the same route at the same speed: saving 0)
+    plan, _ = zermelo_plan(dataclasses.replace(spec, between_settings=True), speed_kn=17.0, cur_east_kn=0.0, cur_north_kn=0.0, hs=3.0)
+    f = plan.stats["fuel"]
+    assert f["saving_pct"] == pytest.approx(0.0, abs=1e-4) and f["fuel_t"] <= plan.routes["min_distance_same_arrival"].properties["fuel_t"] + 1e-9
 
 
 def test_later_arrival_never_costs_more_and_least_fuel_beats_the_time_optimal_route():
@@ -235,3 +253,42 @@ def test_departure_window_routes_every_departure_and_marks_the_least_fuel(capsys
     assert rows[2]["route"] is None and rows[2]["error"].startswith("no route arrives by 2021-03-01T18:00:00+00:00")
     code, out, err = run_cli(capsys, *base, "--depart-window", "2021-03-01T06:00Z", "--step-h", "3")
     assert code == 2 and "START/END" in err
+
+
+@pytest.mark.parametrize("arrive_by", ["2023-07-20T14:40Z", "2023-07-20T15:00Z"])
+def test_cli_least_fuel_never_loses_to_its_same_arrival_reference(shared_data, capsys, arrive_by):
+    """Real CMEMS/GFS weather (the WeatherRoutingTool's Baltic test file), a coarse mesh and tight deadlines, where
+    the settings' mix on the mesh used more fuel than the minimum-distance route at one constant speed in between
+    (-0.63 % before the deadline candidates): least fuel is now at most its reference, arriving together."""
+    from cli_runner import run_cli
+    from conftest import shared_file
+
+    weather = shared_file(shared_data, "weather/wrt_cmems_gfs_baltic/reduced_testdata_weather.nc")
+    rc, out, err = run_cli(capsys, "route", "--from", "54.45,13.95", "--to", "54.95,13.2", "--depart", "2023-07-20T12:00Z",
+                           "--weather", str(weather), "--vessel", "container-feeder", "--objective", "fuel",
+                           "--arrive-by", arrive_by, "--json")
+    assert rc == 0, err
+    d = json.loads(out)
+    f = d["fuel"]
+    assert pd.Timestamp(f["reference"]["arrive_utc"]) == pd.Timestamp(d["least_fuel"]["waypoints"][-1][2]).round("s")
+    assert f["fuel_t"] <= f["reference"]["fuel_t"] + 1e-9 and f["saving_pct"] >= 0.0
+    assert pd.Timestamp(d["least_fuel"]["waypoints"][-1][2]) <= pd.Timestamp(arrive_by)
+
+
+def test_cli_says_when_the_slowest_setting_leaves_time_unused(shared_data, capsys):
+    """A deadline 18 h ahead for a 40 nmi passage: every leg at the slowest setting offered, 13.9 h early; the
+    output says so (the optimum under the settings, not under the deadline)."""
+    from cli_runner import run_cli
+    from conftest import shared_file
+
+    weather = shared_file(shared_data, "weather/wrt_cmems_gfs_baltic/reduced_testdata_weather.nc")
+    rc, out, err = run_cli(capsys, "route", "--from", "54.45,13.95", "--to", "54.95,13.2", "--depart", "2023-07-20T12:00Z",
+                           "--weather", str(weather), "--vessel", "container-feeder", "--objective", "fuel",
+                           "--arrive-by", "2023-07-21T06:00Z", "--json")
+    assert rc == 0, err
+    d = json.loads(out)
+    lowest = min(d["fuel"]["speeds_kn"])
+    assert set(d["least_fuel"]["speed_setting_kn"]) == {lowest}
+    slack_h = (pd.Timestamp("2023-07-21T06:00Z") - pd.Timestamp(d["least_fuel"]["waypoints"][-1][2])) / pd.Timedelta(hours=1)
+    note = next(n for n in d["notes"] if n.startswith("least fuel arrives"))
+    assert note.startswith(f"least fuel arrives {slack_h:.2f} h before the deadline with every leg at the slowest setting offered ({lowest:g} kn)")

@@ -49,7 +49,7 @@ def fuel_spec(vessel, objective: str, speeds: str | None, speed_range: str | Non
             raise typer.BadParameter(f"{arrive_by!r} is not an ISO 8601 time", param_hint="--arrive-by")
     width = None if corridor == "full" else _corridor(corridor)
     return FuelSpec(settings, engine, when, objective, buckets_per_subslice=buckets, pareto=DEFAULT_PARETO_ROUTES if pareto else 0,
-                    corridor=width)  # fmt: skip
+                    corridor=width, between_settings=speeds is None)  # fmt: skip
 
 
 def _corridor(text: str) -> int:
@@ -62,14 +62,37 @@ def _corridor(text: str) -> int:
     return w
 
 
+def slack_note(plan) -> str | None:
+    """When the least-fuel route arrives well before the deadline because every leg already sails
+    at the slowest setting offered (the fuel per mile keeps falling with speed, so only the
+    settings' floor stops it), say so: the time left is the settings' limit, not the optimum's."""
+    f, route = plan.stats.get("fuel"), plan.routes.get("least_fuel")
+    if not f or route is None or not f.get("deadline_utc") or not f.get("speeds_kn"):
+        return None
+    import pandas as pd  # here, not at the top: `stormlane --help` imports this module
+
+    slack_h = (pd.Timestamp(f["deadline_utc"]) - route.time_utc[-1]).total_seconds() / 3600.0
+    sailed = [float(s) for s in route.properties.get("speed_setting_kn") or [] if s > 0]
+    lowest = min(float(s) for s in f["speeds_kn"])
+    if slack_h < 1.0 / 60.0 or not sailed or max(sailed) > lowest + 1e-9:
+        return None
+    return (f"least fuel arrives {slack_h:.2f} h before the deadline with every leg at the slowest setting offered "
+            f"({lowest:g} kn): lower --speeds or --speed-range would use that time")
+
+
 def echo_fuel(plan) -> None:
     """The least-fuel summary under the route table: the deadline, the search's gap, the reference and the saving, the front."""
     f = plan.stats["fuel"]
     first, second = ("co2_t", "fuel_t") if f["objective"] == "co2" else ("fuel_t", "co2_t")
     typer.echo(f"least {first[:-2]}: {f[first]:.3f} t ({second[:-2]} {f[second]:.3f} t), arriving by {f['deadline_utc']} "
                f"({f['deadline_source']}); settings {', '.join(f'{s:g}' for s in f['speeds_kn'])} kn; from {f['least_fuel_from']}")
+    slack = slack_note(plan)
+    if slack is not None:
+        typer.echo(f"note: {slack}")
     if f.get("lower_bound_fuel_t") is not None:
-        typer.echo(f"search: {f['graph']}; lower bound {f['lower_bound_fuel_t']:.3f} t fuel (gap {f['gap_pct']:.2f} %)")
+        gap = f"gap {f['gap_pct']:.2f} %" if f.get("gap_pct") is not None else f"no gap: {f['bound_note']}"
+        typer.echo(f"search: {f['graph']}; lower bound {f['lower_bound_fuel_t']:.3f} t fuel over mesh routes at the offered "
+                   f"settings ({gap})")
     ref = f.get("reference")
     if ref is None:
         typer.echo(f"note: {f.get('saving_note')}")
