@@ -6,7 +6,10 @@ every stage twice, side by side in the same run, interleaved (sequential, then c
 stage, so both see the same machine load):
 
 * ``ingest``: ``stormlane ingest-ais DIR/ais --db NEW`` (sequential), and the same with
-  ``--task-runner dask:ADDRESS`` (file staging on the workers, commits in order here);
+  ``--task-runner dask:ADDRESS`` (file staging on the workers, commits in order here); before them
+  the baseline ``raw read``: DuckDB's own ``read_csv`` of the same gzip files into a new database
+  file (:data:`RAW_READ_SQL`: no cleaning, no quarantine, no Parquet), and the ingest's rows/s as a
+  multiple of it;
 * ``lanes``: ``stormlane lanes`` on that workspace, and the Prefect lanes flow with the
   origin-destination partitions on the workers;
 * ``nightly``: one night (``stormlane nightly``) at the end of the AIS period with the demo's
@@ -139,6 +142,30 @@ def ingest(st: dict) -> dict:
             "disk_parquet_bytes": _tree_bytes(parquet), **_peaks_mb(), **_worker_peaks(st)}
 
 
+#: DuckDB's own CSV reader, the ingest's raw baseline (as bench/ingest.py's): every daily gzip file read into one
+#: table with the dialect given (the scenario's dirty rows skipped, not typed or kept), no cleaning, no Parquet.
+RAW_READ_SQL = ("CREATE TABLE raw AS SELECT * FROM read_csv(?, delim = ',', header = true, ignore_errors = true, "
+                "null_padding = true, strict_mode = false)")
+
+
+def ingest_raw(st: dict) -> dict:
+    """The baseline of the ingest stage: DuckDB ``read_csv`` of the same gzip files into a new database file."""
+    import duckdb
+
+    db = Path(st["db"]).with_name("raw.duckdb")
+    db.unlink(missing_ok=True)
+    files = sorted(str(p) for p in Path(st["ais"]).glob("*.csv.gz"))
+    con = duckdb.connect(str(db))
+    try:
+        con.execute(RAW_READ_SQL, [files])
+        n = int(con.execute("SELECT count(*) FROM raw").fetchone()[0])
+    finally:
+        con.close()
+    size = _tree_bytes(db)
+    db.unlink(missing_ok=True)
+    return {"work": n, "disk_db_bytes": size, **_peaks_mb()}
+
+
 def lanes(st: dict) -> dict:
     out = _cli(["lanes", "--db", st["db"]], st["runner"])
     return {"work": int(st["rows"]), **{k: out[k] for k in ("ports", "voyages", "lanes", "noise_points")},
@@ -212,7 +239,8 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
     print_table(table, gzip_bytes)
     sides = ["sequential"] + (["cluster"] if cluster else [])
     for stage in stages:
-        for side in sides:
+        # the ingest beside its raw baseline (DuckDB's own reader of the same files), first, in the same run
+        for side in (["raw read"] if stage == "ingest" else []) + sides:
             db = workdir / side / "ws.duckdb"
             db.parent.mkdir(exist_ok=True)
             if stage == "ingest":
@@ -224,7 +252,8 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
             kw = {"runner": side, "workdir": str(workdir / side), "workers": workers, "db": str(db),
                   "ais": str(scen / "ais"), "rows": n_rows, "scenario_json": str(scen / "scenario.json"),
                   "weather_dir": str(workdir / "weather"), "side": side, "stage": stage}
-            rec = _child(cfg, tmp, "bench.scale:stage_setup", f"bench.scale:{stage}", kw, 1, {})
+            run = "bench.scale:ingest_raw" if side == "raw read" else f"bench.scale:{stage}"
+            rec = _child(cfg, tmp, "bench.scale:stage_setup", run, kw, 1, {})
             table.append(_row(stage, side, rec))
             print_table(table[-1:], gzip_bytes)
     out = {"rows_target": rows, "rows": n_rows, "vessels": vessels, "days": days, "workers": workers,
@@ -232,6 +261,12 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
            "stages": table}
     print("\nsummary")
     print_table(table, gzip_bytes)
+    raw = next((r for r in table if r["side"] == "raw read" and r.get("per_s")), None)
+    for r in table:
+        if raw is not None and r["stage"] == "ingest" and r["side"] != "raw read" and r.get("per_s"):
+            r["x_raw_read"] = r["per_s"] / raw["per_s"]
+            print(f"ingest {r['side']}: {r['x_raw_read']:.2f} x DuckDB's raw read of the same files "
+                  f"({r['per_s']:,.0f} against {raw['per_s']:,.0f} rows/s)")
     return out
 
 
