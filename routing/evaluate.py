@@ -14,8 +14,12 @@ What is computed (all reported per route by :class:`RouteEvaluation`):
 * speed loss of each model (:mod:`routing.speed_loss`) at the vessel's service speed and each
   piece's encounter angle (0 = head seas), and the time the route's geometry would take under
   each model;
-* STEAM2 fuel and CO2/SO2/NOx/PM (:mod:`routing.emissions`) from each leg's own speed and the
-  speed loss of the chosen model on that leg (the wave power increase);
+* STEAM2 fuel and CO2/SO2/NOx/PM (:mod:`routing.emissions`) of each leg at its engine setting
+  (:mod:`routing.leg_setting`): the route's planned setting per leg where it carries one, else the
+  calm-water speed whose speed made in the weather met (the chosen model's loss *at that setting*,
+  the floor, the current) is the leg's own speed; the power ``P(setting)`` over the leg's time (the
+  wave power increase restores the setting). Legs faster than any setting up to the engine's maximum
+  power makes, and legs held at the floor, are counted and said (``engine_settings``);
 * safety: every rule of :func:`thresholds.safety.assess` (operator limits ``hs``, ``period``,
   ``wind``, ``beam_seas``; IMO ``surf_riding``, ``high_waves``, ``synchronous_roll``,
   ``parametric_roll``) on every piece; **events** are maximal runs of consecutive pieces where a
@@ -44,7 +48,8 @@ from typing import Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from routing.emissions import Engine, steam2_legs, steam2_totals
+from routing.emissions import steam2_totals
+from routing.leg_setting import route_legs, setting_legs  # noqa: F401 (setting_legs re-exported)
 from routing.route import Route
 from routing.samples import IMO_RULES, densify  # noqa: F401 (densify re-exported: the evaluation's sampling)
 from routing.samples import nanmax as _nanmax
@@ -107,7 +112,8 @@ class RouteEvaluation:
         One row per piece of leg (see :func:`densify`) with the weather, ``wind_ms``,
         ``encounter_deg``, ``speed_loss_<model>_kn`` and ``fired_<rule>`` columns.
     legs : DataFrame
-        STEAM2 per leg (:func:`routing.emissions.steam2_legs`) plus ``leg``.
+        STEAM2 per leg (:func:`routing.emissions.steam2_legs`) plus ``leg`` and ``setting_kn`` (the engine
+        setting charged, :mod:`routing.leg_setting`).
     summary : dict
         Totals (JSON-serialisable): time, distance, weather met, speed loss per model, fuel and
         emissions, exposure hours per rule, IMO/operator event counts, rules not evaluated.
@@ -159,7 +165,7 @@ def evaluate_route(
     limits : OperatorProfile or OperatorLimits, optional
         Operator limits for the default ``assess_fn``.
     speed_loss_model : str, default "bowditch"
-        Model whose speed loss drives the STEAM2 wave power increase.
+        Model whose speed loss (at each leg's engine setting) drives the STEAM2 wave power increase.
     models : tuple of str
         Speed-loss models reported.
     max_step_h : float, default 0.25
@@ -184,12 +190,13 @@ def evaluate_route(
     for name in rules:
         events += _events(samples, name, margins[name])
     events.sort(key=lambda e: (e["start_utc"], e["criterion"]))
-    legs = _leg_emissions(route, samples, weather, speed_loss_model, vessel, learned)
+    legs, settings = _leg_emissions(route, samples, weather, speed_loss_model, vessel, learned)
     summary = {
         **_route_summary(route, samples, weather),
         "speed_loss": loss_summary,
         "speed_loss_model": speed_loss_model,
         **steam2_totals(legs),
+        "engine_settings": settings,
         "exposure_by_rule_h": exposure,
         **_exposure_summary(samples, events),
         **land_summary(route),
@@ -269,27 +276,39 @@ def _rule_columns(samples: pd.DataFrame, cols: dict, weather: dict, assess_fn: A
     return rules, exposure, margins, skipped
 
 
-def _leg_emissions(route: Route, samples: pd.DataFrame, weather: dict, model: str, vessel, learned=None) -> pd.DataFrame:
-    """STEAM2 per leg: each leg's own duration and speed, the chosen model's loss on that leg."""
+def _leg_emissions(route: Route, samples: pd.DataFrame, weather: dict, model: str, vessel, learned=None) -> tuple[pd.DataFrame, dict]:
+    """STEAM2 per leg at each leg's engine setting (:func:`routing.leg_setting.route_legs`): the route's planned
+    setting per leg (``speed_setting_kn``, 0 = a wait) where it has one, else the setting whose speed made in the
+    weather met is the leg's own speed; the loss at that setting (wave power increase) on that leg. Returns the legs
+    (with ``leg`` and ``setting_kn``) and the summary's ``engine_settings``."""
     n_legs = max(route.n_waypoints - 1, 0)
     leg_dt = np.diff(route.time_utc.asi8) / 3.6e12 if n_legs else np.zeros(0)
-    if len(samples):
-        w = samples["dt_h"].to_numpy()
-        num = np.bincount(samples["leg"], weights=samples[f"speed_loss_{model}_kn"].to_numpy() * w, minlength=n_legs)
-        den = np.bincount(samples["leg"], weights=w, minlength=n_legs)
-        leg_loss = np.divide(num, den, out=np.zeros(n_legs), where=den > 0)
-    else:
-        leg_loss = np.zeros(n_legs)
+    enc = samples["encounter_deg"].to_numpy() if len(samples) else np.zeros(0)
+    at_service = samples[f"speed_loss_{model}_kn"].to_numpy() if len(samples) else None
     setting = route.properties.get("speed_setting_kn")
-    if setting is not None and len(setting) == n_legs:
-        # a route planned with a speed setting per leg (routing.fuel; 0 = a wait): the engine ran that setting, so the
-        # power is P(setting) (leg_power_kw with made + loss = setting), the loss re-evaluated at the setting in the weather met
-        enc = samples["encounter_deg"].to_numpy()
-        legs = setting_legs(leg_dt, np.asarray(setting, dtype=float), samples, weather, enc, model, vessel, learned=learned)
-    else:
-        legs = steam2_legs(leg_dt, route.leg_speed_kn, leg_loss, Engine.from_vessel(vessel))
+    planned = setting if setting is not None and len(setting) == n_legs else None
+    legs, info = route_legs(leg_dt, route.leg_speed_kn, planned, samples, weather, enc, model, vessel, learned, at_service)
     legs.insert(0, "leg", np.arange(n_legs))
-    return legs
+    return legs, settings_summary(legs["time_h"].to_numpy(), info, planned=planned is not None)
+
+
+def settings_summary(leg_h: np.ndarray, info: dict, planned: bool) -> dict:
+    """The summary's ``engine_settings``: where each leg's setting came from (``basis``: ``planned`` or ``solved``
+    from its speed), and the legs the speed made does not fit (above the maximum-power speed: charged the installed
+    power; held at the floor: the setting nearest the service speed), with a sentence (``note``) when there are any."""
+    over, floor = info["above_max_power"], info["floor"]
+    out = {"basis": "planned" if planned else "solved", "above_max_power_legs": int(over.sum()),
+           "above_max_power_h": float(leg_h[over].sum()), "floor_legs": int(floor.sum()), "floor_h": float(leg_h[floor].sum()),
+           "note": None}
+    words = []
+    if over.any():
+        words.append(f"{out['above_max_power_legs']} leg(s) ({out['above_max_power_h']:.2f} h) faster than any setting up to the engine's "
+                     "maximum-power speed makes in the weather met: charged the installed power over their time (power_limited)")
+    if floor.any():
+        words.append(f"{out['floor_legs']} leg(s) ({out['floor_h']:.2f} h) held at the speed floor, where the speed does not tell the "
+                     "setting: charged the setting nearest the service speed")
+    out["note"] = "; ".join(words) or None
+    return out
 
 
 def _with_waypoint_weather(route: Route, weather_at: WeatherAt) -> Route:
@@ -343,36 +362,6 @@ def _exposure_summary(samples: pd.DataFrame, events: list[dict]) -> dict:
         "n_operator_events": sum(e["kind"] == "operator" for e in events),
         "no_weather_h": no_weather_h,
     }
-
-
-def setting_legs(leg_dt, setting_kn, samples: pd.DataFrame, weather: dict, enc, model: str, vessel, learned=None) -> pd.DataFrame:
-    """STEAM2 legs of a route sailed at a known setting per leg (``speed_setting_kn``, 0 on a wait).
-
-    The loss of each sample at its leg's setting (``model`` in the weather met, 0 = calm), averaged over
-    the leg's time; the leg's speed through the water ``setting - loss`` (at least the vessel's floor)
-    and that loss give the power ``P(setting)`` (:func:`routing.emissions.leg_power_kw`: the wave
-    increase restores the setting), over the leg's time: the fuel the planner charged
-    (:mod:`routing.fuel`). A wait burns nothing (speed 0).
-    """
-    from routing.speed_loss import speed_loss
-
-    n_legs = len(setting_kn)
-    loss = np.zeros(n_legs)
-    if len(samples):
-        leg = samples["leg"].to_numpy()
-        s = setting_kn[leg]
-        hs = np.nan_to_num(weather.get("hs_m", np.zeros(len(samples))), nan=0.0)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            per = np.where(s > 0, np.asarray(speed_loss(np.maximum(s, 1e-9), hs, np.nan_to_num(enc, nan=0.0), model, vessel=vessel,
-                                                                   learned=learned),
-                                             dtype=float).reshape(-1), 0.0)  # fmt: skip
-        w = samples["dt_h"].to_numpy()
-        den = np.bincount(leg, weights=w, minlength=n_legs)
-        loss = np.divide(np.bincount(leg, weights=per * w, minlength=n_legs), den, out=np.zeros(n_legs), where=den > 0)
-    floor = np.minimum(float(vessel.min_speed_kn), setting_kn)  # the speed models never drop below the floor
-    through_water = np.where(setting_kn > 0, np.maximum(setting_kn - loss, floor), 0.0)
-    return steam2_legs(leg_dt, through_water, setting_kn - through_water, Engine.from_vessel(vessel))
 
 
 def land_summary(route: Route) -> dict:

@@ -184,6 +184,7 @@ def least_fuel_outcome(lf: dict, evs: dict, proposed, sampler, vessel, job: Lane
     """The least-fuel role's line: its fuel, the saving against the minimum-distance route at the constant
     setting arriving when it does (evaluated like every route), why it was or was not proposed, the limits."""
     from routing.evaluate import evaluate_route
+    from routing.emissions import Engine
     from routing.least_fuel_role import LIMITS_NOTE, fuel_saving, least_fuel_note, proposal_words
 
     if lf["least_fuel"] is None:
@@ -193,7 +194,7 @@ def least_fuel_outcome(lf: dict, evs: dict, proposed, sampler, vessel, job: Lane
     if ref is not None:
         ref = evaluate_route(_clean_route(ref), sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss, learned=job.learned)
         words = f"the minimum-distance route at a constant {ref.route.properties['planned_setting_kn'][0]:.2f} kn arriving at the same time"
-    out = fuel_saving(evs, "least_fuel", ref, words)
+    out = fuel_saving(evs, "least_fuel", ref, words, Engine.from_vessel(vessel))
     out["arrive_by_utc"] = evs["least_fuel"].route.properties.get("arrive_by_utc")
     out["proposal"] = proposal_words(evs, "least_fuel", proposed, REFERENCE)
     out["note"] = least_fuel_note(out, out["proposal"], LIMITS_NOTE, evs["least_fuel"].route.properties.get("speed_cap"))
