@@ -97,7 +97,8 @@ def route_notes_of(evaluations: dict, reference: str | None, optimality=(), weat
     (:func:`pipelines.deviate.not_safer_note`, as `stormlane deviate` prints it), a safe route that
     fell back from hard to soft limits, a route that arrives after the last weather time (the last
     field held; ``weather_end_utc``), and a route the time-optimal one is slower than beyond the
-    mesh's discretisation (or a safety constraint)."""
+    mesh's discretisation (or a safety constraint), and legs no engine setting makes or held at the floor (what they are
+    charged: the evaluation's ``engine_settings``)."""
     from dashboards.sections import SOFT_FALLBACK_NOTE, held_weather_note
     from pipelines.deviate import not_safer_note
     from routing.audit import not_proposable
@@ -121,6 +122,7 @@ def route_notes_of(evaluations: dict, reference: str | None, optimality=(), weat
         if held:
             parts.append(held_weather_note(float(held)))
         parts.append(props.get("note"))  # a role's own line (least_fuel: its saving, why (not) proposed, the limits)
+        parts.append((ev.summary.get("engine_settings") or {}).get("note"))  # legs no setting makes, or at the floor: what is charged
         parts = [x for x in parts if x]
         fixes = ev.route.properties.get("land_repairs") or []
         if fixes:

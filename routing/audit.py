@@ -356,6 +356,10 @@ def findings(evaluations: dict, proposed: str | None, reference: str = AS_SAILED
             f"fuel {a['fuel_t'] - r['fuel_t']:+.2f} t, CO2 {a['co2_t'] - r['co2_t']:+.2f} t{dec_txt} (against the "
             f"{'modelled track' if reference == AS_SAILED_MODELLED else reference})" + (f"; not proposed: {why}" if why else "") + "."
         )
+    for role, ev in evaluations.items():  # legs whose speed no setting makes, or held at the floor: what was charged
+        note = (ev.summary.get("engine_settings") or {}).get("note")
+        if note:
+            out.append(f"{role.replace('_', '-')} fuel: {note}.")
     if bias:
         out += bias_words(bias, savings)
     if proposed is None:

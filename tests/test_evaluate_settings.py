@@ -115,6 +115,11 @@ def test_a_leg_no_setting_can_make_is_charged_the_installed_power_and_said(vesse
     assert ev.summary["fuel_t"] == pytest.approx(12600.0 * (0.455 * el - 0.71 * el + 1.28) * 175.0 * 5.0 / 1e6, rel=1e-9)
     es = ev.summary["engine_settings"]
     assert es["above_max_power_legs"] == 1 and "installed power" in es["note"] and ev.summary["power_limited_h"] == pytest.approx(5.0)
+    from pipelines.reporting import route_notes_of
+    from routing.audit import findings
+
+    assert f"as-sailed fuel: {es['note']}." in findings({"as_sailed": ev}, None, reference="as_sailed")
+    assert es["note"] in route_notes_of({"lane": ev}, "lane")["lane"]
 
 
 @pytest.mark.parametrize("model", ["bowditch", "aertssen", "khokhlov"])
@@ -163,7 +168,9 @@ def planned(vessel, model, speed_kn, current_kn, hs_m, arrive_h):
     from routing.fuel import FuelSpec
     from routing.planner import RouteRequest, plan_routes
 
-    spec = FuelSpec((9.0, 12.0, 15.0, speed_kn), Engine.from_vessel(vessel), arrive_by=T0 + pd.Timedelta(hours=arrive_h))
+    # discrete settings (no constant speed between them), so the schedule mixes settings and waits
+    spec = FuelSpec((9.0, 12.0, 15.0, speed_kn), Engine.from_vessel(vessel), arrive_by=T0 + pd.Timedelta(hours=arrive_h),
+                    between_settings=False)
     req = RouteRequest((0.0, 0.0), (0.0, 3.0), T0, ShipModel.from_vessel(vessel, model, speed_kn=speed_kn), spacing_deg=0.05,
                        bbox=(-0.25, -0.25, 3.25, 0.25), edges=16, ignore_land=True, vessel_name=vessel.name)
     return plan_routes(req, zermelo_field(cur_east_kn=current_kn[0], cur_north_kn=current_kn[1], hs=hs_m), fuel=spec)
