@@ -15,9 +15,9 @@ leg's distance over its time (equal pieces: :func:`routing.samples.densify`), wh
 The leg is then charged as a planned setting is (:func:`setting_legs`): the power ``P(s)``
 (:func:`routing.emissions.leg_power_kw` with the loss at ``s``: the wave increase restores the setting) over the
 leg's time. A route planned with a setting per leg therefore evaluates to the fuel it was planned with, whether
-or not it carries its settings, up to the difference between the planner's weather (a mesh edge's two ends
-averaged, at the quarter-hour nearest the time the ship leaves, held over the edge: :mod:`routing._kernels.edge`)
-and the evaluation's samples (every 15 min along the leg, at the time the ship is there).
+or not it carries its settings, up to the difference between the planner's weather (a mesh edge's, or a polyline
+piece's, two ends averaged at the quarter-hour nearest the time the ship leaves: :mod:`routing._kernels.edge`) and
+the evaluation's samples (every 15 min along the leg, at the time the ship is there).
 
 Monotonicity (why bisection finds the root). Every wave model's loss is affine in the setting at a given sea:
 Bowditch ``f H^2`` (no ``s``), Aertssen ``c s`` and a learned table ``(1 - r) s`` with ``c`` or ``1 - r`` in

@@ -228,4 +228,4 @@ def test_planned_against_evaluated_fuel_is_said_with_its_cause(vessel):
     k = diff["legs"][0]["leg"]  # head seas 4 m for 3 m: Bowditch adds 0.0248 (4^2 - 3^2) / 0.3048^2 kn to every sailing leg
     assert diff["legs"][0]["evaluated_kn"] - diff["legs"][0]["planned_kn"] == pytest.approx(0.0248 * 7.0 / FT_M**2, abs=2e-3), k
     words = planned_words(diff, None)
-    assert "needs a higher engine setting than the planner's weather" in words and f"leg {k} of" in words
+    assert "needs a higher engine setting than the planner's (each mesh edge or polyline piece" in words and f"leg {k} of" in words
