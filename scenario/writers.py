@@ -34,12 +34,20 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+
+from scenario.dma_text import concatenated_bytes, dma_lines
 
 DMA_HEADER = (
     "# Timestamp,Type of mobile,MMSI,Latitude,Longitude,Navigational status,ROT,SOG,COG,Heading,IMO,"
     "Callsign,Name,Ship type,Cargo type,Width,Length,Type of position fixing device,Draught,Destination,"
     "ETA,Data source type,A,B,C,D"
 )
+#: Record columns a DMA CSV line is made of (:func:`scenario.dma_text.dma_lines`).
+DMA_COLUMNS = ("time_s", "mmsi", "lat_deg", "lon_deg", "nav_status", "sog_kn", "cog_deg", "heading_deg",
+               "vessel_index", "draught_m", "destination", "eta_s", "dirty_kind", "time_text")
+#: Rows formatted at once (about 200 bytes of text each).
+DMA_SLICE_ROWS = 200_000
 #: Navigational status words as the DMA export prints them (ITU-R M.1371-5 codes).
 DMA_NAV_STATUS = {
     0: "Under way using engine",
@@ -75,34 +83,33 @@ def _open(path: Path, gzip: bool, compresslevel: int = 9):
     return open(path, "w", encoding="ascii", newline="\n"), ()
 
 
+def _open_bytes(path: Path, gzip: bool, compresslevel: int = 9):
+    """A binary handle (a context manager); gzip output is byte-identical across runs (no name, mtime 0)."""
+    if gzip:
+        return _GzipFileClosingRaw(filename="", mode="wb", fileobj=open(path, "wb"), mtime=0,
+                                   compresslevel=compresslevel)
+    return open(path, "wb")
+
+
+class _GzipFileClosingRaw(_gzip.GzipFile):
+    """A GzipFile that also closes the file object it writes to, with the sync flush the text
+    handle of :func:`_open` gives at closing (so that both write the same bytes)."""
+
+    def close(self) -> None:
+        raw = self.fileobj
+        try:
+            if raw is not None:
+                self.flush()
+            super().close()
+        finally:
+            if raw is not None:
+                raw.close()
+
+
 def _close(handle, extra) -> None:
     handle.close()
     for h in extra:
         h.close()
-
-
-_HMS = None
-
-
-def _hms_table() -> np.ndarray:
-    global _HMS
-    if _HMS is None:
-        s = np.arange(86400)
-        _HMS = np.array([f"{a:02d}:{b:02d}:{c:02d}" for a, b, c in zip(s // 3600, s // 60 % 60, s % 60)],
-                        dtype=object)
-    return _HMS
-
-
-def _dma_times(time_s: np.ndarray) -> np.ndarray:
-    """Unix seconds to ``dd/mm/YYYY HH:MM:SS`` (day first, as the DMA export)."""
-    days = time_s // 86400
-    out = np.empty(len(time_s), dtype=object)
-    hms = _hms_table()[time_s % 86400]
-    for d in np.unique(days):
-        sel = days == d
-        prefix = pd.Timestamp(int(d) * 86400, unit="s").strftime("%d/%m/%Y ")
-        out[sel] = prefix + hms[sel]
-    return out
 
 
 def _day_groups(records: pd.DataFrame):
@@ -112,10 +119,42 @@ def _day_groups(records: pd.DataFrame):
         yield pd.Timestamp(int(d) * 86400, unit="s").strftime("%Y-%m-%d"), np.flatnonzero(day == d)
 
 
+def dma_statics(vessels: pd.DataFrame) -> list[tuple[str, str]]:
+    """Per vessel (row of the vessel table): the identity fields and the dimension fields of its
+    DMA lines (the static data repeated on every row)."""
+    statics = []
+    for v in vessels.itertuples(index=False):
+        ident = f"{v.imo},{v.callsign},{v.name},{dma_ship_type(v.ship_type)},{_CARGO_CATEGORY.get(v.ship_type % 10, '')}"
+        statics.append((f"{ident},{v.beam_m:g},{v.length_m:g},GPS",
+                        f"{v.to_bow},{v.to_stern},{v.to_port},{v.to_starboard}"))
+    return statics
+
+
+#: Static fields of a row whose MMSI is no vessel of the table.
+DMA_UNKNOWN_STATIC = ("Unknown,Unknown,,Undefined,,,,Undefined", ",,,")
+#: Status words of the codes 0..15 (the last one for any other code).
+DMA_NAV_WORDS = [DMA_NAV_STATUS.get(code, "Unknown value") for code in range(16)]
+
+
+def write_dma_rows(path: Path, cols: dict, statics: list[tuple[str, str]], *, gzip: bool = False,
+                   compresslevel: int = 9) -> int:
+    """Write one DMA CSV file: the header, then one line per row of ``cols`` (the columns of
+    :data:`DMA_COLUMNS`, numpy or Arrow, in file order); returns the bytes written to disk."""
+    n = len(cols["time_s"])
+    with _open_bytes(path, gzip, compresslevel) as handle:
+        handle.write((DMA_HEADER + "\n").encode("ascii"))
+        # slices of rows: the lines' text is held for one slice at a time
+        for lo in range(0, n, DMA_SLICE_ROWS):
+            part = {c: (x.slice(lo, DMA_SLICE_ROWS) if isinstance(x, (pa.Array, pa.ChunkedArray))
+                        else x[lo:lo + DMA_SLICE_ROWS]) for c, x in cols.items()}
+            handle.write(concatenated_bytes(dma_lines(part, statics, DMA_UNKNOWN_STATIC, DMA_NAV_WORDS)))
+    return path.stat().st_size
+
+
 def write_dma_csv(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *, gzip: bool = False,
                   prefix: str = "aisdk", compresslevel: int = 9) -> pd.DataFrame:
     """Write the ``dma_csv`` records, one file per UTC day (``{prefix}-YYYY-MM-DD.csv[.gz]``,
-    gzip at ``compresslevel``).
+    gzip at ``compresslevel``; the lines of :func:`scenario.dma_text.dma_lines`).
 
     Returns a DataFrame indexed like the written records with ``file`` (name) and ``line``
     (1-based; the header is line 1).
@@ -123,42 +162,13 @@ def write_dma_csv(records: pd.DataFrame, vessels: pd.DataFrame, out_dir: Path, *
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     recs = records[(records["fmt"] == "dma_csv") & (records["msg_type"] != 5)]
-    statics = []
-    for v in vessels.itertuples(index=False):
-        ident = f"{v.imo},{v.callsign},{v.name},{dma_ship_type(v.ship_type)},{_CARGO_CATEGORY.get(v.ship_type % 10, '')}"
-        statics.append((f"{ident},{v.beam_m:g},{v.length_m:g},GPS",
-                        f"{v.to_bow},{v.to_stern},{v.to_port},{v.to_starboard}"))
-    unknown_static = ("Unknown,Unknown,,Undefined,,,,Undefined", ",,,")
+    statics = dma_statics(vessels)
     locs = []
     for day, pos in _day_groups(recs):
         sub = recs.iloc[pos]
         name = f"{prefix}-{day}.csv" + (".gz" if gzip else "")
-        ts = _dma_times(sub["time_s"].to_numpy())
-        kind = sub["dirty_kind"].to_numpy()
-        bad_ts = kind == "bad_timestamp"
-        ts[bad_ts] = sub["time_text"].to_numpy()[bad_ts]
-        eta = _dma_times(np.maximum(sub["eta_s"].to_numpy(), 0))
-        lines = []
-        for row in zip(ts, sub["mmsi"].tolist(), sub["lat_deg"].tolist(), sub["lon_deg"].tolist(),
-                       sub["nav_status"].tolist(), sub["sog_kn"].tolist(), sub["cog_deg"].tolist(),
-                       sub["heading_deg"].tolist(), sub["vessel_index"].tolist(), sub["draught_m"].tolist(),
-                       sub["destination"].tolist(), eta, sub["eta_s"].tolist(), kind):
-            t, mmsi, lat, lon, nav, sog, cog, hdg, vi, dr, dest, eta_txt, eta_s, k = row
-            st, dims = statics[vi] if vi >= 0 else unknown_static
-            nav_txt = DMA_NAV_STATUS.get(nav, "Unknown value")
-            head = f"{t},Class A,{mmsi},{lat:.6f},{lon:.6f},{nav_txt}"
-            if k == "malformed_row":  # a line cut off after the navigational status
-                lines.append(head)
-                continue
-            if vi < 0:
-                tail = f",,,,AIS,{dims}"
-            else:
-                tail = f",{dr:.1f},{dest},{eta_txt if eta_s >= 0 else ''},AIS,{dims}"
-            lines.append(f"{head},,{sog:.1f},{cog:.1f},{int(hdg)},{st}{tail}")
-        handle, extra = _open(out_dir / name, gzip, compresslevel)
-        handle.write(DMA_HEADER + "\n")
-        handle.write("\n".join(lines) + "\n")
-        _close(handle, extra)
+        write_dma_rows(out_dir / name, {c: sub[c].to_numpy() for c in DMA_COLUMNS}, statics, gzip=gzip,
+                       compresslevel=compresslevel)
         locs.append(pd.DataFrame({"file": name, "line": np.arange(2, len(sub) + 2)}, index=sub.index))
     if not locs:
         return pd.DataFrame({"file": pd.Series(dtype=object), "line": pd.Series(dtype=np.int64)})

@@ -133,3 +133,27 @@ def test_batch_armoring_equals_pyais_encode_dict():
     for d, ch, sen in zip(datas, channels, ours):
         (ref,) = encode_dict({"type": d["msg_type"], **d}, talker_id="AI", sentence_type="VDM", radio_channel=ch)
         assert sen == ref
+
+
+def test_vectorised_number_and_time_texts_equal_python_formatting():
+    """The Arrow-built texts of the DMA writer (scenario.dma_text) are Python's own: f"{x:.6f}" and
+    f"{x:.1f}" on quantised AIS values, unquantised values, exact rounding ties, negatives, -0.0,
+    tiny negatives, NaN and huge values; int(); and the day-first times."""
+    import numpy as np
+
+    from scenario.dma_text import dma_time_text, fixed_text, int_text
+
+    rng = np.random.default_rng(23)
+    quantised = np.round(rng.uniform(-181, 181, 20000) * 600000.0) / 600000.0
+    raw = rng.uniform(-200, 200, 20000)
+    ties = np.array([0.5, 1.5, 2.5, 0.25, 0.125, 0.0000005, 0.05, 0.15, 0.35, 2.675, 1e-7, -2.5e-7, 0.45])
+    edge = np.array([0.0, -0.0, -1e-9, -0.04, 102.3, 360.0, 511.0, 91.0, 181.0, -99.1234, np.nan, np.inf, -np.inf,
+                     1e13, -1e13, 2.0 ** 40 / 1e6, 12.600000000000001, 6.35])
+    for x in (quantised, raw, ties, edge, np.round(rng.uniform(0, 102.2, 5000), 1)):
+        for d in (1, 6):
+            assert fixed_text(x, d).to_pylist() == [f"{v:.{d}f}" for v in x.tolist()]
+    h = np.array([0.0, 359.0, 511.0, 12.7, -0.5])
+    assert int_text(h).to_pylist() == [str(int(v)) for v in h.tolist()]
+    t = np.array([0, 86399, 86400, 1736899205, 1740787199], dtype=np.int64)
+    assert dma_time_text(t).to_pylist() == [pd.Timestamp(int(v), unit="s").strftime("%d/%m/%Y %H:%M:%S")
+                                            for v in t]
