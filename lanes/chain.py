@@ -71,10 +71,15 @@ class PreparedChain:
     ports: pd.DataFrame
     stops: pd.DataFrame
     voyages: pd.DataFrame
-    points: pd.DataFrame
+    points: pd.DataFrame | None
     n_positions: int
     n_jumps: int
     timings: dict
+    n_points: int = -1  # resampled points (``len(points)``, also when they went to a sink instead)
+
+    def __post_init__(self):
+        if self.n_points < 0:
+            self.n_points = 0 if self.points is None else int(len(self.points))
 
 
 def _clean_track_points(positions: pd.DataFrame, params: ChainParams) -> tuple[pd.DataFrame, int]:
@@ -91,7 +96,8 @@ def prepare_chain(positions: pd.DataFrame, known_ports: pd.DataFrame | None = No
 
 
 def prepare_chain_in_buckets(read_bucket: Callable[[int], pd.DataFrame], n_buckets: int,
-                             known_ports: pd.DataFrame | None = None, params: ChainParams | None = None) -> PreparedChain:
+                             known_ports: pd.DataFrame | None = None, params: ChainParams | None = None,
+                             points_sink: Callable[[int, pd.DataFrame], None] | None = None) -> PreparedChain:
     """Steps 1-5 over the tracks in ``n_buckets`` buckets, in two passes, holding one bucket's
     positions at a time.
 
@@ -104,6 +110,10 @@ def prepare_chain_in_buckets(read_bucket: Callable[[int], pd.DataFrame], n_bucke
     and stops' ``first_row``/``last_row`` index their own bucket's points. Memory: one bucket's
     positions plus the stops, voyages and resampled points of all (the resampled points grow
     with the fleet's time at sea divided by the step, not with the AIS cadence).
+
+    ``points_sink(k, points)``, when given, receives each bucket's resampled points in pass 2
+    instead (e.g. to write them to disk partition by partition); the result's ``points`` is then
+    ``None`` and ``n_points`` their count, so nothing held grows with the resampled points.
     """
     params = params or ChainParams()
     timings = {k: 0.0 for k in ("clean_s", "stops_s", "ports_s", "voyages_s", "resample_s")}
@@ -139,7 +149,7 @@ def prepare_chain_in_buckets(read_bucket: Callable[[int], pd.DataFrame], n_bucke
     places_df = pd.concat(places, ignore_index=True).astype(float) if places else None
     timings["ports_s"] += time.perf_counter() - t
 
-    voyages, points = [], []
+    voyages, points, n_points = [], [], 0
     for k in range(n_buckets):  # pass 2: voyages and resampling
         pts = kept if kept is not None else clean(k)[0]
         kept = None
@@ -149,21 +159,33 @@ def prepare_chain_in_buckets(read_bucket: Callable[[int], pd.DataFrame], n_bucke
                             ports=ports if len(ports) else None)
         timings["voyages_s"] += time.perf_counter() - t
         t = time.perf_counter()
-        points.append(resample_voyages(pts, v, params.resample))
+        resampled = resample_voyages(pts, v, params.resample)
         voyages.append(v)
         timings["resample_s"] += time.perf_counter() - t
         del pts
+        n_points += len(resampled)
+        if points_sink is None:
+            points.append(resampled)
+        else:
+            t = time.perf_counter()
+            points_sink(k, resampled)
+            timings["points_sink_s"] = timings.get("points_sink_s", 0.0) + time.perf_counter() - t
+        del resampled
     voyages_df = voyages[0] if n_buckets == 1 else pd.concat(voyages, ignore_index=True)
-    points_df = points[0] if n_buckets == 1 else pd.concat(points, ignore_index=True)
-    return PreparedChain(ports, stops, voyages_df, points_df, n_positions, n_jumps, timings)
+    points_df = None if points_sink is not None else points[0] if n_buckets == 1 else pd.concat(points, ignore_index=True)
+    return PreparedChain(ports, stops, voyages_df, points_df, n_positions, n_jumps, timings, n_points)
 
 
-def finish_chain(prep: PreparedChain, lanes: LaneResult, lanes_s: float) -> ChainResult:
+def finish_chain(prep: PreparedChain, lanes: LaneResult, lanes_s: float,
+                 lane_voyages: pd.DataFrame | None = None) -> ChainResult:
     """The chain's result from the serial part and the lanes of every partition (step 6).
 
     ``lanes`` is :func:`lanes.extract.extract_lanes` of ``prep.points``, or the same computed
     partition by partition and merged with :func:`lanes.extract.merge_lane_results`; ``lanes_s``
     is the wall time it took. ``timings["total_s"]`` is the sum of the step times.
+    ``lane_voyages``: :func:`lanes.extract.lane_voyage_table` computed partition by partition
+    (:func:`lanes.extract.merge_lane_voyage_tables`), when the points are not held (``prep.points``
+    is ``None``).
     """
     timings = {**prep.timings, "lanes_s": lanes_s}
     timings["total_s"] = sum(timings.values())
@@ -179,13 +201,15 @@ def finish_chain(prep: PreparedChain, lanes: LaneResult, lanes_s: float) -> Chai
         "stops": int(len(prep.stops)),
         "named_ports": int((ports["kind"] == "port").sum()) if len(ports) else 0,
         "voyage_kinds": {k: int(v) for k, v in kinds.items()},
-        "resampled_points": int(len(points)),
+        "resampled_points": int(prep.n_points),
         "slow_points": int(lanes.n_slow),
         "sampled_partitions": int(lanes.n_sampled_partitions),
         "timings": {k: round(v, 3) for k, v in timings.items()},
     }
     log.info("lanes chain: %s", summary)
-    return ChainResult(ports, prep.stops, voyages, points, lanes, lane_voyage_table(points, lanes.point_lane), summary)
+    if lane_voyages is None:
+        lane_voyages = lane_voyage_table(points, lanes.point_lane)
+    return ChainResult(ports, prep.stops, voyages, points, lanes, lane_voyages, summary)
 
 
 def build_lanes(positions: pd.DataFrame, known_ports: pd.DataFrame | None = None,

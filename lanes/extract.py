@@ -512,13 +512,14 @@ def partition_rows(points: pd.DataFrame, include_loops: bool = True) -> list[tup
     return out
 
 
-def merge_lane_results(n_points: int, parts) -> LaneResult:
+def merge_lane_results(n_points: int | None, parts) -> LaneResult:
     """Merge per-partition results into the result of the whole point set (pure, deterministic).
 
     Parameters
     ----------
-    n_points : int
-        Number of points of the whole set (``point_lane`` of the merge has this length).
+    n_points : int or None
+        Number of points of the whole set (``point_lane`` of the merge has this length); ``None``:
+        no ``point_lane`` (the partitions' points are not held together; ``rows`` is ignored).
     parts : iterable of (key, rows, LaneResult)
         One entry per partition: its key, its row positions in the whole set
         (:func:`partition_rows`) and :func:`extract_lanes_for_pair` of those rows.
@@ -530,11 +531,12 @@ def merge_lane_results(n_points: int, parts) -> LaneResult:
         in, e.g. the completion order of tasks on a cluster), each point's lane scattered back to
         its row, counts summed.
     """
-    point_lane = np.full(n_points, None, dtype=object)
+    point_lane = None if n_points is None else np.full(n_points, None, dtype=object)
     lanes, cents, info = [], [], {}
     n_noise = n_slow = n_sampled = 0
     for key, rows, res in sorted(parts, key=lambda part: tuple(part[0])):
-        point_lane[rows] = res.point_lane
+        if point_lane is not None:
+            point_lane[rows] = res.point_lane
         lanes.append(res.lanes)
         cents.append(res.centroids)
         n_noise += res.n_noise
@@ -560,6 +562,16 @@ def extract_lanes(points: pd.DataFrame, params: LaneParams | None = None) -> Lan
     parts = partition_rows(points, params.include_loops)
     return merge_lane_results(len(points), [(key, rows, extract_lanes_for_pair(points.iloc[rows], params, key))
                                             for key, rows in parts])
+
+
+def merge_lane_voyage_tables(tables: list[pd.DataFrame]) -> pd.DataFrame:
+    """:func:`lane_voyage_table` of the whole point set from those of its partitions (lane ids
+    are unique to a partition, so this is their rows in ``(lane_id, voyage_id)`` order)."""
+    tables = [t for t in tables if len(t)]
+    if not tables:
+        return lane_voyage_table(pd.DataFrame({"voyage": pd.Series(dtype=object)}), np.empty(0, dtype=object))
+    out = pd.concat(tables, ignore_index=True).sort_values(["lane_id", "voyage_id"], kind="stable")
+    return out.reset_index(drop=True)
 
 
 def lane_voyage_table(points: pd.DataFrame, point_lane: np.ndarray) -> pd.DataFrame:

@@ -11,8 +11,11 @@ tracks at a time, :data:`BUCKET_ROWS`) -> one task per origin-destination partit
 (:func:`lanes.extract.extract_lanes` is the same partitions and the same merge): what ``stormlane
 lanes`` calls by default, so a one-off command does not start a Prefect API. ``lanes_flow`` is
 the flow the demo runs; :func:`flow_with_runner` gives it a task runner (``--task-runner
-dask[:ADDRESS]``: the partitions run on a Dask cluster, each worker receiving only its
-partition's resampled points). Both paths give identical tables (tested on a 2-worker cluster of
+dask[:ADDRESS]``: the partitions run on a Dask cluster). Pass 2 writes each partition's
+resampled points to its own Parquet files in a folder next to the workspace
+(:mod:`pipelines.lanes_partitions`) and each partition task reads only its own, so no process
+holds the points of all partitions (on a cluster the workers read the files: the workspace's
+folder must be shared). Both paths give identical tables (tested on a 2-worker cluster of
 separate ``dask scheduler``/``dask worker`` processes). Prefect is imported only when the flow is first used.
 """
 
@@ -27,8 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from lanes.chain import (ChainParams, ChainResult, PreparedChain, finish_chain, prepare_chain_in_buckets,
                          voyages_as_table)
-from lanes.extract import extract_lanes
-from lanes.extract import LaneParams
+from lanes.extract import LaneParams, merge_lane_results, merge_lane_voyage_tables
 from lanes.interpolate import ResampleParams
 from lanes.ports import PortParams
 from lanes.stops import StopParams
@@ -129,17 +131,21 @@ def mmsi_buckets(per_mmsi: pd.DataFrame, bucket_rows: int = BUCKET_ROWS) -> list
 
 
 def prepare_from_workspace(db: str | Path, known: pd.DataFrame, params: ChainParams,
-                           bucket_rows: int = BUCKET_ROWS) -> PreparedChain:
+                           bucket_rows: int = BUCKET_ROWS, points_folder: str | None = None) -> PreparedChain:
     """Steps 1-5 of the chain on the workspace's positions, read bucket by bucket of whole
     tracks (:func:`lanes.chain.prepare_chain_in_buckets`): the positions held at once are one
-    bucket's, whatever the workspace holds."""
+    bucket's, whatever the workspace holds. With ``points_folder`` the resampled points go to
+    partition files there (:class:`pipelines.lanes_partitions.PartitionStore`) instead of
+    memory: the result's ``points`` is ``None``."""
+    from pipelines.lanes_partitions import PartitionStore
     from pipelines.storage import open_workspace
     from pipelines.storage.ais import positions_per_mmsi, read_positions
 
     with open_workspace(db) as ws:
         buckets = mmsi_buckets(positions_per_mmsi(ws), bucket_rows)
+        sink = None if points_folder is None else PartitionStore(points_folder, params.lanes.include_loops).add
         return prepare_chain_in_buckets(lambda k: read_positions(ws, mmsi_range=buckets[k]), len(buckets), known,
-                                        params)
+                                        params, points_sink=sink)
 
 
 def store_result(db: str | Path, result: ChainResult, settings: LanesSettings) -> dict:
@@ -162,11 +168,20 @@ def run_lanes(db: str | Path, ports_csv=None, settings: LanesSettings | None = N
     """Reader -> chain -> writer without Prefect; returns the summary (counts, run id, details)."""
     import time
 
+    from pipelines.lanes_partitions import partition_lanes, points_folder, remove_folder, stored_keys
+
     settings = settings or LanesSettings()
     params = settings.chain_params()
-    prep = prepare_from_workspace(db, load_port_lists(db, ports_csv), params)
-    t = time.perf_counter()
-    result = finish_chain(prep, extract_lanes(prep.points, params.lanes), time.perf_counter() - t)
+    known = load_port_lists(db, ports_csv)
+    folder = points_folder(db)
+    try:
+        prep = prepare_from_workspace(db, known, params, points_folder=str(folder))
+        t = time.perf_counter()
+        parts = [(key, partition_lanes(str(folder), params.lanes, key)) for key in stored_keys(folder)]
+        result = finish_chain(prep, merge_lane_results(None, [(k, None, res) for k, (res, _) in parts]),
+                              time.perf_counter() - t, merge_lane_voyage_tables([lv for _, (_, lv) in parts]))
+    finally:
+        remove_folder(folder)
     out = store_result(db, result, settings)
     return {**out, "details": result.summary}
 
@@ -191,14 +206,6 @@ def export_geojson(db: str | Path, out: str | Path) -> Path:
     return out
 
 
-def partition_jobs(points: pd.DataFrame, params) -> list[tuple[tuple[int, int], np.ndarray, pd.DataFrame]]:
-    """``(key, rows, partition points)`` per origin-destination partition, keys ascending: what
-    each partition task receives is its own points only, never the whole frame."""
-    from lanes.extract import partition_rows
-
-    return [(key, rows, points.iloc[rows]) for key, rows in partition_rows(points, params.include_loops)]
-
-
 _FLOW_OBJECTS: dict = {}
 _TASKS = ("lanes_flow", "read_task", "prepare_task", "partition_task", "store_task")
 
@@ -212,7 +219,7 @@ def _build_flow() -> dict:
     from prefect import flow, task
     from prefect.cache_policies import NO_CACHE
 
-    from lanes.extract import extract_lanes_for_pair, merge_lane_results
+    from pipelines.lanes_partitions import partition_lanes, points_folder, remove_folder, stored_keys
     from pipelines.runners import make_task_runner, retry_transient
 
     read_task = task(load_port_lists, name="read port lists", retries=3, retry_delay_seconds=[2, 5, 15],
@@ -220,7 +227,7 @@ def _build_flow() -> dict:
     prepare_task = task(prepare_from_workspace, name="stops, ports, voyages, resampling (by MMSI bucket)",
                         retries=3, retry_delay_seconds=[2, 5, 15], cache_policy=NO_CACHE,
                         retry_condition_fn=retry_transient)
-    partition_task = task(extract_lanes_for_pair, name="lanes of one O-D pair", cache_policy=NO_CACHE,
+    partition_task = task(partition_lanes, name="lanes of one O-D pair", cache_policy=NO_CACHE,
                           task_run_name="lanes-{key[0]}-{key[1]}")
     store_task = task(store_result, name="store lanes", retries=3, retry_delay_seconds=[2, 5, 15],
                       cache_policy=NO_CACHE, retry_condition_fn=retry_transient)
@@ -232,14 +239,20 @@ def _build_flow() -> dict:
         """Ports, voyages and traffic lanes from the workspace's AIS positions, one task per O-D pair."""
         params = settings.chain_params()
         known = read_task(db, ports_csv)
-        prep = prepare_task(db, known, params)
-        t = time.perf_counter()
-        jobs = partition_jobs(prep.points, params.lanes)
-        futures = [partition_task.submit(pts, params.lanes, key) for key, _, pts in jobs]
-        lanes = merge_lane_results(len(prep.points), [(key, rows, f.result()) for (key, rows, _), f in zip(jobs, futures)])
-        result = finish_chain(prep, lanes, time.perf_counter() - t)
+        # each partition's points go to its own files next to the workspace; each task reads its own
+        folder = str(points_folder(db))
+        try:
+            prep = prepare_task(db, known, params, points_folder=folder)
+            t = time.perf_counter()
+            keys = stored_keys(folder)
+            futures = [partition_task.submit(folder, params.lanes, key) for key in keys]
+            parts = [(key, f.result()) for key, f in zip(keys, futures)]
+            lanes = merge_lane_results(None, [(key, None, res) for key, (res, _) in parts])
+            result = finish_chain(prep, lanes, time.perf_counter() - t, merge_lane_voyage_tables([lv for _, (_, lv) in parts]))
+        finally:
+            remove_folder(folder)
         out = store_task(db, result, settings)
-        return {**out, "details": {**result.summary, "partition_tasks": len(jobs)}}
+        return {**out, "details": {**result.summary, "partition_tasks": len(keys)}}
 
     _FLOW_OBJECTS.update(lanes_flow=lanes_flow, read_task=read_task, prepare_task=prepare_task,
                          partition_task=partition_task, store_task=store_task)

@@ -176,3 +176,41 @@ def test_the_chain_read_in_mmsi_buckets_equals_one_read(demo_workspace):
     pd.testing.assert_frame_equal(many.voyages.drop(columns=local), one.voyages.drop(columns=local), check_exact=True)
     pd.testing.assert_frame_equal(many.points, one.points, check_exact=True)
     assert len(one.points) > 10_000 and len(one.voyages) > 100
+
+
+def test_partition_files_give_the_lanes_of_the_points_held_in_memory(demo_workspace, tmp_path):
+    """Issue 23: pass 2 writes each O-D partition's resampled points to its own files (bucket by
+    bucket) and each partition reads only its own; the rows, their order and the lanes, centroids
+    and lane-voyage rows are those of the chain holding every point in memory."""
+    from lanes.chain import finish_chain
+    from lanes.extract import extract_lanes, merge_lane_results, merge_lane_voyage_tables, partition_rows
+    from pipelines.lanes import LanesSettings, load_port_lists, prepare_from_workspace
+    from pipelines.lanes_partitions import partition_lanes, read_partition, stored_keys
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import positions_per_mmsi
+
+    params = LanesSettings().chain_params()
+    known = load_port_lists(demo_workspace)
+    with open_workspace(demo_workspace) as ws:
+        rows = int(positions_per_mmsi(ws)["n"].sum()) // 4
+    mem = prepare_from_workspace(demo_workspace, known, params, bucket_rows=rows)
+    whole = finish_chain(mem, extract_lanes(mem.points, params.lanes), 0.0)
+    folder = tmp_path / "points"
+    disk = prepare_from_workspace(demo_workspace, known, params, bucket_rows=rows, points_folder=str(folder))
+    assert disk.points is None and disk.n_points == len(mem.points) > 10_000
+    parts_mem = partition_rows(mem.points, params.lanes.include_loops)
+    assert stored_keys(folder) == [k for k, _ in parts_mem]
+    assert max(len(list((folder / f"{k[0]}_{k[1]}").iterdir())) for k, _ in parts_mem) >= 4  # one file per bucket
+    for key, r in parts_mem:
+        pd.testing.assert_frame_equal(read_partition(folder, key), mem.points.iloc[r].reset_index(drop=True),
+                                      check_exact=True)
+    parts = [(key, partition_lanes(str(folder), params.lanes, key)) for key in stored_keys(folder)]
+    got = finish_chain(disk, merge_lane_results(None, [(k, None, res) for k, (res, _) in parts[::-1]]), 0.0,
+                       merge_lane_voyage_tables([lv for _, (_, lv) in parts[::-1]]))
+    assert len(whole.lanes.lanes) >= 12
+    pd.testing.assert_frame_equal(got.lanes.lanes, whole.lanes.lanes, check_exact=True)
+    pd.testing.assert_frame_equal(got.lanes.centroids, whole.lanes.centroids, check_exact=True)
+    pd.testing.assert_frame_equal(got.lane_voyages, whole.lane_voyages, check_exact=True)
+    drop = ("timings",)
+    assert {k: v for k, v in got.summary.items() if k not in drop} == \
+        {k: v for k, v in whole.summary.items() if k not in drop}
