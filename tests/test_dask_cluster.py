@@ -48,7 +48,7 @@ def test_ingest_and_lanes_on_separate_dask_processes_equal_the_sequential_run(tm
     # the cluster's workers
     keys = [str(t["key"]) for t in stream.data]
     ran_on = {t["worker"] for t in stream.data}
-    assert sum("stage_to_spool" in k for k in keys) == 4 and sum("extract_lanes_for_pair" in k for k in keys) >= 7, keys
+    assert sum("stage_to_spool" in k for k in keys) == 4 and sum("partition_lanes" in k for k in keys) >= 7, keys
     assert ran_on <= workers, ran_on
 
     assert snapshot(dsk) == snapshot(seq) and len(snapshot(seq)[1]) > 70_000
