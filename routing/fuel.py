@@ -36,13 +36,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from routing._kernels.fuel import fuel_search
+from routing._kernels.fuel import fuel_bound, fuel_search, goal_distances
 from routing.astar import ShipModel, WeatherArrays, evaluate_path, heuristic_speed_kn, search
 from routing.emissions import M_C_G_MOL, M_CO2_G_MOL, Engine, steam2_legs, steam2_totals
 from routing.errors import NoRouteError
 from routing.field import NS_PER_HOUR
 from routing.mesh import Mesh
-from thresholds.units import EARTH_RADIUS_NMI
 
 #: Default number of speed settings (``--speed-steps``) and the default lowest setting as a
 #: fraction of the service speed (slow steaming down to 60 %: IMO Fourth GHG Study 2020, the
@@ -176,18 +175,38 @@ class FuelProblem:
 
     allowed: np.ndarray | None = None  # the edges searched (default the mesh's): see :func:`corridor_edges`
 
+    def goal_distances(self, goal: int) -> np.ndarray:
+        """Every node's shortest distance [nmi] to ``goal`` over the searched edges (:func:`routing._kernels.fuel.goal_distances`),
+        kept for the next search to the same goal on the same edges."""
+        allowed = self.mesh.allowed if self.allowed is None else self.allowed
+        key = self._dist_key
+        if key is None or key[0] is not allowed or key[1] != int(goal):
+            g, m = self.mesh.grid, self.mesh
+            self._dist = goal_distances(g.nx, allowed, m.steps[:, 0].copy(), m.steps[:, 1].copy(), m.edge_geometry[0], int(goal))
+            self._dist_key = (allowed, int(goal))
+        return self._dist
+
+    _dist_key: tuple | None = dataclasses.field(default=None, repr=False, compare=False)
+    _dist: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
+
     def run(self, start: int, goal: int, t_h: float, f0: float, deadline_h: float, k: int, relax: bool, max_labels: int,
-            f_upper: float = np.inf, front_cap: int = DEFAULT_FRONT_CAP, eps_f: float = 0.0):
+            f_upper: float = np.inf, front_cap: int = DEFAULT_FRONT_CAP, eps_f: float = 0.0, stop_below: float = -np.inf):
         g, m = self.mesh.grid, self.mesh
         allowed = m.allowed if self.allowed is None else self.allowed
         elen, ecos, esin = m.edge_geometry
         wx = self.wx
         return fuel_search(
-            g.nx, allowed, m.steps[:, 0].copy(), m.steps[:, 1].copy(), elen, ecos, esin, np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg),
+            g.nx, allowed, m.steps[:, 0].copy(), m.steps[:, 1].copy(), elen, ecos, esin, self.goal_distances(goal),
             wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, self.P, self.rate, int(start), int(goal), float(t_h),
-            float(f0), float(deadline_h), int(k), bool(relax), self.hull_x, self.hull_y, float(f_upper), EARTH_RADIUS_NMI, int(max_labels),
-            int(front_cap), float(eps_f),
+            float(f0), float(deadline_h), int(k), bool(relax), self.hull_x, self.hull_y, float(f_upper), int(max_labels),
+            int(front_cap), float(eps_f), float(stop_below),
         )  # fmt: skip
+
+    def envelope_bound(self, start: int, goal: int, t_h: float, f0: float, deadline_h: float) -> float:
+        """``f0`` plus the least fuel that covers the start's shortest distance to the goal over the searched edges
+        by the deadline (:func:`routing._kernels.fuel.fuel_bound`: the settings' envelope, Jensen): a lower bound of
+        every route of the graph searched, without a search."""
+        return float(f0) + float(fuel_bound(self.goal_distances(goal)[start], deadline_h - t_h, self.hull_x, self.hull_y))
 
 
 def corridor_edges(mesh: Mesh, paths, width: int = 0) -> np.ndarray:
@@ -279,14 +298,31 @@ def least_fuel(prob: FuelProblem, start: int, goal: int, t_h: float, f0: float, 
     goal_labels = out[6][:n_goal]
     best = schedule_of(out, int(goal_labels[-1]), prob_speeds(prob)) if n_goal else None  # None: nothing beats f_upper
     front = [schedule_of(out, int(lab), prob_speeds(prob)) for lab in goal_labels] if spec.pareto else []
+    labels = int(out[5])
+    del out  # the route's labels are no longer needed: free them before the relaxation allocates its own
     lb = float("nan")
     if bound:
-        # the relaxation only needs to look below the best known fuel: when it finds nothing there, that fuel is optimal
+        # the lower bound is the better of the settings' envelope over the shortest distance (no search) and the
+        # relaxation's optimum. The relaxation only needs to look below the best known fuel (when it finds nothing
+        # there, that fuel is optimal), and it stops at a goal label within the envelope's bound (which it cannot beat then)
         known = min(f_upper, best.fuel_t) if best is not None else f_upper
-        rel = prob.run(start, goal, t_h, f0, deadline_h, k, True, spec.max_labels, known, eps_f=eps)
-        if rel[9] == 0:
-            lb = float(rel[1][rel[6][rel[7] - 1]]) if rel[7] > 0 else float(known)
-    return FuelResult(best, lb, front, int(out[5]), _time.perf_counter() - t0)
+        lb = prob.envelope_bound(start, goal, t_h, f0, deadline_h)
+        if best is None or not _relaxation_reaches(prob, best, start, goal, t_h, f0, deadline_h, k, spec, known, eps, lb):
+            rel = prob.run(start, goal, t_h, f0, deadline_h, k, True, spec.max_labels, known, eps_f=eps, stop_below=lb)
+            if rel[9] == 0:
+                lb = max(lb, float(rel[1][rel[6][rel[7] - 1]]) if rel[7] > 0 else float(known))
+        lb = min(lb, float(known))
+    return FuelResult(best, lb, front, labels, _time.perf_counter() - t0)
+
+
+def _relaxation_reaches(prob: FuelProblem, best: Schedule, start, goal, t_h, f0, deadline_h, k, spec: FuelSpec, known, eps, lb) -> bool:
+    """Does the relaxation on the found route's own path (its edges only) reach a goal label within ``lb``? Then so does
+    the relaxation on the whole graph searched (a subgraph's relaxed optimum is never below the graph's: every relaxed
+    label of the subgraph is dominated by one of the graph, by the induction of :mod:`routing._kernels.fuel`), and the
+    graph's relaxation cannot beat ``lb``: it need not run. The path is short, so this costs a fraction of the graph's."""
+    path = dataclasses.replace(prob, allowed=corridor_edges(prob.mesh, [best.nodes]))
+    out = path.run(start, goal, t_h, f0, deadline_h, k, True, spec.max_labels, known, eps_f=eps, stop_below=lb)
+    return int(out[9]) == 2
 
 
 def prob_speeds(prob: FuelProblem) -> list:

@@ -92,6 +92,37 @@ def test_least_fuel_equals_brute_force_and_lies_within_its_gap(model):
             assert fine.schedule.fuel_t == pytest.approx(ref, rel=1e-9), (seed, slack)
 
 
+def test_lower_bound_parts_bound_the_brute_force_and_a_path_relaxes_no_lower_than_its_graph():
+    """The reported lower bound is the better of the settings' envelope over the shortest distance and the
+    relaxation; both lie below the brute force. The relaxation on the found route's own path (the probe that lets
+    least_fuel skip the graph's relaxation when it reaches the envelope's bound) is never below the graph's."""
+    import dataclasses
+
+    from routing.fuel import corridor_edges
+
+    for seed in range(3):
+        for ny, nx in ((3, 3), (4, 4)):
+            mesh, wx, ship, spec, prob, costs, rng = setup(seed, "aertssen", ny=ny, nx=nx)
+            start, goal = 0, mesh.n_nodes - 1
+            t0 = float(rng.uniform(0.0, 1.0))
+            fastest = search(mesh, wx, prob.ships[-1], start, goal, t_start_h=t0).time_h
+            for slack in (1.1, 1.6):
+                deadline = t0 + slack * fastest
+                res = least_fuel(prob, start, goal, t0, 0.0, deadline, spec)
+                env = prob.envelope_bound(start, goal, t0, 0.0, deadline)
+                assert env - 1e-12 <= res.lower_bound_t <= res.schedule.fuel_t + 1e-12
+                if ny == 3:
+                    ref = brute_force_fuel(costs, prob.rate, start, goal, t0, deadline)
+                    assert env <= ref + 1e-9 and res.lower_bound_t <= ref + 1e-9, (seed, slack)
+                eps = spec.fuel_resolution_frac * res.schedule.fuel_t
+                lbs = []
+                for p in (prob, dataclasses.replace(prob, allowed=corridor_edges(mesh, [res.schedule.nodes]))):
+                    out = p.run(start, goal, t0, 0.0, deadline, spec.buckets_per_subslice, True, spec.max_labels, np.inf, eps_f=eps)
+                    assert out[9] == 0 and out[7] > 0
+                    lbs.append(float(out[1][out[6][out[7] - 1]]))
+                assert lbs[0] <= lbs[1] + 1e-12, (seed, ny, slack, lbs)
+
+
 # ------------------------------------------------------------------ plans: same functions, same fuel; Zermelo; monotone
 
 

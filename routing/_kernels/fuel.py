@@ -41,13 +41,20 @@ later time exists (its own waiting chain then covers). Two variants share the co
   one leaves no later, in the same piece or at the start of the real one's piece through its waiting
   chain), the relaxed optimum is a lower bound LB of the real optimum.
 
-``UB - LB`` is the reported gap; with ``Delta`` below every difference of arrival times both equal
-the exact optimum (the brute-force tests check LB <= brute force <= UB, and equality for a fine
-Delta). Pruning (admissible, so neither variant loses what it would otherwise find): a label
-later than ``D - d / v_top`` (d the great-circle distance to the goal, ``v_top`` the highest speed
-over ground any setting reaches in this weather), or whose fuel plus :func:`fuel_bound` (the least
-fuel that covers d in the time left) reaches the incumbent (the best goal label, or a known route's
-fuel ``f_upper``), or that a label already created at its node dominates.
+``UB - LB`` is the reported gap (with LB the better of the relaxation's and the start's
+:func:`fuel_bound`, see :func:`routing.fuel.least_fuel`); with ``Delta`` below every difference of
+arrival times both equal the exact optimum (the brute-force tests check LB <= brute force <= UB, and
+equality for a fine Delta). Pruning (admissible, so neither variant loses what it would otherwise
+find): a label later than ``D - d / v_top`` (d the node's shortest distance to the goal over the
+edges searched, :func:`goal_distances`, never below the great-circle distance; ``v_top`` the highest
+speed over ground any setting reaches in this weather), or whose fuel plus :func:`fuel_bound` (the
+least fuel that covers d in the time left) reaches the incumbent (the best goal label, or a known
+route's fuel ``f_upper``), or that a label already created at its node dominates.
+
+Cost: an edge's sailing times at every setting depend on the piece it is left in only, so they are
+computed once per node and piece (:func:`_node_costs`); a label dropped when it leaves the queue
+gives its slot to the next label created, so the label arrays hold the settled labels and the queue
+(node and parent as int32, the setting as int8), not every label ever created.
 
 References
 ----------
@@ -64,7 +71,7 @@ import math
 import numpy as np
 from numba import njit
 
-from routing._kernels.core import P_MIN_SOG, goal_tables
+from routing._kernels.core import P_MIN_SOG, _heap_pop, _heap_push
 from routing._kernels.edge import _lerp, mean_pace, node_at, node_slice, sub_index, sub_slices, substeps
 from routing._kernels.speed import ship_of
 
@@ -134,6 +141,36 @@ def fuel_bound(d_nmi, t_rem_h, hull_x, hull_y):
     return t_rem_h * hull_y[-1]
 
 
+@njit(cache=True)
+def goal_distances(nx, allowed, di, dj, elen, goal):
+    """Length [nmi] of the shortest path from every node to ``goal`` over the edges ``allowed`` (inf
+    where none): Dijkstra backwards from the goal over the edge lengths the search sails (``elen``,
+    great circles, so never below the great-circle distance). Any route from a node covers at least
+    this distance, which makes it the distance of the fuel bound and of the time pruning."""
+    n = allowed.size
+    K = di.size
+    dist = np.full(n, np.inf)
+    done = np.zeros(n, dtype=np.bool_)
+    keys = np.empty(1024, dtype=np.float64)
+    vals = np.empty(1024, dtype=np.int64)
+    dist[goal] = 0.0
+    keys, vals, size = _heap_push(keys, vals, 0, 0.0, goal)
+    while size > 0:
+        d, v, size = _heap_pop(keys, vals, size)
+        if done[v]:
+            continue
+        done[v] = True
+        for k in range(K):
+            u = v - dj[k] * nx - di[k]  # the node whose step k ends at v (the search's own arithmetic, reversed)
+            if u < 0 or u >= n or done[u] or (allowed[u] >> np.uint64(k)) & np.uint64(1) == 0:
+                continue
+            nd = d + elen[u // nx, k]
+            if nd < dist[u]:
+                dist[u] = nd
+                keys, vals, size = _heap_push(keys, vals, size, nd, u)
+    return dist
+
+
 @njit
 def _front_dominated(ft, ff, fn, v, t, f, tol):
     """Is (t, f) dominated by a label already created at node v (no later, no more fuel than f + tol)? If not, remember it
@@ -178,24 +215,69 @@ def _grow(a, n):
     return out
 
 
+@njit
+def _grow_rows(a, n):
+    if n < a.shape[0]:
+        return a
+    out = np.empty((a.shape[0] * 2, a.shape[1]), dtype=a.dtype)
+    out[: a.shape[0]] = a
+    return out
+
+
+@njit
+def _node_costs(out, o, u, j_u, nx, allowed, di, dj, elen, ecos, esin, sea_index, wave, cur, has_cur, m_sub, n_times, P, min_sog):
+    """The sailing time [h] of every allowed edge out of node u at every setting, left in piece ``j_u``, into
+    ``out[o + e * S + s]`` (e counts the allowed edges in step order): the edge model of
+    :mod:`routing._kernels.edge`, which depends on the piece only, so labels of one piece share it."""
+    S = P.shape[0]
+    ju = u // nx
+    mask = allowed[u]
+    su = sea_index[u]
+    k0, k1, fr = sub_slices(j_u, m_sub, n_times)
+    u_j = node_at(su, j_u, m_sub, n_times, wave, cur, has_cur)
+    e = 0
+    for k in range(di.size):
+        if (mask >> np.uint64(k)) & np.uint64(1) == 0:
+            continue
+        sv = sea_index[u + dj[k] * nx + di[k]]
+        v_j = node_slice(sv, k0, wave, cur, has_cur)
+        if fr != 0.0:
+            v_j = _lerp(v_j, node_slice(sv, k1, wave, cur, has_cur), fr)
+        L = elen[ju, k]
+        for s in range(S):
+            out[o + e * S + s] = L * mean_pace(ship_of(P[s]), min_sog, u_j, v_j, has_cur, ecos[ju, k], esin[ju, k])
+        e += 1
+
+
+@njit
+def _new_slot(free, n_free, nl, lt, lf, lnode, lpar, lspd):
+    """A label slot: the last freed one (a label dropped when it left the queue), else a new one at the end."""
+    if n_free > 0:
+        return free[n_free - 1], n_free - 1, nl, lt, lf, lnode, lpar, lspd
+    return nl, n_free, nl + 1, _grow(lt, nl), _grow(lf, nl), _grow(lnode, nl), _grow(lpar, nl), _grow(lspd, nl)
+
+
 @njit(cache=True)
-def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_index, wave, cur, has_cur, dt_h, n_times, P, rate,
-                start, goal, t_start_h, f_start, deadline_h, k_bucket, relax, hull_x, hull_y, f_upper, radius, max_labels, front_cap,
-                eps_f):
+def fuel_search(nx, allowed, di, dj, elen, ecos, esin, dist, sea_index, wave, cur, has_cur, dt_h, n_times, P, rate,
+                start, goal, t_start_h, f_start, deadline_h, k_bucket, relax, hull_x, hull_y, f_upper, max_labels, front_cap,
+                eps_f, stop_below):
     """Least fuel from ``start`` (reached at ``t_start_h`` with ``f_start`` fuel) to ``goal`` by
     ``deadline_h``, settings ``P[s]`` (parameter vectors) at ``rate[s]`` [fuel per hour], below
-    ``f_upper`` (a known route's fuel, or inf). ``hull_x, hull_y``: the fuel bound's envelope
+    ``f_upper`` (a known route's fuel, or inf). ``dist``: every node's shortest distance to the goal
+    over ``allowed`` (:func:`goal_distances`); ``hull_x, hull_y``: the fuel bound's envelope
     (:func:`fuel_bound`); ``front_cap``: labels remembered per node for pruning at push time;
     ``eps_f``: the fuel resolution (the route: a label within ``eps_f`` of an earlier one's fuel is
-    dropped; the bound: fuels are rounded down to multiples of it).
+    dropped; the bound: fuels are rounded down to multiples of it); ``stop_below``: stop as soon as a
+    goal label with no more fuel is settled (the bound: a known lower bound it cannot beat then).
 
     Returns ``(lt, lf, lnode, lpar, lspd, n_labels, goal_labels, n_goal, settled, status)``: the
-    label arrays (time, fuel, node, parent label, setting index or -1 for a wait), the settled
+    label arrays (time, fuel, node, parent label, setting index or -1 for a wait; a dropped label's
+    slot is reused, so only settled labels are kept), the number of labels created, the settled
     labels at the goal in time order (each with less fuel than the one before: the time-fuel
-    front; the last one is the least fuel), the number settled, and ``status`` 0 (done) or 1 (the
-    label budget ``max_labels`` was exhausted).
+    front; the last one is the least fuel), the number settled, and ``status`` 0 (done), 1 (the
+    label budget ``max_labels`` was exhausted) or 2 (stopped at a goal label within ``stop_below``).
 
-    Long by design: one compiled label loop whose bucket queue, label arrays and per-node pruning
+    Long by design: one compiled label loop whose queue, label arrays and per-node pruning
     arrays are locals (numba helpers would need about twenty of them passed on every push).
     """
     step = False
@@ -206,8 +288,6 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
     K = di.size
     S = rate.size
     min_sog = P[0, P_MIN_SOG]
-    srow, crow, scol = goal_tables(lat_rad, lon_rad, goal, nx)
-    dist = np.full(n, -1.0)  # great-circle distance to goal [nmi], cached
     best_f = np.full(n, np.inf)  # least fuel settled at the node
     prev_f = np.full(n, np.inf)  # least fuel settled in the node's earlier buckets
     last_b = np.full(n, -(2**62), dtype=np.int64)
@@ -218,26 +298,33 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
     cap = 1 << 16
     lt = np.empty(cap)
     lf = np.empty(cap)
-    lnode = np.empty(cap, dtype=np.int64)
-    lpar = np.empty(cap, dtype=np.int64)
-    lspd = np.empty(cap, dtype=np.int64)
+    lnode = np.empty(cap, dtype=np.int32)
+    lpar = np.empty(cap, dtype=np.int32)
+    lspd = np.empty(cap, dtype=np.int8)
+    free = np.empty(1 << 14, dtype=np.int32)  # slots of dropped labels, for reuse
+    n_free = 0
     hb = np.empty(1 << 14, dtype=np.int64)
     hf = np.empty(1 << 14)
-    hv = np.empty(1 << 14, dtype=np.int64)
+    hv = np.empty(1 << 14, dtype=np.int32)
     size = 0
-    js = start // nx
-    dist[start] = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[js] + crow[js] * scol[start - js * nx])))
     lt[0], lf[0], lnode[0], lpar[0], lspd[0] = t_start_h, f_start, start, -1, -2
     nl = 1
+    created = 1
     b0 = int(math.floor((t_start_h - origin) / delta))
     hb, hf, hv, size = _hpush(hb, hf, hv, size, b0, f_start, 0)
     goal_labels = np.empty(64, dtype=np.int64)
     n_goal = 0
     incumbent = f_upper
     v_top_kn = hull_x[-1]
-    ft = np.full((n, front_cap), np.inf)  # per node: labels created so far (time ascending, fuel descending)
-    ff = np.full((n, front_cap), np.inf)
-    fn = np.zeros(n, dtype=np.int64)
+    fslot = np.full(n, -1, dtype=np.int32)  # per node its row of the front memory (allocated on first use)
+    ft = np.empty((1 << 10, front_cap))  # per row: labels created so far (time ascending, fuel descending)
+    ff = np.empty((1 << 10, front_cap))
+    fn = np.zeros(1 << 10, dtype=np.int64)
+    n_rows = 0
+    cost_at = np.full(n, -1, dtype=np.int64)  # per node: offset of its edges' times in `costs` (allocated on first use)
+    cost_piece = np.full(n, -1, dtype=np.int64)  # and the piece they were computed for
+    costs = np.empty(1 << 14)
+    n_costs = 0
     settled = 0
     status = 0
     tol = 0.0 if relax else eps_f
@@ -252,27 +339,33 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
             if eps_f > 0.0:
                 f = math.floor(f / eps_f) * eps_f
             lt[lab], lf[lab] = t, f
+        keep = True
         if f >= incumbent or (u != goal and f + fuel_bound(dist[u], deadline_h - t, hull_x, hull_y) >= incumbent):
-            continue
-        if lspd[lab] == -1:  # a waiting label: valid unless a label with less fuel settled at no later time
+            keep = False
+        elif lspd[lab] == -1:  # a waiting label: valid unless a label with less fuel settled at no later time
             ref = prev_f[u] if last_b[u] == b else best_f[u]
             if f > ref:
-                continue
-        else:
-            if last_b[u] == b:
-                if t >= earliest[u] or f >= prev_f[u] - tol:
-                    continue  # a costlier label of a bucket already settled, unless the earliest of the node
+                keep = False
+        elif last_b[u] == b:
+            if t >= earliest[u] or f >= prev_f[u] - tol:
+                keep = False  # a costlier label of a bucket already settled, unless the earliest of the node
+            else:
                 earliest[u] = t
                 if f < best_f[u]:
                     best_f[u] = f
-            else:
-                if f >= best_f[u] - tol:
-                    continue
-                prev_f[u] = best_f[u]
-                best_f[u] = f
-                last_b[u] = b
-                if t < earliest[u]:
-                    earliest[u] = t
+        elif f >= best_f[u] - tol:
+            keep = False
+        else:
+            prev_f[u] = best_f[u]
+            best_f[u] = f
+            last_b[u] = b
+            if t < earliest[u]:
+                earliest[u] = t
+        if not keep:  # its slot is free again (nothing points at an unsettled label)
+            free = _grow(free, n_free)
+            free[n_free] = lab
+            n_free += 1
+            continue
         settled += 1
         if u == goal:
             if t <= deadline_h + 1e-9 and f < incumbent:
@@ -280,51 +373,50 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
                 goal_labels = _grow(goal_labels, n_goal)
                 goal_labels[n_goal] = lab
                 n_goal += 1
+                if f <= stop_below:
+                    status = 2
+                    break
             continue
-        if nl + K * S + 1 >= max_labels:
+        if created + K * S + 1 >= max_labels:
             status = 1
             break
         # the waiting label: leave at the start of the next piece (the weather is held after the last)
         j_u = sub_index(t, tau, n_sub, phase)
         du = dist[u]
-        if du < 0.0:
-            ju_ = u // nx
-            du = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[ju_] + crow[ju_] * scol[u - ju_ * nx])))
-            dist[u] = du
         if j_u + 1 < n_sub and f <= best_f[u]:  # only the least fuel so far waits (it covers the others)
             tw = (j_u + 1 - phase) * tau
             if tw + du / v_top_kn <= deadline_h + 1e-9:
-                lt = _grow(lt, nl)
-                lf = _grow(lf, nl)
-                lnode = _grow(lnode, nl)
-                lpar = _grow(lpar, nl)
-                lspd = _grow(lspd, nl)
-                lt[nl], lf[nl], lnode[nl], lpar[nl], lspd[nl] = tw, f, u, lab, -1
+                q, n_free, nl, lt, lf, lnode, lpar, lspd = _new_slot(free, n_free, nl, lt, lf, lnode, lpar, lspd)
+                lt[q], lf[q], lnode[q], lpar[q], lspd[q] = tw, f, u, lab, -1
                 bw = int(math.floor((tw - origin) / delta + 1e-9))
-                hb, hf, hv, size = _hpush(hb, hf, hv, size, bw, f, nl)
-                nl += 1
-        ju = u // nx
+                hb, hf, hv, size = _hpush(hb, hf, hv, size, bw, f, q)
+                created += 1
         mask = allowed[u]
-        su = sea_index[u]
-        k0, k1, fr = sub_slices(j_u, m_sub, n_times)
-        u_j = node_at(su, j_u, m_sub, n_times, wave, cur, has_cur)
+        o = cost_at[u]
+        if o < 0:
+            deg = 0
+            for k in range(K):
+                deg += (mask >> np.uint64(k)) & np.uint64(1)
+            o = n_costs
+            n_costs += deg * S
+            while costs.size < n_costs:
+                costs = _grow(costs, costs.size)
+            cost_at[u] = o
+        if cost_piece[u] != j_u:
+            _node_costs(costs, o, u, j_u, nx, allowed, di, dj, elen, ecos, esin, sea_index, wave, cur, has_cur, m_sub, n_times, P, min_sog)
+            cost_piece[u] = j_u
+        e = -1
         for k in range(K):
             if (mask >> np.uint64(k)) & np.uint64(1) == 0:
                 continue
+            e += 1
             v = u + dj[k] * nx + di[k]
             dv = dist[v]
-            if dv < 0.0:
-                jv = v // nx
-                dv = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[jv] + crow[jv] * scol[v - jv * nx])))
-                dist[v] = dv
             t_lb = dv / v_top_kn
-            L = elen[ju, k]
-            sv = sea_index[v]
-            v_j = node_slice(sv, k0, wave, cur, has_cur)
-            if fr != 0.0:
-                v_j = _lerp(v_j, node_slice(sv, k1, wave, cur, has_cur), fr)
+            if t + t_lb > deadline_h + 1e-9:
+                continue
             for s in range(S):
-                c = L * mean_pace(ship_of(P[s]), min_sog, u_j, v_j, has_cur, ecos[ju, k], esin[ju, k])
+                c = costs[o + e * S + s]
                 arr = t + c
                 if arr + t_lb > deadline_h + 1e-9:
                     continue
@@ -346,16 +438,19 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_ind
                     first_t[v] = tq
                 elif bnew == tent_b[v] and fq >= tent_f[v] - tol:
                     continue  # a cheaper label of this bucket exists already: the pop rule would drop this one
-                if _front_dominated(ft, ff, fn, v, tq, fq, tol):
+                row = fslot[v]
+                if row < 0:
+                    row = n_rows
+                    fslot[v] = row
+                    n_rows += 1
+                    ft, ff, fn = _grow_rows(ft, row), _grow_rows(ff, row), _grow(fn, row)
+                    fn[row] = 0
+                if _front_dominated(ft, ff, fn, row, tq, fq, tol):
                     continue
                 if bnew != tent_b[v] or fq < tent_f[v]:
                     tent_b[v], tent_f[v] = bnew, fq
-                lt = _grow(lt, nl)
-                lf = _grow(lf, nl)
-                lnode = _grow(lnode, nl)
-                lpar = _grow(lpar, nl)
-                lspd = _grow(lspd, nl)
-                lt[nl], lf[nl], lnode[nl], lpar[nl], lspd[nl] = arr, nf, v, lab, s
-                hb, hf, hv, size = _hpush(hb, hf, hv, size, bnew, nf, nl)
-                nl += 1
-    return lt, lf, lnode, lpar, lspd, nl, goal_labels, n_goal, settled, status
+                q, n_free, nl, lt, lf, lnode, lpar, lspd = _new_slot(free, n_free, nl, lt, lf, lnode, lpar, lspd)
+                lt[q], lf[q], lnode[q], lpar[q], lspd[q] = arr, nf, v, lab, s
+                hb, hf, hv, size = _hpush(hb, hf, hv, size, bnew, nf, q)
+                created += 1
+    return lt, lf, lnode, lpar, lspd, created, goal_labels, n_goal, settled, status
