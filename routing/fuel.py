@@ -30,6 +30,7 @@ References
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time as _time
 from dataclasses import dataclass
 
@@ -73,7 +74,19 @@ def max_power_speed_kn(engine: Engine) -> float:
 
 
 def fuel_rates_t_per_h(speeds_kn, engine: Engine) -> np.ndarray:
-    """Fuel rate of each setting: :func:`routing.emissions.steam2_legs` of one hour at it in calm water. [t/h]"""
+    """Fuel rate of each setting: :func:`routing.emissions.steam2_legs` of one hour at it in calm water. [t/h]
+    (Remembered per settings and engine: a plan asks for the same rates many times, a table each.)"""
+    s = np.asarray(speeds_kn, dtype=float)
+    if s.ndim == 1:
+        try:
+            return _rates_t_per_h(tuple(s.tolist()), engine).copy()
+        except TypeError:  # an engine that cannot be a key (unhashable field): computed each time
+            pass
+    return steam2_legs(np.ones_like(s), s, np.zeros_like(s), engine)["fuel_t"].to_numpy()
+
+
+@functools.lru_cache(maxsize=256)
+def _rates_t_per_h(speeds_kn: tuple, engine: Engine) -> np.ndarray:
     s = np.asarray(speeds_kn, dtype=float)
     return steam2_legs(np.ones_like(s), s, np.zeros_like(s), engine)["fuel_t"].to_numpy()
 

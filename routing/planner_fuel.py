@@ -16,6 +16,8 @@ The start and goal legs off the mesh nodes are sailed at the service speed.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pandas as pd
 
@@ -26,6 +28,8 @@ from routing.planner_parts import make_route
 from routing.field import NS_PER_HOUR
 
 FUEL_ROUTE_NAMES = ("least_fuel", "min_distance_same_arrival")
+#: Threads of the per-setting time-optimal searches that draw the corridor (:func:`_setting_paths`).
+SETTING_THREADS = 2
 
 
 def _h(st, when) -> float:
@@ -152,9 +156,7 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props, *,
         raise InfeasibleArrivalError(f"no route arrives by {_utc(st, deadline_h).isoformat()}: the earliest possible arrival is {earliest()}")
     cands = _candidates(st, routes, opt_nodes, md_nodes, spec, deadline_h)
     if spec.corridor is not None:
-        paths = [opt_nodes, md_nodes] + [search(mesh, wx, sh, st.start_node, st.goal_node, t_start_h=st.t_node_h).nodes for sh in prob.ships
-                                         if sh != req.ship]  # the service speed's path is opt_nodes
-        prob.allowed = corridor_edges(mesh, paths, spec.corridor)
+        prob.allowed = corridor_edges(mesh, [opt_nodes, md_nodes] + _setting_paths(st, prob), spec.corridor)
     f_upper = min((c[5] for c in cands), default=np.inf) - f_tail
     try:
         res = least_fuel(prob, st.start_node, st.goal_node, st.t_node_h, f_lead, node_deadline, spec, earliest=earliest, f_upper=f_upper,
@@ -201,6 +203,21 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props, *,
     if spec.pareto:
         stats["pareto"] = pareto_front(st, prob, spec, deadline_h, f_lead)
     return stats
+
+
+def _setting_paths(st, prob) -> list:
+    """The time-optimal node paths at every setting but the service speed (its path is the plan's), in setting order.
+    The searches are independent and the compiled A* releases the GIL, so they run in two threads (the machines
+    have two cores; the CPU time is the same)."""
+    ships = [sh for sh in prob.ships if sh != st.req.ship]
+
+    def path(sh):
+        return search(st.mesh, st.wx, sh, st.start_node, st.goal_node, t_start_h=st.t_node_h).nodes
+
+    if len(ships) < 2:
+        return [path(sh) for sh in ships]
+    with ThreadPoolExecutor(max_workers=SETTING_THREADS) as pool:
+        return list(pool.map(path, ships))
 
 
 def _reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props) -> dict:
