@@ -16,6 +16,7 @@ The start and goal legs off the mesh nodes are sailed at the service speed.
 
 from __future__ import annotations
 
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -214,7 +215,7 @@ def _setting_paths(st, prob) -> list:
     def path(sh):
         return search(st.mesh, st.wx, sh, st.start_node, st.goal_node, t_start_h=st.t_node_h).nodes
 
-    if len(ships) < 2:
+    if len(ships) < 2 or threading.current_thread() is not threading.main_thread():  # a window's departures run in threads already
         return [path(sh) for sh in ships]
     with ThreadPoolExecutor(max_workers=SETTING_THREADS) as pool:
         return list(pool.map(path, ships))

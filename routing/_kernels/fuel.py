@@ -141,7 +141,7 @@ def fuel_bound(d_nmi, t_rem_h, hull_x, hull_y):
     return t_rem_h * hull_y[-1]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def goal_distances(nx, allowed, di, dj, elen, goal):
     """Length [nmi] of the shortest path from every node to ``goal`` over the edges ``allowed`` (inf
     where none): Dijkstra backwards from the goal over the edge lengths the search sails (``elen``,
@@ -257,7 +257,7 @@ def _new_slot(free, n_free, nl, lt, lf, lnode, lpar, lspd):
     return nl, n_free, nl + 1, _grow(lt, nl), _grow(lf, nl), _grow(lnode, nl), _grow(lpar, nl), _grow(lspd, nl)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # releases the GIL: a window's departures run in two threads
 def fuel_search(nx, allowed, di, dj, elen, ecos, esin, dist, sea_index, wave, cur, has_cur, dt_h, n_times, P, rate,
                 start, goal, t_start_h, f_start, deadline_h, k_bucket, relax, hull_x, hull_y, f_upper, max_labels, front_cap,
                 eps_f, stop_below):

@@ -10,7 +10,7 @@ from routing._kernels.edge import _lerp, mean_pace, node_at, node_slice, node_wa
 from routing._kernels.speed import ship_of
 
 
-@njit(cache=True, nogil=True)  # releases the GIL: the least-fuel corridor runs one search per setting in two threads
+@njit(cache=True, nogil=True)  # releases the GIL: a window's departures and the least-fuel corridor's searches run in two threads
 def astar(nx, allowed, di, dj, elen, ecos, esin, lat_rad, lon_rad, sea_index, wave, cur, has_cur, dt_h, n_times, p, start,
         goal, t_start_h, distance_mode, heuristic_speed, radius):
     """Label-setting A* from ``start`` to ``goal``; returns (g, parent, expanded, scanned, computed, reached).
