@@ -37,12 +37,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from routing._kernels.fuel import fuel_bound, fuel_search, goal_distances
+from routing._kernels.fuel import fuel_bound, fuel_search, goal_distances, goal_gc_distances
 from routing.astar import ShipModel, WeatherArrays, evaluate_path, heuristic_speed_kn, search
 from routing.emissions import M_C_G_MOL, M_CO2_G_MOL, Engine, steam2_legs, steam2_totals
 from routing.errors import NoRouteError
 from routing.field import NS_PER_HOUR
 from routing.mesh import Mesh
+from thresholds.units import EARTH_RADIUS_NMI
 
 #: Default number of speed settings (``--speed-steps``) and the default lowest setting as a
 #: fraction of the service speed (slow steaming down to 60 %: IMO Fourth GHG Study 2020, the
@@ -199,6 +200,15 @@ class FuelProblem:
             self._dist_key = (allowed, int(goal))
         return self._dist
 
+    def gc_distances(self, goal: int) -> np.ndarray:
+        """Every node's great-circle distance [nmi] to ``goal``: the search's pruning distance (kept per goal)."""
+        if self._gc is None or self._gc[0] != int(goal):
+            g = self.mesh.grid
+            d = goal_gc_distances(g.nx, self.mesh.allowed.size, np.deg2rad(g.lat_deg), np.deg2rad(g.lon_deg), int(goal), EARTH_RADIUS_NMI)
+            self._gc = (int(goal), d)
+        return self._gc[1]
+
+    _gc: tuple | None = dataclasses.field(default=None, repr=False, compare=False)
     _dist_key: tuple | None = dataclasses.field(default=None, repr=False, compare=False)
     _dist: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
 
@@ -209,7 +219,7 @@ class FuelProblem:
         elen, ecos, esin = m.edge_geometry
         wx = self.wx
         return fuel_search(
-            g.nx, allowed, m.steps[:, 0].copy(), m.steps[:, 1].copy(), elen, ecos, esin, self.goal_distances(goal),
+            g.nx, allowed, m.steps[:, 0].copy(), m.steps[:, 1].copy(), elen, ecos, esin, self.gc_distances(goal),
             wx.sea_index, wx.wave, wx.cur, wx.has_cur, wx.dt_h, wx.n_times, self.P, self.rate, int(start), int(goal), float(t_h),
             float(f0), float(deadline_h), int(k), bool(relax), self.hull_x, self.hull_y, float(f_upper), int(max_labels),
             int(front_cap), float(eps_f), float(stop_below),

@@ -45,9 +45,8 @@ later time exists (its own waiting chain then covers). Two variants share the co
 :func:`fuel_bound`, see :func:`routing.fuel.least_fuel`); with ``Delta`` below every difference of
 arrival times both equal the exact optimum (the brute-force tests check LB <= brute force <= UB, and
 equality for a fine Delta). Pruning (admissible, so neither variant loses what it would otherwise
-find): a label later than ``D - d / v_top`` (d the node's shortest distance to the goal over the
-edges searched, :func:`goal_distances`, never below the great-circle distance; ``v_top`` the highest
-speed over ground any setting reaches in this weather), or whose fuel plus :func:`fuel_bound` (the
+find): a label later than ``D - d / v_top`` (d the node's great-circle distance to the goal,
+``v_top`` the highest speed over ground any setting reaches in this weather), or whose fuel plus :func:`fuel_bound` (the
 least fuel that covers d in the time left) reaches the incumbent (the best goal label, or a known
 route's fuel ``f_upper``), or that a label already created at its node dominates.
 
@@ -71,7 +70,7 @@ import math
 import numpy as np
 from numba import njit
 
-from routing._kernels.core import P_MIN_SOG, _heap_pop, _heap_push
+from routing._kernels.core import P_MIN_SOG, _heap_pop, _heap_push, goal_tables
 from routing._kernels.edge import _lerp, mean_pace, node_at, node_slice, sub_index, sub_slices, substeps
 from routing._kernels.speed import ship_of
 
@@ -146,7 +145,9 @@ def goal_distances(nx, allowed, di, dj, elen, goal):
     """Length [nmi] of the shortest path from every node to ``goal`` over the edges ``allowed`` (inf
     where none): Dijkstra backwards from the goal over the edge lengths the search sails (``elen``,
     great circles, so never below the great-circle distance). Any route from a node covers at least
-    this distance, which makes it the distance of the fuel bound and of the time pruning."""
+    this distance: the distance of the envelope bound (:meth:`routing.fuel.FuelProblem.envelope_bound`). (The
+    search itself prunes with the great-circle distance: a tighter pruning distance changes which labels its
+    heuristic bucket rules keep, and so its route, by a hair either way.)"""
     n = allowed.size
     K = di.size
     dist = np.full(n, np.inf)
@@ -169,6 +170,17 @@ def goal_distances(nx, allowed, di, dj, elen, goal):
                 dist[u] = nd
                 keys, vals, size = _heap_push(keys, vals, size, nd, u)
     return dist
+
+
+@njit(cache=True)
+def goal_gc_distances(nx, n, lat_rad, lon_rad, goal, radius):
+    """Great-circle distance [nmi] of every node to ``goal`` (the haversine of :func:`routing._kernels.core.goal_tables`)."""
+    srow, crow, scol = goal_tables(lat_rad, lon_rad, goal, nx)
+    out = np.empty(n)
+    for u in range(n):
+        j = u // nx
+        out[u] = 2.0 * radius * math.asin(math.sqrt(min(1.0, srow[j] + crow[j] * scol[u - j * nx])))
+    return out
 
 
 @njit
@@ -263,8 +275,8 @@ def fuel_search(nx, allowed, di, dj, elen, ecos, esin, dist, sea_index, wave, cu
                 eps_f, stop_below):
     """Least fuel from ``start`` (reached at ``t_start_h`` with ``f_start`` fuel) to ``goal`` by
     ``deadline_h``, settings ``P[s]`` (parameter vectors) at ``rate[s]`` [fuel per hour], below
-    ``f_upper`` (a known route's fuel, or inf). ``dist``: every node's shortest distance to the goal
-    over ``allowed`` (:func:`goal_distances`); ``hull_x, hull_y``: the fuel bound's envelope
+    ``f_upper`` (a known route's fuel, or inf). ``dist``: every node's great-circle distance to the goal
+    (:func:`goal_gc_distances`); ``hull_x, hull_y``: the fuel bound's envelope
     (:func:`fuel_bound`); ``front_cap``: labels remembered per node for pruning at push time;
     ``eps_f``: the fuel resolution (the route: a label within ``eps_f`` of an earlier one's fuel is
     dropped; the bound: fuels are rounded down to multiples of it); ``stop_below``: stop as soon as a
