@@ -202,7 +202,9 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props, *,
         setting = r.properties.get("speed_setting_kn") or [v0] * (t.size - 1)
         r.properties.update(fuel_summary(route_fuel(t, setting, engine), engine))
     if spec.pareto:
-        stats["pareto"] = pareto_front(st, prob, spec, deadline_h, f_lead)
+        chosen = {"arrive_utc": _utc(st, times[-1]).isoformat(), "time_h": round(float(times[-1] - st.t0_h), 4),
+                  "dist_nmi": round(float(np.sum(_legs_nmi(lat, lon))), 4), **fuel_summary(fuel_t, engine), "least_fuel": True}
+        stats["pareto"] = non_dominated(pareto_front(st, prob, spec, deadline_h, f_lead) + [chosen])
     return stats
 
 
@@ -256,6 +258,19 @@ def pareto_front(st, prob, spec: FuelSpec, deadline_h: float, f_lead: float) -> 
         rows.append({"arrive_utc": _utc(st, times[-1]).isoformat(), "time_h": round(float(times[-1] - st.t0_h), 4),
                      "dist_nmi": round(float(np.sum(_legs_nmi(lat, lon))), 4), **fuel_summary(fuel, spec.engine)})  # fmt: skip
     return rows
+
+
+def non_dominated(rows: list) -> list:
+    """The rows no other row beats on both arrival and fuel (earlier or equal and less fuel, or earlier and no
+    more), by arrival. The search's front and the least-fuel route (which may sail off the mesh's edges or between
+    the settings) together: a front point the chosen route dominates is not shown."""
+    rows = sorted(rows, key=lambda r: (pd.Timestamp(r["arrive_utc"]), r["fuel_t"]))
+    out, best = [], np.inf
+    for r in rows:  # by arrival: a row is kept only when it uses less fuel than every earlier one
+        if r["fuel_t"] < best - 1e-12:
+            out.append(r)
+            best = r["fuel_t"]
+    return out
 
 
 def _legs_nmi(lat, lon):

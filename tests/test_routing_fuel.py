@@ -323,3 +323,27 @@ def test_cli_says_when_the_slowest_setting_leaves_time_unused(shared_data, capsy
     slack_h = (pd.Timestamp("2023-07-21T06:00Z") - pd.Timestamp(d["least_fuel"]["waypoints"][-1][2])) / pd.Timedelta(hours=1)
     note = next(n for n in d["notes"] if n.startswith("least fuel arrives"))
     assert note.startswith(f"least fuel arrives {slack_h:.2f} h before the deadline with every leg at the slowest setting offered ({lowest:g} kn)")
+
+
+def test_pareto_front_is_non_dominated_and_holds_the_least_fuel_route():
+    """--pareto: the search's front and the least-fuel route together, by arrival, each row using less fuel than
+    every earlier-arriving one (a front point the chosen route beats on both is dropped)."""
+    from routing.emissions import Engine
+    from routing.planner_fuel import non_dominated
+
+    rows = [{"arrive_utc": "2024-01-01T10:00Z", "fuel_t": 5.0}, {"arrive_utc": "2024-01-01T11:00Z", "fuel_t": 4.2},
+            {"arrive_utc": "2024-01-01T10:30Z", "fuel_t": 4.0, "least_fuel": True}, {"arrive_utc": "2024-01-01T12:00Z", "fuel_t": 3.0},
+            {"arrive_utc": "2024-01-01T12:00Z", "fuel_t": 3.5}]
+    assert [(r["arrive_utc"], r["fuel_t"]) for r in non_dominated(rows)] == [
+        ("2024-01-01T10:00Z", 5.0), ("2024-01-01T10:30Z", 4.0), ("2024-01-01T12:00Z", 3.0)]
+
+    _, v = zermelo_plan()
+    eng = Engine.from_vessel(v)
+    spec = FuelSpec((8.0, 10.0, 12.0, 14.0), eng, arrive_by=pd.Timestamp("2024-01-01T16:00Z"), pareto=5)
+    plan, _ = zermelo_plan(spec)
+    front, lf = plan.stats["fuel"]["pareto"], plan.routes["least_fuel"]
+    arrive = [pd.Timestamp(r["arrive_utc"]) for r in front]
+    fuel = [r["fuel_t"] for r in front]
+    assert len(front) >= 3 and arrive == sorted(arrive) and all(b < a for a, b in zip(fuel, fuel[1:]))
+    chosen = [r for r in front if r.get("least_fuel")]
+    assert len(chosen) == 1 and chosen[0]["fuel_t"] == pytest.approx(lf.properties["fuel_t"], rel=1e-6)

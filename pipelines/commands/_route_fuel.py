@@ -100,7 +100,8 @@ def echo_fuel(plan) -> None:
         typer.echo(f"saving {f['saving_pct']:.2f} % ({f['saving_fuel_t']:.3f} t fuel) against {ref['route']}: the minimum-distance route "
                    f"at a constant {ref['setting_kn']:g} kn arriving at the same time ({ref['arrive_utc']})")
     for row in f.get("pareto", []):
-        typer.echo(f"front: arrive {row['arrive_utc']}  time {row['time_h']:.2f} h  fuel {row['fuel_t']:.3f} t  CO2 {row['co2_t']:.3f} t")
+        mark = "  (least fuel)" if row.get("least_fuel") else ""
+        typer.echo(f"front: arrive {row['arrive_utc']}  time {row['time_h']:.2f} h  fuel {row['fuel_t']:.3f} t  CO2 {row['co2_t']:.3f} t{mark}")
 
 
 def window_times(text: str, step_h: float | None):
