@@ -28,9 +28,8 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field
 
-from lanes.chain import (ChainParams, ChainResult, PreparedChain, finish_chain, prepare_chain_in_buckets,
-                         voyages_as_table)
-from lanes.extract import LaneParams, merge_lane_results, merge_lane_voyage_tables
+from lanes.chain import ChainParams, ChainResult, PreparedChain, prepare_chain_in_buckets, voyages_as_table
+from lanes.extract import LaneParams
 from lanes.interpolate import ResampleParams
 from lanes.ports import PortParams
 from lanes.stops import StopParams
@@ -168,7 +167,7 @@ def run_lanes(db: str | Path, ports_csv=None, settings: LanesSettings | None = N
     """Reader -> chain -> writer without Prefect; returns the summary (counts, run id, details)."""
     import time
 
-    from pipelines.lanes_partitions import partition_lanes, points_folder, remove_folder, stored_keys
+    from pipelines.lanes_partitions import finish_from_partitions, partition_lanes, points_folder, remove_folder, stored_keys
 
     settings = settings or LanesSettings()
     params = settings.chain_params()
@@ -178,8 +177,7 @@ def run_lanes(db: str | Path, ports_csv=None, settings: LanesSettings | None = N
         prep = prepare_from_workspace(db, known, params, points_folder=str(folder))
         t = time.perf_counter()
         parts = [(key, partition_lanes(str(folder), params.lanes, key)) for key in stored_keys(folder)]
-        result = finish_chain(prep, merge_lane_results(None, [(k, None, res) for k, (res, _) in parts]),
-                              time.perf_counter() - t, merge_lane_voyage_tables([lv for _, (_, lv) in parts]))
+        result = finish_from_partitions(prep, parts, time.perf_counter() - t)
     finally:
         remove_folder(folder)
     out = store_result(db, result, settings)
@@ -219,7 +217,7 @@ def _build_flow() -> dict:
     from prefect import flow, task
     from prefect.cache_policies import NO_CACHE
 
-    from pipelines.lanes_partitions import partition_lanes, points_folder, remove_folder, stored_keys
+    from pipelines.lanes_partitions import finish_from_partitions, partition_lanes, points_folder, remove_folder, stored_keys
     from pipelines.runners import make_task_runner, retry_transient
 
     read_task = task(load_port_lists, name="read port lists", retries=3, retry_delay_seconds=[2, 5, 15],
@@ -247,8 +245,7 @@ def _build_flow() -> dict:
             keys = stored_keys(folder)
             futures = [partition_task.submit(folder, params.lanes, key) for key in keys]
             parts = [(key, f.result()) for key, f in zip(keys, futures)]
-            lanes = merge_lane_results(None, [(key, None, res) for key, (res, _) in parts])
-            result = finish_chain(prep, lanes, time.perf_counter() - t, merge_lane_voyage_tables([lv for _, (_, lv) in parts]))
+            result = finish_from_partitions(prep, parts, time.perf_counter() - t)
         finally:
             remove_folder(folder)
         out = store_task(db, result, settings)

@@ -25,7 +25,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from lanes.extract import LaneParams, LaneResult, extract_lanes_for_pair, lane_voyage_table, partition_rows
+from lanes.chain import ChainResult, PreparedChain, finish_chain
+from lanes.extract import (LaneParams, LaneResult, extract_lanes_for_pair, lane_voyage_table, merge_lane_results,
+                           merge_lane_voyage_tables, partition_rows)
 
 
 def _key_folder(root: Path, key: tuple[int, int]) -> Path:
@@ -38,21 +40,14 @@ class PartitionStore:
     def __init__(self, folder: str | Path, include_loops: bool = True):
         self.folder = Path(folder)
         self.include_loops = include_loops
-        self.counts: dict[tuple[int, int], int] = {}
-        self.n_points = 0
 
     def add(self, k: int, points: pd.DataFrame) -> None:
-        """Write bucket ``k``'s resampled points, each partition's rows to its own file."""
+        """Write bucket ``k``'s resampled points, each partition's rows to its own file (the
+        partitions written are :func:`stored_keys` of the folder)."""
         for key, rows in partition_rows(points, self.include_loops):
             folder = _key_folder(self.folder, key)
             folder.mkdir(parents=True, exist_ok=True)
             points.iloc[rows].to_parquet(folder / f"bucket-{int(k):06d}.parquet", index=False)
-            self.counts[key] = self.counts.get(key, 0) + len(rows)
-        self.n_points += len(points)
-
-    def keys(self) -> list[tuple[int, int]]:
-        """The partitions written, ascending."""
-        return sorted(self.counts)
 
 
 def stored_keys(folder: str | Path) -> list[tuple[int, int]]:
@@ -77,6 +72,14 @@ def partition_lanes(folder: str, params: LaneParams, key: tuple[int, int]) -> tu
     points = read_partition(folder, key)
     res = extract_lanes_for_pair(points, params, key)
     return replace(res, point_lane=None), lane_voyage_table(points, res.point_lane)
+
+
+def finish_from_partitions(prep: PreparedChain, parts: list, lanes_s: float) -> ChainResult:
+    """The chain's result from the ``(key, (LaneResult, lane-voyage rows))`` of every partition
+    (:func:`partition_lanes`): the lanes merged without a per-point array, the lane-voyage rows
+    merged partition by partition (:func:`lanes.chain.finish_chain`)."""
+    lanes = merge_lane_results(None, [(key, None, res) for key, (res, _) in parts])
+    return finish_chain(prep, lanes, lanes_s, merge_lane_voyage_tables([lv for _, (_, lv) in parts]))
 
 
 def points_folder(db: str | Path) -> Path:

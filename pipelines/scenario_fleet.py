@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from pipelines.scenario import (
-    AIS_PATTERNS, DIRTY_KINDS, EXPECTED_REASON, ScenarioConfigError, ScenarioSettings, describe_setup,
+    AIS_PATTERNS, DIRTY_KINDS, EXPECTED_REASON, ScenarioConfigError, ScenarioSettings, describe_setup, file_entries,
     checked_seed_start, load_scenario_spec, make_out_dir,
 )
 
@@ -140,17 +140,12 @@ def write_day(job: FleetJob, d: int) -> dict:
 
 
 def _file_entry(name: str, day, size: int) -> dict:
-    """A written day's entry in scenario.json: what :func:`pipelines.scenario.file_entries` gives
-    for a file of DMA position rows, and its bytes on disk."""
-    import pyarrow.compute as pc
-
-    kinds = pc.value_counts(day["dirty_kind"]).to_pylist()
-    counts = {k["values"]: int(k["counts"]) for k in kinds}
-    dirty = {k: counts[k] for k in sorted(counts) if k != ""}
-    n = day.num_rows
-    return {"file": name, "format": "dma_csv", "records": n, "position_records": n, "static_messages": 0,
-            "clean_positions": int(counts.get("", 0) + counts.get("sentinel_fields", 0)), "dirty": dirty,
-            "bytes": int(size)}
+    """A written day's entry in scenario.json (:func:`pipelines.scenario.file_entries` of its rows'
+    format, message type and dirty kind) and its bytes on disk."""
+    (entry,) = file_entries(pd.DataFrame({"file": name, "fmt": day["fmt"].to_numpy(zero_copy_only=False),
+                                          "msg_type": day["msg_type"].to_numpy(),
+                                          "dirty_kind": day["dirty_kind"].to_numpy(zero_copy_only=False)}))
+    return {**entry, "bytes": int(size)}
 
 
 def _init_worker() -> None:

@@ -80,7 +80,6 @@ def least_fuel_role(plan, vessel, arrive_utc) -> dict:
     possible one is named). The route's properties carry ``arrive_by_utc`` and ``limits`` (:data:`LIMITS_NOTE`); both
     routes are :func:`for_table` copies (planned settings and fuel under ``planned_*``).
     """
-    from routing.emissions import Engine
     from routing.planner import _props_maker
 
     st = plan.stage
@@ -231,8 +230,6 @@ def audit_least_fuel(plan, track, vessel, alts: dict, notes: list):
     """The least-fuel alternative arriving by the voyage's real (AIS) arrival (into ``alts``), and the fair reference
     of its saving: the sailed track at the one constant setting that meets that arrival, same model and weather
     (:func:`routing.planner_fuel.same_arrival_twin`; None when no setting does)."""
-    from routing.emissions import Engine
-
     arrive = track.time_utc[-1]
     lf = least_fuel_role(plan, vessel, arrive)
     if lf["least_fuel"] is None:

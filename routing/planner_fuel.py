@@ -202,8 +202,7 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props, *,
         setting = r.properties.get("speed_setting_kn") or [v0] * (t.size - 1)
         r.properties.update(fuel_summary(route_fuel(t, setting, engine), engine))
     if spec.pareto:
-        chosen = {"arrive_utc": _utc(st, times[-1]).isoformat(), "time_h": round(float(times[-1] - st.t0_h), 4),
-                  "dist_nmi": round(float(np.sum(_legs_nmi(lat, lon))), 4), **fuel_summary(fuel_t, engine), "least_fuel": True}
+        chosen = {**_front_row(st, lat, lon, times, fuel_t, engine), "least_fuel": True}
         stats["pareto"] = non_dominated(pareto_front(st, prob, spec, deadline_h, f_lead) + [chosen])
     return stats
 
@@ -254,10 +253,14 @@ def pareto_front(st, prob, spec: FuelSpec, deadline_h: float, f_lead: float) -> 
     rows = []
     for sched in front:
         lat, lon, times, setting = _full_schedule(st, sched)
-        fuel = route_fuel(times, setting, spec.engine)
-        rows.append({"arrive_utc": _utc(st, times[-1]).isoformat(), "time_h": round(float(times[-1] - st.t0_h), 4),
-                     "dist_nmi": round(float(np.sum(_legs_nmi(lat, lon))), 4), **fuel_summary(fuel, spec.engine)})  # fmt: skip
+        rows.append(_front_row(st, lat, lon, times, route_fuel(times, setting, spec.engine), spec.engine))
     return rows
+
+
+def _front_row(st, lat, lon, times, fuel_t: float, engine) -> dict:
+    """One route of the time-fuel front: arrival, time, distance, fuel and CO2."""
+    return {"arrive_utc": _utc(st, times[-1]).isoformat(), "time_h": round(float(times[-1] - st.t0_h), 4),
+            "dist_nmi": round(float(np.sum(_legs_nmi(lat, lon))), 4), **fuel_summary(fuel_t, engine)}
 
 
 def non_dominated(rows: list) -> list:
