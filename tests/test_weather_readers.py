@@ -280,7 +280,11 @@ def test_truncated_real_files_are_refused_as_truncated(shared_data, tmp_path, ca
 
 @pytest.mark.parametrize("fmt", ["NETCDF3_CLASSIC", "NETCDF3_64BIT_OFFSET", "NETCDF3_64BIT_DATA", "NETCDF4", "NETCDF4_CLASSIC"])
 def test_truncated_netcdf_is_detected_at_every_length(tmp_path, fmt):
-    """Complete files of every NetCDF format pass; every cut of the header or the data fails."""
+    """Complete files of every NetCDF format pass; every cut of the header or the data fails:
+    every length through the first 2 KiB (the classic header, HDF5's superblock) and every 37th
+    after it, and the last cut (checking all 18,012 cuts of the 18 kB HDF5 file took 48 s of the
+    suite under load; beyond the header each cut is the same comparison of the size on disk with
+    the end the header records)."""
     import netCDF4
 
     from weather.io.netcdf import check_complete
@@ -296,8 +300,8 @@ def test_truncated_netcdf_is_detected_at_every_length(tmp_path, fmt):
     data = path.read_bytes()
     check_complete(path)
     cut = tmp_path / "cut.nc"
-    step = 1 if len(data) < 20_000 else 37
-    for n in range(4, len(data) - 3, step):  # the last record's padding (up to 3 bytes) is optional
+    lengths = [*range(4, min(2048, len(data) - 3)), *range(2048, len(data) - 3, 37), len(data) - 4]
+    for n in lengths:  # the last record's padding (up to 3 bytes) is optional
         cut.write_bytes(data[:n])
         with pytest.raises(WeatherFileError, match="cut.nc: truncated NetCDF"):
             check_complete(cut)
