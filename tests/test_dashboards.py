@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import io
+import math
 import re
 from html.parser import HTMLParser
 
@@ -328,6 +329,25 @@ def test_model_validation_names_the_field():
         LaneDeparture(lane_id=1, origin="a", destination="b", depart_utc=pd.Timestamp("2025-01-01T00:00Z"), status="failed")
     with pytest.raises(ReportError, match="NightlyReport or a VoyageAudit"):
         report_from_json('{"a": 1}')
+
+
+def test_one_delta_is_the_cell_of_the_deltas_table():
+    """``RouteSet.delta`` (the night page's and totals' path) equals :meth:`RouteSet.deltas` cell
+    by cell: given ``d_*`` columns taken as given, the rest differences from the reference, the
+    seed's and the ``d_*`` columns themselves and unknown roles NaN."""
+    given = pd.DataFrame({"time_h": [10.0, 9.0], "d_time_h": [0.0, -1.0], "fuel_t": [20.0, 19.0],
+                          "d_fuel_t": [0.0, -1.25], "dist_nmi": [100.0, "n/a"], "hs_decrease_pct": [0.0, 41.5]},
+                         index=["historical", "optimal"])
+    for rs in (RouteSet(routes=fx.routes()), RouteSet(routes={}, metrics=given, proposed="optimal")):
+        table_ = rs.deltas()
+        for role in table_.index:
+            for col in table_.columns:
+                assert rs.delta(col, role) == pytest.approx(table_.loc[role, col], nan_ok=True), (role, col)
+        for col in ("d_time_h", "hs_decrease_pct", "no_such_metric"):
+            assert math.isnan(rs.delta(col, table_.index[0]))
+        assert math.isnan(rs.delta("time_h", "no_such_role"))
+    assert RouteSet(routes={}, metrics=given, proposed="optimal").delta("fuel_t", "optimal") == -1.25
+    assert math.isnan(RouteSet(routes={}, metrics=given, proposed="optimal").delta("dist_nmi", "optimal"))
 
 
 def test_metrics_fall_back_to_route_values():
