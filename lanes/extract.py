@@ -206,21 +206,21 @@ def dbscan_labels(features: np.ndarray, weights: np.ndarray, params: LaneParams,
     """DBSCAN labels with ``eps = 1`` in the scaled space, weighted, sampled above ``max_points``."""
     from sklearn.neighbors import KDTree
 
-    from lanes.dbscan import dbscan_chunked
+    from lanes.dbscan_grid import dbscan_grid
 
     n = features.shape[0]
     if n == 0:
         return np.empty(0, dtype=np.int64), False
     min_samples = max(1, int(round(params.min_density * _WEIGHT_SCALE)))
-    # scikit-learn's DBSCAN (k-d tree) labels, computed in chunks of query points so that a
-    # dense partition never holds every neighbourhood at once (lanes.dbscan)
+    # scikit-learn's DBSCAN (k-d tree) labels, computed on a grid of cells so that a dense
+    # partition never lists every neighbourhood (lanes.dbscan_grid)
     if n <= params.max_points:
-        return dbscan_chunked(features, 1.0, min_samples, weights * _WEIGHT_SCALE)[0], False
+        return dbscan_grid(features, 1.0, min_samples, weights * _WEIGHT_SCALE)[0], False
     rng = np.random.default_rng(_seed(key, params.seed))
     sample = np.sort(rng.choice(n, size=params.max_points, replace=False))
     scale = n / params.max_points
-    sample_labels, sample_core = dbscan_chunked(features[sample], 1.0, min_samples,
-                                                weights[sample] * scale * _WEIGHT_SCALE)
+    sample_labels, sample_core = dbscan_grid(features[sample], 1.0, min_samples,
+                                             weights[sample] * scale * _WEIGHT_SCALE)
     labels = np.full(n, -1, dtype=np.int64)
     labels[sample] = sample_labels
     core = sample[sample_core]

@@ -1,0 +1,271 @@
+"""DBSCAN [1] on a grid of cells of diameter eps: scikit-learn's ``DBSCAN`` labels (k-d tree,
+Euclidean, sample weights) at a cost that grows with the occupied cells, not with the pairs.
+
+Why. On a dense traffic lane a point has thousands of eps-neighbours (issue 23: 1,730 per point
+in a 71,340-point origin-destination partition of the 300-ship, 8.61 M-row fleet), and both
+scikit-learn's ``DBSCAN.fit`` and :func:`lanes.dbscan.dbscan_chunked` list every neighbour of
+every point: the work grows with the points times their neighbours, i.e. with the square of a
+partition's points. Here the space is cut into cells of side ``eps / sqrt(d)`` (d the dimension,
+shrunk by 1e-6 against rounding), the exact grid method of Gunawan [2] and de Berg et al. [3]:
+
+* any two points of one cell are within eps of each other, so a cell whose points weigh at least
+  ``min_samples`` (with a margin of 1e-9 relative, far above the rounding of any sum) holds only
+  core points, which are all linked: no neighbour of theirs is listed;
+* every other point's weighted neighbour count is summed over the cells that can hold a
+  neighbour (those whose box lies within eps of its cell's box), each pair tested with the
+  distance scikit-learn's k-d tree computes (the sum of squared coordinate differences in
+  coordinate order, against ``eps * eps``), so the same pairs are neighbours; a count within
+  1e-9 of ``min_samples`` is recomputed by scikit-learn's own query and sum, so the core test is
+  scikit-learn's bit for bit;
+* two cells holding core points are linked (union-find over cells) when one pair of their core
+  points is within eps: the pairs are tried until the first link, and not at all when the two
+  cells are already in one component;
+* labels follow scikit-learn's numbering (``dbscan_inner`` labels a whole component from its
+  first core point in index order): a component's label is the rank of its smallest core index,
+  and a border point (not core, a core point within eps) takes the smallest label among the
+  components of its core neighbours, as :mod:`lanes.dbscan` documents.
+
+The candidate cells of each cell come from a k-d tree over the occupied cells' integer
+coordinates. Tested equal to ``DBSCAN.fit`` (labels and core samples) on random blobs with
+coarse coordinates (many distances exactly eps), with and without weights, and on the lanes'
+own partitions (the lanes tables of the 2.1 and 8.6 M-row fleets are identical: docs/scale.md).
+Memory: the per-point arrays, the cells and their candidate lists (int32).
+
+References
+----------
+.. [1] M. Ester, H.-P. Kriegel, J. Sander, X. Xu, "A density-based algorithm for discovering
+       clusters in large spatial databases with noise," KDD-96, pp. 226-231, 1996.
+.. [2] A. Gunawan, "A faster algorithm for DBSCAN," Master's thesis, Technische Universiteit
+       Eindhoven, 2013 (the grid of cells of side eps/sqrt(d)).
+.. [3] M. de Berg, A. Gunawan, M. Roeloffzen, "Faster DB-scan and HDB-scan in low-dimensional
+       Euclidean spaces," ISAAC 2017, LIPIcs 92, 25:1-25:13, doi:10.4230/LIPIcs.ISAAC.2017.25.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Cells are shrunk by this factor so that rounding never puts two points of a cell beyond eps.
+_SHRINK = 1.0 - 1e-6
+#: Counts within this relative distance of ``min_samples`` are recomputed by scikit-learn.
+_TIE = 1e-9
+#: Cells queried at once for their candidate cells.
+_CELL_CHUNK = 8192
+
+_KERNELS: dict = {}
+
+
+def _kernels() -> dict:
+    """The compiled kernels (numba, compiled on first use and cached on disk)."""
+    if _KERNELS:
+        return _KERNELS
+    import numba
+
+    @numba.njit(cache=True)
+    def rdist(x, i, j):
+        # scikit-learn's reduced Euclidean distance: squared differences summed in coordinate order
+        s = 0.0
+        for k in range(x.shape[1]):
+            t = x[i, k] - x[j, k]
+            s += t * t
+        return s
+
+    @numba.njit(cache=True)
+    def find(parent, a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    @numba.njit(cache=True)
+    def keep_candidates(cells, rows, nbrs, bound):
+        # the candidate pairs whose boxes lie within eps: sum over dims of (|dk| - 1)+^2 <= bound
+        keep = np.zeros(rows.size, dtype=np.bool_)
+        for m in range(rows.size):
+            s = 0
+            for k in range(cells.shape[1]):
+                g = abs(cells[rows[m], k] - cells[nbrs[m], k]) - 1
+                if g > 0:
+                    s += g * g
+            keep[m] = s <= bound
+        return keep
+
+    @numba.njit(cache=True)
+    def core_points(x, w, r2, order, start, cand_ptr, cand, lo, hi):
+        # core[p]; amb[p] when p's count is within the tie margin (recomputed by the caller)
+        n = x.shape[0]
+        nc = start.size - 1
+        cell_w = np.zeros(nc)
+        for c in range(nc):
+            t = 0.0
+            for k in range(start[c], start[c + 1]):
+                t += w[order[k]]
+            cell_w[c] = t
+        core = np.zeros(n, dtype=np.bool_)
+        amb = np.zeros(n, dtype=np.bool_)
+        for c in range(nc):
+            if cell_w[c] >= hi:  # a dense cell: every point is core
+                for k in range(start[c], start[c + 1]):
+                    core[order[k]] = True
+                continue
+            for k in range(start[c], start[c + 1]):
+                p = order[k]
+                t = cell_w[c]
+                for m in range(cand_ptr[c], cand_ptr[c + 1]):
+                    b = cand[m]
+                    if b == c:
+                        continue
+                    for kk in range(start[b], start[b + 1]):
+                        q = order[kk]
+                        if rdist(x, p, q) <= r2:
+                            t += w[q]
+                if t >= hi:
+                    core[p] = True
+                elif t >= lo:
+                    amb[p] = True
+        return core, amb
+
+    @numba.njit(cache=True)
+    def link_cells(x, core, r2, order, start, cand_ptr, cand):
+        # union-find over the cells holding core points; returns each cell's root (-1: no core)
+        nc = start.size - 1
+        parent = np.arange(nc)
+        has_core = np.zeros(nc, dtype=np.bool_)
+        for c in range(nc):
+            for k in range(start[c], start[c + 1]):
+                if core[order[k]]:
+                    has_core[c] = True
+                    break
+        for a in range(nc):
+            if not has_core[a]:
+                continue
+            for m in range(cand_ptr[a], cand_ptr[a + 1]):
+                b = cand[m]
+                if b <= a or not has_core[b]:
+                    continue
+                ra = find(parent, a)
+                rb = find(parent, b)
+                if ra == rb:
+                    continue
+                linked = False
+                for k in range(start[a], start[a + 1]):
+                    p = order[k]
+                    if core[p]:
+                        for kk in range(start[b], start[b + 1]):
+                            q = order[kk]
+                            if core[q] and rdist(x, p, q) <= r2:
+                                linked = True
+                                break
+                    if linked:
+                        break
+                if linked:
+                    parent[max(ra, rb)] = min(ra, rb)
+        root = np.full(nc, -1, dtype=np.int64)
+        for c in range(nc):
+            if has_core[c]:
+                root[c] = find(parent, c)
+        return root
+
+    @numba.njit(cache=True)
+    def border_labels(x, core, labels, r2, cell_of, start, order, cand_ptr, cand):
+        # each non-core point: the smallest label among its core neighbours (else stays -1)
+        n = x.shape[0]
+        for p in range(n):
+            if core[p]:
+                continue
+            c = cell_of[p]
+            best = -1
+            for m in range(cand_ptr[c], cand_ptr[c + 1]):
+                b = cand[m]
+                for kk in range(start[b], start[b + 1]):
+                    q = order[kk]
+                    if core[q] and (best < 0 or labels[q] < best) and rdist(x, p, q) <= r2:
+                        best = labels[q]
+            labels[p] = best
+        return labels
+
+    _KERNELS.update(keep_candidates=keep_candidates, core_points=core_points, link_cells=link_cells,
+                    border_labels=border_labels)
+    return _KERNELS
+
+
+def _grid(x: np.ndarray, eps: float):
+    """Cells of side ``eps / sqrt(d)``: (point order by cell, cell starts, each point's cell,
+    the occupied cells' integer coordinates)."""
+    n, d = x.shape
+    side = eps / np.sqrt(d) * _SHRINK
+    ijk = np.floor(x / side).astype(np.int64)
+    order = np.lexsort(ijk.T[::-1])
+    sorted_ijk = ijk[order]
+    new = np.r_[True, np.any(sorted_ijk[1:] != sorted_ijk[:-1], axis=1)]
+    start = np.r_[np.flatnonzero(new), n].astype(np.int64)
+    cell_of = np.empty(n, dtype=np.int64)
+    cell_of[order] = np.cumsum(new) - 1
+    return order.astype(np.int64), start, cell_of, sorted_ijk[new]
+
+
+def _candidates(cells: np.ndarray, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR lists (pointers, cell indices, each list including the cell itself, in the k-d tree's
+    order) of the cells whose box lies within eps of each cell's box."""
+    from sklearn.neighbors import KDTree
+
+    # in cell units eps is sqrt(bound) cells: boxes within eps differ by sum (|dk| - 1)+^2 <= bound,
+    # hence by at most sqrt(d + 2 sqrt(d bound) + bound) in Euclidean distance (all |dk| - 1 equal)
+    bound = int(np.floor(d / _SHRINK**2 + 1e-9))
+    radius = np.sqrt(d + 2.0 * np.sqrt(d * bound) + bound) + 1e-6
+    keep = _kernels()["keep_candidates"]
+    coords = cells.astype(np.float64)
+    tree = KDTree(coords)
+    lens, lists = [], []
+    for s in range(0, len(cells), _CELL_CHUNK):
+        nb = tree.query_radius(coords[s:s + _CELL_CHUNK], r=radius)
+        n_nb = np.fromiter((len(v) for v in nb), dtype=np.int64, count=len(nb))
+        nbrs = np.concatenate(nb).astype(np.int64)
+        rows = np.repeat(np.arange(s, s + len(nb), dtype=np.int64), n_nb)
+        ok = keep(cells, rows, nbrs, bound)  # rows ascending: the lists stay grouped by cell
+        lists.append(nbrs[ok].astype(np.int32))
+        lens.append(np.bincount(rows[ok] - s, minlength=len(nb)))
+    ptr = np.r_[0, np.cumsum(np.concatenate(lens))].astype(np.int64)
+    return ptr, np.concatenate(lists)
+
+
+def _exact_counts(x: np.ndarray, eps: float, w: np.ndarray, idx: np.ndarray, leaf_size: int) -> np.ndarray:
+    """scikit-learn's weighted neighbour counts of the points ``idx`` (DBSCAN's own query and sum)."""
+    from lanes.dbscan import _neighbour_model
+
+    nb = _neighbour_model(x, eps, leaf_size).radius_neighbors(x[idx], return_distance=False)
+    return np.array([np.sum(w[v]) for v in nb], dtype=np.float64)
+
+
+def dbscan_grid(features: np.ndarray, eps: float, min_samples: float, sample_weight: np.ndarray,
+                leaf_size: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """``(labels, core_sample_indices)`` equal to ``DBSCAN(eps, min_samples=min_samples,
+    algorithm="kd_tree", leaf_size=leaf_size).fit(features, sample_weight=sample_weight)``
+    (module docstring)."""
+    x = np.ascontiguousarray(features, dtype=np.float64)
+    w = np.ascontiguousarray(sample_weight, dtype=np.float64)
+    n = x.shape[0]
+    if n == 0:
+        return np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
+    k = _kernels()
+    r2 = eps * eps  # scikit-learn's _dist_to_rdist for the Euclidean metric
+    order, start, cell_of, cells = _grid(x, eps)
+    ptr, cand = _candidates(cells, x.shape[1])
+    core, amb = k["core_points"](x, w, r2, order, start, ptr, cand,
+                                 float(min_samples) * (1.0 - _TIE), float(min_samples) * (1.0 + _TIE))
+    if amb.any():  # counts at a hair of the threshold: scikit-learn's own sum decides
+        idx = np.flatnonzero(amb)
+        core[idx] = _exact_counts(x, eps, w, idx, leaf_size) >= min_samples
+    root = k["link_cells"](x, core, r2, order, start, ptr, cand)
+    labels = np.full(n, -1, dtype=np.int64)
+    core_idx = np.flatnonzero(core)
+    if core_idx.size == 0:
+        return labels, core_idx
+    comp = root[cell_of[core_idx]]
+    # a component's label: the rank of its smallest core index (core_idx ascending: first seen)
+    roots, first = np.unique(comp, return_index=True)
+    label_of_root = np.empty(roots.size, dtype=np.int64)
+    label_of_root[np.argsort(first, kind="stable")] = np.arange(roots.size)
+    labels[core_idx] = label_of_root[np.searchsorted(roots, comp)]
+    labels = k["border_labels"](x, core, labels, r2, cell_of, start, order, ptr, cand)
+    return labels, core_idx
