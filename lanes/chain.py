@@ -82,9 +82,13 @@ class PreparedChain:
             self.n_points = 0 if self.points is None else int(len(self.points))
 
 
+#: The columns of the positions the chain reads (beside the track id); the others are ignored.
+POSITION_COLUMNS = ("time_utc", "lat_deg", "lon_deg", "sog_kn")
+
+
 def _clean_track_points(positions: pd.DataFrame, params: ChainParams) -> tuple[pd.DataFrame, int]:
     """Step 1 on canonical positions: sorted by track and time, jumps dropped."""
-    cols = [c for c in (params.id_col, "time_utc", "lat_deg", "lon_deg", "sog_kn") if c in positions.columns]
+    cols = [c for c in (params.id_col, *POSITION_COLUMNS) if c in positions.columns]
     pts = sort_track_points(positions[cols], params.id_col)
     return drop_position_jumps(pts, params.max_jump_speed_kn, id_col=params.id_col)
 

@@ -3,7 +3,7 @@ Euclidean, sample weights) at a cost that grows with the occupied cells, not wit
 
 Why. On a dense traffic lane a point has thousands of eps-neighbours (issue 23: 1,730 per point
 in a 71,340-point origin-destination partition of the 300-ship, 8.61 M-row fleet), and both
-scikit-learn's ``DBSCAN.fit`` and :func:`lanes.dbscan.dbscan_chunked` list every neighbour of
+scikit-learn's ``DBSCAN.fit`` and a query of every point's neighbourhood list every neighbour of
 every point: the work grows with the points times their neighbours, i.e. with the square of a
 partition's points. Here the space is cut into cells of side ``eps / sqrt(d)`` (d the dimension,
 shrunk by 1e-6 against rounding), the exact grid method of Gunawan [2] and de Berg et al. [3]:
@@ -23,7 +23,8 @@ shrunk by 1e-6 against rounding), the exact grid method of Gunawan [2] and de Be
 * labels follow scikit-learn's numbering (``dbscan_inner`` labels a whole component from its
   first core point in index order): a component's label is the rank of its smallest core index,
   and a border point (not core, a core point within eps) takes the smallest label among the
-  components of its core neighbours, as :mod:`lanes.dbscan` documents.
+  components of its core neighbours (``dbscan_inner`` expands one component at a time, in label
+  order, and labels a border point when it first reaches it).
 
 The candidate cells of each cell come from a k-d tree over the occupied cells' integer
 coordinates. Tested equal to ``DBSCAN.fit`` (labels and core samples) on random blobs with
@@ -230,10 +231,14 @@ def _candidates(cells: np.ndarray, d: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _exact_counts(x: np.ndarray, eps: float, w: np.ndarray, idx: np.ndarray, leaf_size: int) -> np.ndarray:
-    """scikit-learn's weighted neighbour counts of the points ``idx`` (DBSCAN's own query and sum)."""
-    from lanes.dbscan import _neighbour_model
+    """scikit-learn's weighted neighbour counts of the points ``idx``: DBSCAN's own neighbour
+    model (``NearestNeighbors`` with its arguments: the same neighbours in the same order) and its
+    own sum, ``np.sum(weight[neighbours])``."""
+    from sklearn.neighbors import NearestNeighbors
 
-    nb = _neighbour_model(x, eps, leaf_size).radius_neighbors(x[idx], return_distance=False)
+    model = NearestNeighbors(radius=eps, algorithm="kd_tree", leaf_size=leaf_size, metric="euclidean",
+                             metric_params=None, p=None, n_jobs=None).fit(x)
+    nb = model.radius_neighbors(x[idx], return_distance=False)
     return np.array([np.sum(w[v]) for v in nb], dtype=np.float64)
 
 

@@ -41,9 +41,10 @@ whatever its speed or the step, and ``min_density`` is the number of voyages tha
 by (in position, speed and course) for a point to be a core point. The same threshold then means
 the same thing at a 60 s step in a harbour and at a 300 s step at sea.
 
-Memory bound. DBSCAN memory grows with the neighbours per point: the neighbourhoods are
-computed in chunks of query points (:mod:`lanes.dbscan`, the same labels as scikit-learn's
-``DBSCAN``), held all at once only while they fit in :data:`lanes.dbscan.KEEP_PAIRS`. A partition with more than
+Memory and time bound. DBSCAN runs on a grid of cells of diameter eps (:mod:`lanes.dbscan_grid`,
+the same labels as scikit-learn's ``DBSCAN``): a cell heavy enough to be dense holds only core
+points, linked without listing their neighbours, so the cost grows with the occupied cells rather
+than with the points times their neighbours. A partition with more than
 ``max_points`` points is clustered on a deterministic uniform sample of ``max_points`` points,
 their weights multiplied by ``n / max_points``, so the core-point condition (sum of weights in
 the eps-ball >= ``min_density``) estimates the same density; the other points take the label of

@@ -28,7 +28,8 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field
 
-from lanes.chain import ChainParams, ChainResult, PreparedChain, prepare_chain_in_buckets, voyages_as_table
+from lanes.chain import (POSITION_COLUMNS, ChainParams, ChainResult, PreparedChain, prepare_chain_in_buckets,
+                         voyages_as_table)
 from lanes.extract import LaneParams
 from lanes.interpolate import ResampleParams
 from lanes.ports import PortParams
@@ -140,11 +141,12 @@ def prepare_from_workspace(db: str | Path, known: pd.DataFrame, params: ChainPar
     from pipelines.storage import open_workspace
     from pipelines.storage.ais import positions_per_mmsi, read_positions
 
+    columns = ["mmsi", *POSITION_COLUMNS]  # only what the chain reads: half the CPU of all eight
     with open_workspace(db) as ws:
         buckets = mmsi_buckets(positions_per_mmsi(ws), bucket_rows)
         sink = None if points_folder is None else PartitionStore(points_folder, params.lanes.include_loops).add
-        return prepare_chain_in_buckets(lambda k: read_positions(ws, mmsi_range=buckets[k]), len(buckets), known,
-                                        params, points_sink=sink)
+        return prepare_chain_in_buckets(lambda k: read_positions(ws, mmsi_range=buckets[k], columns=columns),
+                                        len(buckets), known, params, points_sink=sink)
 
 
 def store_result(db: str | Path, result: ChainResult, settings: LanesSettings) -> dict:

@@ -201,6 +201,12 @@ def test_read_positions_filters(tmp_path, workspace_path):
         one = read_positions(ws, mmsi=219000002)
         window = read_positions(ws, start="2025-01-01T00:01:00", end=pd.Timestamp("2025-01-01T00:14:00Z"))
         none = read_positions(ws, mmsi=[123])
+        every = read_positions(ws)
+        some = read_positions(ws, columns=["sog_kn", "mmsi", "time_utc"])  # the canonical order
+        with pytest.raises(ValueError, match="unknown column.*speed"):
+            read_positions(ws, columns=["mmsi", "speed"])
+    assert list(some.columns) == ["mmsi", "time_utc", "sog_kn"]
+    pd.testing.assert_frame_equal(some, every[["mmsi", "time_utc", "sog_kn"]])
     assert one.mmsi.tolist() == [219000002]
     assert window.time_utc.min() == pd.Timestamp("2025-01-01T00:01:00Z")
     assert window.time_utc.max() == pd.Timestamp("2025-01-01T00:03:00Z")

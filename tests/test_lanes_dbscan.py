@@ -1,5 +1,5 @@
-"""lanes.dbscan: scikit-learn's DBSCAN labels and core samples, computed in chunks of query
-points (issue 23: a dense partition must not hold every neighbourhood at once)."""
+"""lanes.dbscan_grid: scikit-learn's DBSCAN labels and core samples, computed on a grid of cells of
+diameter eps (issue 23: the cost of a dense partition must not grow with its pairs of points)."""
 
 from __future__ import annotations
 
@@ -7,46 +7,97 @@ import numpy as np
 import pytest
 from sklearn.cluster import DBSCAN
 
-from lanes.dbscan import dbscan_chunked
+import lanes.dbscan_grid as grid
+from lanes.dbscan_grid import dbscan_grid
 
 
-def _blobs(rng):
+def _blobs(rng, dim=3):
     k = int(rng.integers(1, 6))
-    centers = rng.uniform(0, 10, size=(k, 3))
-    parts = [c + rng.normal(0, rng.uniform(0.3, 1.5), size=(int(rng.integers(5, 300)), 3)) for c in centers]
-    x = np.concatenate(parts + [rng.uniform(0, 10, size=(int(rng.integers(0, 150)), 3))])
+    centers = rng.uniform(0, 10, size=(k, dim))
+    parts = [c + rng.normal(0, rng.uniform(0.3, 1.5), size=(int(rng.integers(5, 300)), dim)) for c in centers]
+    x = np.concatenate(parts + [rng.uniform(0, 10, size=(int(rng.integers(0, 150)), dim))])
     return np.round(x, int(rng.integers(1, 4)))  # coarse values: many distances exactly at eps
+
+
+def _same_as_sklearn(x, min_samples, w):
+    ref = DBSCAN(eps=1.0, min_samples=min_samples, algorithm="kd_tree").fit(x, sample_weight=w)
+    labels, core = dbscan_grid(x, 1.0, min_samples, w)
+    assert np.array_equal(labels, ref.labels_)
+    assert np.array_equal(core, ref.core_sample_indices_)
+    return labels, core
 
 
 @pytest.mark.parametrize("seed", range(12))
 def test_same_labels_and_core_samples_as_sklearn(seed):
     rng = np.random.default_rng(seed)
-    x = _blobs(rng)
-    w = rng.uniform(0.1, 1.0, size=len(x))
-    min_samples = int(rng.integers(1, 12))
-    ref = DBSCAN(eps=1.0, min_samples=min_samples, algorithm="kd_tree").fit(x, sample_weight=w)
-    # every neighbourhood kept (scikit-learn's own labelling loop), none kept (all queried
-    # twice, components merged chunk by chunk), some kept
-    for chunk, keep in ((64, 10**9), (7, 0), (50, 400)):
-        labels, core = dbscan_chunked(x, 1.0, min_samples, w, chunk=chunk, keep_pairs=keep)
-        assert np.array_equal(labels, ref.labels_), (chunk, keep)
-        assert np.array_equal(core, ref.core_sample_indices_), (chunk, keep)
+    x = _blobs(rng, dim=(1, 2, 3, 6)[seed % 4])
+    # unit weights (integer counts: a count equal to min_samples is a tie, settled by
+    # scikit-learn's own sum) and fractional weights
+    w = np.ones(len(x)) if seed % 3 == 0 else rng.uniform(0.1, 1.0, size=len(x))
+    _same_as_sklearn(x, int(rng.integers(1, 12)), w)
 
 
-def test_border_point_takes_the_first_cluster_and_chains_merge_across_chunks():
+def test_lane_like_partition_with_dense_cells():
+    # The lanes' 6-D embedding (lanes.extract.motion_features) of two crossing streams of ships,
+    # a slow harbour approach and scattered traffic, weighted as the lanes weigh them: many points
+    # are in dense cells (core without a count), the rest need counts, links and border labels.
+    from lanes.extract import LaneParams, motion_features, point_weights
+
+    rng = np.random.default_rng(23)
+    n = 6000
+    along = rng.uniform(0, 12, n)  # nmi
+    stream = rng.integers(0, 4, n)  # north-bound, east-bound, slow approach, scattered
+    lat = np.where(stream == 0, 48.0 + along / 60, np.where(stream == 1, 48.1 + 0 * along, 48.0 - along / 600))
+    lon = np.where(stream == 0, -5.0, -5.15 + along / 40) + rng.normal(0, 0.002, n)
+    lat = lat + rng.normal(0, 0.002, n)
+    speed = np.where(stream == 2, rng.uniform(1, 6, n), rng.normal(14, 0.3, n))
+    course = np.where(stream == 0, 0.0, 90.0) + rng.normal(0, 1, n)
+    scattered = stream == 3
+    lat[scattered] = rng.uniform(47.8, 48.3, scattered.sum())
+    lon[scattered] = rng.uniform(-5.4, -4.8, scattered.sum())
+    speed[scattered] = rng.uniform(1, 20, scattered.sum())
+    course[scattered] = rng.uniform(0, 360, scattered.sum())
+    params = LaneParams()
+    x = motion_features(lat, lon, speed, course, params)
+    w = point_weights(speed, 300.0, params.eps_nmi) * 100.0
+    order, start, cell_of, cells = grid._grid(np.ascontiguousarray(x), 1.0)
+    cell_w = np.bincount(cell_of, weights=w)
+    assert (cell_w[cell_of] >= 300).mean() > 0.4  # the dense-cell path carries many points
+    labels, core = _same_as_sklearn(x, 300, w)
+    assert labels.max() >= 1 and (labels == -1).any()  # several clusters and some noise
+
+
+def test_counts_at_the_threshold_are_settled_by_sklearns_sum(monkeypatch):
+    # unit weights on a line 0.25 apart: interior points count 9 within 1.0, the ends fewer; with
+    # min_samples 9 every interior count is a tie, which scikit-learn's own sum decides
+    x = np.arange(0.0, 10.0, 0.25)[:, None]
+    calls = []
+    exact = grid._exact_counts
+    monkeypatch.setattr(grid, "_exact_counts", lambda *a: calls.append(a[3].size) or exact(*a))
+    labels, core = _same_as_sklearn(x, 9, np.ones(len(x)))
+    assert calls and calls[0] >= len(x) - 8
+    assert set(core) == set(range(4, len(x) - 4)) and set(labels) == {0}
+
+
+def test_border_point_takes_the_first_cluster_and_chains_merge_across_cells():
     # A chain of core points 0.5 apart (min_samples 4: each has 4 or 5 points within 1.0), its
-    # second half listed from its far end so that the link between the halves is found in a
-    # late chunk; a border point at 20.5 (3 points within 1.0: not core) touching the chain's
-    # end 19.5 and the first point 21.5 of a second cluster; a noise point at 40. By hand:
-    # cluster 0 = the chain (it holds index 0), cluster 1 = 21.5-23.5, the border point takes
-    # the lower label 0.
+    # second half listed from its far end so that the halves meet late in index order; a border
+    # point at 20.5 (3 points within 1.0: not core) touching the chain's end 19.5 and the first
+    # point 21.5 of a second cluster; a noise point at 40. By hand: cluster 0 = the chain (it
+    # holds index 0), cluster 1 = 21.5-23.5, the border point takes the lower label 0.
     line_a = np.arange(0.0, 10.0, 0.5)
     line_b = np.arange(19.5, 9.9, -0.5)
     other = np.arange(21.5, 23.6, 0.5)
     x = np.concatenate([line_a, line_b, [20.5], other, [40.0]])[:, None]
-    labels, core = dbscan_chunked(x, 1.0, 4, np.ones(len(x)), chunk=4, keep_pairs=0)
-    ref = DBSCAN(eps=1.0, min_samples=4).fit(x)
-    assert np.array_equal(labels, ref.labels_) and np.array_equal(core, ref.core_sample_indices_)
+    labels, core = _same_as_sklearn(x, 4, np.ones(len(x)))
     n_chain = len(line_a) + len(line_b)
     assert set(labels[:n_chain]) == {0} and set(labels[n_chain + 1:-1]) == {1}
     assert labels[n_chain] == 0 and n_chain not in core and labels[-1] == -1
+
+
+def test_empty_and_all_noise():
+    labels, core = dbscan_grid(np.empty((0, 6)), 1.0, 3, np.empty(0))
+    assert labels.size == 0 and core.size == 0
+    x = np.arange(5, dtype=float)[:, None] * 3.0  # 3 apart: nobody has a neighbour
+    labels, core = _same_as_sklearn(x, 2, np.ones(5))
+    assert (labels == -1).all() and core.size == 0
