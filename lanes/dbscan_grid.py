@@ -44,6 +44,8 @@ References
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 #: Cells are shrunk by this factor so that rounding never puts two points of a cell beyond eps.
@@ -185,17 +187,47 @@ def _kernels() -> dict:
             labels[p] = best
         return labels
 
+    @numba.njit(cache=True)
+    def uniform_labels(core, labels, order, start, cand_ptr, cand):
+        # per cell holding a core point: the label of every core point of its candidate cells when
+        # they all have one label, else -1
+        nc = start.size - 1
+        lo = np.full(nc, np.iinfo(np.int64).max, dtype=np.int64)
+        hi = np.full(nc, -1, dtype=np.int64)
+        for c in range(nc):
+            for k in range(start[c], start[c + 1]):
+                p = order[k]
+                if core[p]:
+                    lo[c] = min(lo[c], labels[p])
+                    hi[c] = max(hi[c], labels[p])
+        out = np.full(nc, -1, dtype=np.int64)
+        for c in range(nc):
+            if hi[c] < 0:
+                continue
+            a = lo[c]
+            b = hi[c]
+            for m in range(cand_ptr[c], cand_ptr[c + 1]):
+                if hi[cand[m]] >= 0:
+                    a = min(a, lo[cand[m]])
+                    b = max(b, hi[cand[m]])
+            if a == b:
+                out[c] = a
+        return out
+
     _KERNELS.update(keep_candidates=keep_candidates, core_points=core_points, link_cells=link_cells,
-                    border_labels=border_labels)
+                    border_labels=border_labels, uniform_labels=uniform_labels)
     return _KERNELS
+
+
+def _side(eps: float, d: int) -> float:
+    return eps / np.sqrt(d) * _SHRINK
 
 
 def _grid(x: np.ndarray, eps: float):
     """Cells of side ``eps / sqrt(d)``: (point order by cell, cell starts, each point's cell,
-    the occupied cells' integer coordinates)."""
+    the occupied cells' integer coordinates, sorted)."""
     n, d = x.shape
-    side = eps / np.sqrt(d) * _SHRINK
-    ijk = np.floor(x / side).astype(np.int64)
+    ijk = np.floor(x / _side(eps, d)).astype(np.int64)
     order = np.lexsort(ijk.T[::-1])
     sorted_ijk = ijk[order]
     new = np.r_[True, np.any(sorted_ijk[1:] != sorted_ijk[:-1], axis=1)]
@@ -242,16 +274,52 @@ def _exact_counts(x: np.ndarray, eps: float, w: np.ndarray, idx: np.ndarray, lea
     return np.array([np.sum(w[v]) for v in nb], dtype=np.float64)
 
 
+@dataclass
+class CoreCells:
+    """Where a clustering's core points lie: the occupied cells (sorted integer coordinates, side
+    ``side``) and, per cell, the one label of all core points within reach of the cell (those of
+    its candidate cells) when the cell holds a core point and they all have that label, else -1."""
+
+    side: float
+    cells: np.ndarray
+    label: np.ndarray
+
+    def labels_of(self, y: np.ndarray) -> np.ndarray:
+        """For each point of ``y``: the label of its nearest core point when the grid settles it,
+        else -1. A point in a cell holding a core point has a core point within eps (the cell's
+        diameter), so its nearest core point is within eps and in a candidate cell: when all
+        those have one label, that is the label, whatever the nearest one (used to label the
+        points left out of a sample, :func:`lanes.extract.dbscan_labels`)."""
+        out = np.full(len(y), -1, dtype=np.int64)
+        if len(y) == 0 or len(self.cells) == 0:
+            return out
+        ijk = np.floor(np.asarray(y, dtype=np.float64) / self.side).astype(np.int64)
+        low, span = self.cells.min(axis=0), self.cells.max(axis=0) - self.cells.min(axis=0) + 1
+        if int(np.prod([int(v) for v in span])) >= 2**62:  # no one-integer key: nothing settled
+            return out
+        mult = np.r_[np.cumprod(span[::-1])[::-1][1:], 1]  # mixed radix, the first coordinate major
+        inside = np.all((ijk >= low) & (ijk < low + span), axis=1)
+        keys = (self.cells - low) @ mult  # ascending: the cells are sorted lexicographically
+        q = (ijk[inside] - low) @ mult
+        at = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
+        hit = keys[at] == q
+        idx = np.flatnonzero(inside)[hit]
+        out[idx] = self.label[at[hit]]
+        return out
+
+
 def dbscan_grid(features: np.ndarray, eps: float, min_samples: float, sample_weight: np.ndarray,
-                leaf_size: int = 30) -> tuple[np.ndarray, np.ndarray]:
+                leaf_size: int = 30, with_cells: bool = False):
     """``(labels, core_sample_indices)`` equal to ``DBSCAN(eps, min_samples=min_samples,
     algorithm="kd_tree", leaf_size=leaf_size).fit(features, sample_weight=sample_weight)``
-    (module docstring)."""
+    (module docstring); with ``with_cells``, a third item: the :class:`CoreCells` of the result."""
     x = np.ascontiguousarray(features, dtype=np.float64)
     w = np.ascontiguousarray(sample_weight, dtype=np.float64)
     n = x.shape[0]
+    side = _side(eps, x.shape[1])
     if n == 0:
-        return np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
+        empty = np.empty(0, dtype=np.int64)
+        return (empty, empty, CoreCells(side, np.empty((0, x.shape[1]), np.int64), empty)) if with_cells else (empty, empty)
     k = _kernels()
     r2 = eps * eps  # scikit-learn's _dist_to_rdist for the Euclidean metric
     order, start, cell_of, cells = _grid(x, eps)
@@ -264,13 +332,19 @@ def dbscan_grid(features: np.ndarray, eps: float, min_samples: float, sample_wei
     root = k["link_cells"](x, core, r2, order, start, ptr, cand)
     labels = np.full(n, -1, dtype=np.int64)
     core_idx = np.flatnonzero(core)
-    if core_idx.size == 0:
+    if core_idx.size:
+        labels = _number_components(root[cell_of[core_idx]], core_idx, labels)
+        labels = k["border_labels"](x, core, labels, r2, cell_of, start, order, ptr, cand)
+    if not with_cells:
         return labels, core_idx
-    comp = root[cell_of[core_idx]]
+    return labels, core_idx, CoreCells(side, cells, k["uniform_labels"](core, labels, order, start, ptr, cand))
+
+
+def _number_components(comp: np.ndarray, core_idx: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Labels of the core points from their components' roots ``comp`` (``core_idx`` ascending)."""
     # a component's label: the rank of its smallest core index (core_idx ascending: first seen)
     roots, first = np.unique(comp, return_index=True)
     label_of_root = np.empty(roots.size, dtype=np.int64)
     label_of_root[np.argsort(first, kind="stable")] = np.arange(roots.size)
     labels[core_idx] = label_of_root[np.searchsorted(roots, comp)]
-    labels = k["border_labels"](x, core, labels, r2, cell_of, start, order, ptr, cand)
-    return labels, core_idx
+    return labels

@@ -220,14 +220,19 @@ def dbscan_labels(features: np.ndarray, weights: np.ndarray, params: LaneParams,
     rng = np.random.default_rng(_seed(key, params.seed))
     sample = np.sort(rng.choice(n, size=params.max_points, replace=False))
     scale = n / params.max_points
-    sample_labels, sample_core = dbscan_grid(features[sample], 1.0, min_samples,
-                                             weights[sample] * scale * _WEIGHT_SCALE)
+    sample_labels, sample_core, cells = dbscan_grid(features[sample], 1.0, min_samples,
+                                                    weights[sample] * scale * _WEIGHT_SCALE, with_cells=True)
     labels = np.full(n, -1, dtype=np.int64)
     labels[sample] = sample_labels
     core = sample[sample_core]
     rest = np.setdiff1d(np.arange(n), sample, assume_unique=True)
     if core.size and rest.size:
-        tree = KDTree(features[core])
+        # the label of the nearest core sample within eps: settled by the grid where every core
+        # sample within reach has one label (lanes.dbscan_grid.CoreCells), else by a k-d tree
+        settled = cells.labels_of(features[rest])
+        labels[rest] = settled
+        rest = rest[settled < 0]
+        tree = KDTree(features[core]) if rest.size else None
         for s in range(0, rest.size, 200_000):
             part = rest[s:s + 200_000]
             dist, idx = tree.query(features[part], k=1)

@@ -37,14 +37,12 @@ def test_same_labels_and_core_samples_as_sklearn(seed):
     _same_as_sklearn(x, int(rng.integers(1, 12)), w)
 
 
-def test_lane_like_partition_with_dense_cells():
-    # The lanes' 6-D embedding (lanes.extract.motion_features) of two crossing streams of ships,
-    # a slow harbour approach and scattered traffic, weighted as the lanes weigh them: many points
-    # are in dense cells (core without a count), the rest need counts, links and border labels.
+def _lane_like(n=6000, seed=23):
+    """The lanes' 6-D embedding (lanes.extract.motion_features) of two crossing streams of ships,
+    a slow harbour approach and scattered traffic, weighted as the lanes weigh them (in voyages)."""
     from lanes.extract import LaneParams, motion_features, point_weights
 
-    rng = np.random.default_rng(23)
-    n = 6000
+    rng = np.random.default_rng(seed)
     along = rng.uniform(0, 12, n)  # nmi
     stream = rng.integers(0, 4, n)  # north-bound, east-bound, slow approach, scattered
     lat = np.where(stream == 0, 48.0 + along / 60, np.where(stream == 1, 48.1 + 0 * along, 48.0 - along / 600))
@@ -58,13 +56,42 @@ def test_lane_like_partition_with_dense_cells():
     speed[scattered] = rng.uniform(1, 20, scattered.sum())
     course[scattered] = rng.uniform(0, 360, scattered.sum())
     params = LaneParams()
-    x = motion_features(lat, lon, speed, course, params)
-    w = point_weights(speed, 300.0, params.eps_nmi) * 100.0
+    return motion_features(lat, lon, speed, course, params), point_weights(speed, 300.0, params.eps_nmi)
+
+
+def test_lane_like_partition_with_dense_cells():
+    # many points are in dense cells (core without a count), the rest need counts, links and
+    # border labels
+    x, w = _lane_like()
+    w = w * 100.0
     order, start, cell_of, cells = grid._grid(np.ascontiguousarray(x), 1.0)
     cell_w = np.bincount(cell_of, weights=w)
     assert (cell_w[cell_of] >= 300).mean() > 0.4  # the dense-cell path carries many points
     labels, core = _same_as_sklearn(x, 300, w)
     assert labels.max() >= 1 and (labels == -1).any()  # several clusters and some noise
+
+
+def test_sampled_partition_labels_the_rest_by_the_nearest_core_sample():
+    # Above max_points, the points left out of the sample take the label of their nearest core
+    # sample within eps (lanes.extract.dbscan_labels): where the grid settles it (every core
+    # sample within reach has one label) and by a k-d tree elsewhere. Reference: brute force.
+    from lanes.extract import LaneParams, _seed, dbscan_labels
+
+    x, w = _lane_like(n=4000, seed=5)
+    params, key = LaneParams(max_points=600), (2, 5)
+    labels, sampled = dbscan_labels(x, w, params, key)
+    sample = np.sort(np.random.default_rng(_seed(key, params.seed)).choice(len(x), size=600, replace=False))
+    s_labels, s_core, cells = dbscan_grid(x[sample], 1.0, 300, w[sample] * len(x) / 600 * 100.0, with_cells=True)
+    assert sampled and np.array_equal(labels[sample], s_labels)
+    rest = np.setdiff1d(np.arange(len(x)), sample)
+    core = sample[s_core]
+    d2 = ((x[rest][:, None, :] - x[core][None, :, :]) ** 2).sum(axis=2)
+    nearest = np.argmin(d2, axis=1)
+    expected = np.where(d2[np.arange(rest.size), nearest] <= 1.0, s_labels[s_core][nearest], -1)
+    assert np.array_equal(labels[rest], expected)
+    settled = cells.labels_of(x[rest])
+    assert 0 < (settled >= 0).sum() < rest.size  # both paths ran
+    assert len(np.unique(expected[expected >= 0])) >= 2  # more than one label to choose from
 
 
 def test_counts_at_the_threshold_are_settled_by_sklearns_sum(monkeypatch):
