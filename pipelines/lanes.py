@@ -91,6 +91,13 @@ def default_port_lists() -> list[Path]:
 #: Positions the lanes chain reads at once: one bucket of whole tracks (ascending MMSI ranges),
 #: about 0.3 GB in pandas with the chain's working copies (measured: bench/scale.py, docs/scale.md).
 BUCKET_ROWS = 4_000_000
+#: DuckDB's memory limit on the workspace while the positions are read. Under its default (80 %
+#: of RAM) DuckDB keeps every block it has read cached: about 15 bytes per stored position for the
+#: five columns the chain reads (131 MB after the buckets of 8.57 M rows), the lanes' memory that
+#: grew with the rows (docs/scale.md, fourth pass). Under this limit the cache is evicted (the
+#: blocks are on disk) and a bucket's ORDER BY still fits (4 M rows sorted under 256 MB: the same
+#: CPU time as without a limit).
+READ_MEMORY_LIMIT_MB = 256
 
 
 def load_port_lists(db: str | Path, ports_csv=None) -> pd.DataFrame:
@@ -143,6 +150,7 @@ def prepare_from_workspace(db: str | Path, known: pd.DataFrame, params: ChainPar
 
     columns = ["mmsi", *POSITION_COLUMNS]  # only what the chain reads: half the CPU of all eight
     with open_workspace(db) as ws:
+        ws.con.execute(f"SET memory_limit = '{int(READ_MEMORY_LIMIT_MB)}MB'")
         buckets = mmsi_buckets(positions_per_mmsi(ws), bucket_rows)
         sink = None if points_folder is None else PartitionStore(points_folder, params.lanes.include_loops).add
         return prepare_chain_in_buckets(lambda k: read_positions(ws, mmsi_range=buckets[k], columns=columns),
