@@ -55,168 +55,12 @@ _TIE = 1e-9
 #: Cells queried at once for their candidate cells.
 _CELL_CHUNK = 8192
 
-_KERNELS: dict = {}
+def _kernels():
+    """The compiled kernels (:mod:`lanes._grid_kernels`: imported on first use, so that importing
+    the lanes does not import numba)."""
+    from lanes import _grid_kernels
 
-
-def _kernels() -> dict:
-    """The compiled kernels (numba, compiled on first use and cached on disk)."""
-    if _KERNELS:
-        return _KERNELS
-    import numba
-
-    @numba.njit(cache=True)
-    def rdist(x, i, j):
-        # scikit-learn's reduced Euclidean distance: squared differences summed in coordinate order
-        s = 0.0
-        for k in range(x.shape[1]):
-            t = x[i, k] - x[j, k]
-            s += t * t
-        return s
-
-    @numba.njit(cache=True)
-    def find(parent, a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    @numba.njit(cache=True)
-    def keep_candidates(cells, rows, nbrs, bound):
-        # the candidate pairs whose boxes lie within eps: sum over dims of (|dk| - 1)+^2 <= bound
-        keep = np.zeros(rows.size, dtype=np.bool_)
-        for m in range(rows.size):
-            s = 0
-            for k in range(cells.shape[1]):
-                g = abs(cells[rows[m], k] - cells[nbrs[m], k]) - 1
-                if g > 0:
-                    s += g * g
-            keep[m] = s <= bound
-        return keep
-
-    @numba.njit(cache=True)
-    def core_points(x, w, r2, order, start, cand_ptr, cand, lo, hi):
-        # core[p]; amb[p] when p's count is within the tie margin (recomputed by the caller)
-        n = x.shape[0]
-        nc = start.size - 1
-        cell_w = np.zeros(nc)
-        for c in range(nc):
-            t = 0.0
-            for k in range(start[c], start[c + 1]):
-                t += w[order[k]]
-            cell_w[c] = t
-        core = np.zeros(n, dtype=np.bool_)
-        amb = np.zeros(n, dtype=np.bool_)
-        for c in range(nc):
-            if cell_w[c] >= hi:  # a dense cell: every point is core
-                for k in range(start[c], start[c + 1]):
-                    core[order[k]] = True
-                continue
-            for k in range(start[c], start[c + 1]):
-                p = order[k]
-                t = cell_w[c]
-                for m in range(cand_ptr[c], cand_ptr[c + 1]):
-                    b = cand[m]
-                    if b == c:
-                        continue
-                    for kk in range(start[b], start[b + 1]):
-                        q = order[kk]
-                        if rdist(x, p, q) <= r2:
-                            t += w[q]
-                if t >= hi:
-                    core[p] = True
-                elif t >= lo:
-                    amb[p] = True
-        return core, amb
-
-    @numba.njit(cache=True)
-    def link_cells(x, core, r2, order, start, cand_ptr, cand):
-        # union-find over the cells holding core points; returns each cell's root (-1: no core)
-        nc = start.size - 1
-        parent = np.arange(nc)
-        has_core = np.zeros(nc, dtype=np.bool_)
-        for c in range(nc):
-            for k in range(start[c], start[c + 1]):
-                if core[order[k]]:
-                    has_core[c] = True
-                    break
-        for a in range(nc):
-            if not has_core[a]:
-                continue
-            for m in range(cand_ptr[a], cand_ptr[a + 1]):
-                b = cand[m]
-                if b <= a or not has_core[b]:
-                    continue
-                ra = find(parent, a)
-                rb = find(parent, b)
-                if ra == rb:
-                    continue
-                linked = False
-                for k in range(start[a], start[a + 1]):
-                    p = order[k]
-                    if core[p]:
-                        for kk in range(start[b], start[b + 1]):
-                            q = order[kk]
-                            if core[q] and rdist(x, p, q) <= r2:
-                                linked = True
-                                break
-                    if linked:
-                        break
-                if linked:
-                    parent[max(ra, rb)] = min(ra, rb)
-        root = np.full(nc, -1, dtype=np.int64)
-        for c in range(nc):
-            if has_core[c]:
-                root[c] = find(parent, c)
-        return root
-
-    @numba.njit(cache=True)
-    def border_labels(x, core, labels, r2, cell_of, start, order, cand_ptr, cand):
-        # each non-core point: the smallest label among its core neighbours (else stays -1)
-        n = x.shape[0]
-        for p in range(n):
-            if core[p]:
-                continue
-            c = cell_of[p]
-            best = -1
-            for m in range(cand_ptr[c], cand_ptr[c + 1]):
-                b = cand[m]
-                for kk in range(start[b], start[b + 1]):
-                    q = order[kk]
-                    if core[q] and (best < 0 or labels[q] < best) and rdist(x, p, q) <= r2:
-                        best = labels[q]
-            labels[p] = best
-        return labels
-
-    @numba.njit(cache=True)
-    def uniform_labels(core, labels, order, start, cand_ptr, cand):
-        # per cell holding a core point: the label of every core point of its candidate cells when
-        # they all have one label, else -1
-        nc = start.size - 1
-        lo = np.full(nc, np.iinfo(np.int64).max, dtype=np.int64)
-        hi = np.full(nc, -1, dtype=np.int64)
-        for c in range(nc):
-            for k in range(start[c], start[c + 1]):
-                p = order[k]
-                if core[p]:
-                    lo[c] = min(lo[c], labels[p])
-                    hi[c] = max(hi[c], labels[p])
-        out = np.full(nc, -1, dtype=np.int64)
-        for c in range(nc):
-            if hi[c] < 0:
-                continue
-            a = lo[c]
-            b = hi[c]
-            for m in range(cand_ptr[c], cand_ptr[c + 1]):
-                if hi[cand[m]] >= 0:
-                    a = min(a, lo[cand[m]])
-                    b = max(b, hi[cand[m]])
-            if a == b:
-                out[c] = a
-        return out
-
-    _KERNELS.update(keep_candidates=keep_candidates, core_points=core_points, link_cells=link_cells,
-                    border_labels=border_labels, uniform_labels=uniform_labels)
-    return _KERNELS
+    return _grid_kernels
 
 
 def _side(eps: float, d: int) -> float:
@@ -246,7 +90,7 @@ def _candidates(cells: np.ndarray, d: int) -> tuple[np.ndarray, np.ndarray]:
     # hence by at most sqrt(d + 2 sqrt(d bound) + bound) in Euclidean distance (all |dk| - 1 equal)
     bound = int(np.floor(d / _SHRINK**2 + 1e-9))
     radius = np.sqrt(d + 2.0 * np.sqrt(d * bound) + bound) + 1e-6
-    keep = _kernels()["keep_candidates"]
+    keep = _kernels().keep_candidates
     coords = cells.astype(np.float64)
     tree = KDTree(coords)
     lens, lists = [], []
@@ -324,20 +168,20 @@ def dbscan_grid(features: np.ndarray, eps: float, min_samples: float, sample_wei
     r2 = eps * eps  # scikit-learn's _dist_to_rdist for the Euclidean metric
     order, start, cell_of, cells = _grid(x, eps)
     ptr, cand = _candidates(cells, x.shape[1])
-    core, amb = k["core_points"](x, w, r2, order, start, ptr, cand,
+    core, amb = k.core_points(x, w, r2, order, start, ptr, cand,
                                  float(min_samples) * (1.0 - _TIE), float(min_samples) * (1.0 + _TIE))
     if amb.any():  # counts at a hair of the threshold: scikit-learn's own sum decides
         idx = np.flatnonzero(amb)
         core[idx] = _exact_counts(x, eps, w, idx, leaf_size) >= min_samples
-    root = k["link_cells"](x, core, r2, order, start, ptr, cand)
+    root = k.link_cells(x, core, r2, order, start, ptr, cand)
     labels = np.full(n, -1, dtype=np.int64)
     core_idx = np.flatnonzero(core)
     if core_idx.size:
         labels = _number_components(root[cell_of[core_idx]], core_idx, labels)
-        labels = k["border_labels"](x, core, labels, r2, cell_of, start, order, ptr, cand)
+        labels = k.border_labels(x, core, labels, r2, cell_of, start, order, ptr, cand)
     if not with_cells:
         return labels, core_idx
-    return labels, core_idx, CoreCells(side, cells, k["uniform_labels"](core, labels, order, start, ptr, cand))
+    return labels, core_idx, CoreCells(side, cells, k.uniform_labels(core, labels, order, start, ptr, cand))
 
 
 def _number_components(comp: np.ndarray, core_idx: np.ndarray, labels: np.ndarray) -> np.ndarray:
