@@ -73,7 +73,7 @@ def cluster_stops(stops: pd.DataFrame, params: PortParams | None = None) -> np.n
 
     Clusters visited by fewer than ``min_vessels`` distinct tracks are turned into noise.
     """
-    from sklearn.cluster import DBSCAN
+    from lanes.dbscan import dbscan_chunked
 
     params = params or PortParams()
     n = len(stops)
@@ -81,7 +81,9 @@ def cluster_stops(stops: pd.DataFrame, params: PortParams | None = None) -> np.n
         return np.empty(0, dtype=np.int64)
     X = np.deg2rad(stops[["lat_deg", "lon_deg"]].to_numpy(dtype=float))
     eps_rad = params.eps_nmi / EARTH_RADIUS_NMI
-    labels = DBSCAN(eps=eps_rad, min_samples=params.min_samples, metric="haversine", algorithm="ball_tree").fit_predict(X)
+    # scikit-learn's DBSCAN(eps_rad, min_samples, metric="haversine", algorithm="ball_tree"),
+    # its neighbourhoods queried in chunks: a port's stops grow with the period (lanes.dbscan)
+    labels, _ = dbscan_chunked(X, eps_rad, params.min_samples, np.ones(n), metric="haversine", algorithm="ball_tree")
     if params.min_vessels > 1 and (labels >= 0).any():
         inside = labels >= 0
         nv = pd.Series(stops["track"].to_numpy()[inside]).groupby(labels[inside]).nunique()

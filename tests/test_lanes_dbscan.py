@@ -128,3 +128,41 @@ def test_empty_and_all_noise():
     x = np.arange(5, dtype=float)[:, None] * 3.0  # 3 apart: nobody has a neighbour
     labels, core = _same_as_sklearn(x, 2, np.ones(5))
     assert (labels == -1).all() and core.size == 0
+
+
+# lanes.dbscan.dbscan_chunked: scikit-learn's DBSCAN with its neighbourhoods queried in chunks (the
+# ports' DBSCAN on stops, haversine on a ball tree; the lanes' DBSCAN before the grid)
+@pytest.mark.parametrize("seed", range(4))
+def test_chunked_same_labels_and_core_samples_as_sklearn(seed):
+    from lanes.dbscan import dbscan_chunked
+
+    rng = np.random.default_rng(seed)
+    x = _blobs(rng)
+    w = rng.uniform(0.1, 1.0, size=len(x))
+    min_samples = int(rng.integers(1, 12))
+    ref = DBSCAN(eps=1.0, min_samples=min_samples, algorithm="kd_tree").fit(x, sample_weight=w)
+    # every neighbourhood kept (scikit-learn's own labelling loop), none kept (all queried
+    # twice, components merged chunk by chunk), some kept
+    for chunk, keep in ((64, 10**9), (7, 0), (50, 400)):
+        labels, core = dbscan_chunked(x, 1.0, min_samples, w, chunk=chunk, keep_pairs=keep)
+        assert np.array_equal(labels, ref.labels_), (chunk, keep)
+        assert np.array_equal(core, ref.core_sample_indices_), (chunk, keep)
+
+
+def test_chunked_haversine_stops_as_the_ports_cluster_them():
+    # stops at three quays 150-400 m apart and scattered anchorages, in radians; the ports'
+    # arguments (eps 250 m, min_samples 2, haversine, ball tree), chunked with nothing kept
+    from lanes.dbscan import dbscan_chunked
+    from thresholds.units import EARTH_RADIUS_NMI
+
+    rng = np.random.default_rng(7)
+    quays = np.array([[39.5600, 2.6300], [39.5620, 2.6320], [39.5650, 2.6290]])
+    pts = np.concatenate([quays[rng.integers(0, 3, 600)] + rng.normal(0, 0.0006, (600, 2)),
+                          rng.uniform([39.4, 2.5], [39.7, 2.8], (80, 2))])
+    x = np.deg2rad(pts)
+    eps = 0.135 / EARTH_RADIUS_NMI
+    ref = DBSCAN(eps=eps, min_samples=2, metric="haversine", algorithm="ball_tree").fit(x)
+    labels, core = dbscan_chunked(x, eps, 2, np.ones(len(x)), chunk=64, keep_pairs=0,
+                                  metric="haversine", algorithm="ball_tree")
+    assert np.array_equal(labels, ref.labels_) and np.array_equal(core, ref.core_sample_indices_)
+    assert labels.max() >= 1 and (labels == -1).any()
