@@ -39,7 +39,7 @@ References
 .. [2] A. Gunawan, "A faster algorithm for DBSCAN," Master's thesis, Technische Universiteit
        Eindhoven, 2013 (the grid of cells of side eps/sqrt(d)).
 .. [3] M. de Berg, A. Gunawan, M. Roeloffzen, "Faster DB-scan and HDB-scan in low-dimensional
-       Euclidean spaces," ISAAC 2017, LIPIcs 92, 25:1-25:13, doi:10.4230/LIPIcs.ISAAC.2017.25.
+       Euclidean spaces," arXiv:1702.08607, 2017.
 """
 
 from __future__ import annotations
