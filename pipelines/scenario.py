@@ -180,19 +180,23 @@ def describe(scenario: Scenario) -> dict:
 
 def file_entries(recs: pd.DataFrame) -> list[dict]:
     """Per written file (``recs["file"]``): its format, records, position records, static
-    messages, clean positions and dirty rows by kind."""
+    messages, clean positions and dirty rows by kind. A ``rows`` column, when present, says how
+    many records each row of ``recs`` stands for (rows of equal format, message type and dirty
+    kind counted beforehand, as the fleet generator does); without it each row is one record."""
     files = []
     for name, g in recs.groupby("file", sort=True):
-        gp = g[g["msg_type"] != 5]
+        rows = g["rows"] if "rows" in g else pd.Series(1, index=g.index)
+        kind = g["dirty_kind"]
+        pos = g["msg_type"] != 5
+        dirty = pos & (kind != "")
         files.append({
             "file": name,
             "format": g["fmt"].iloc[0],
-            "records": int(len(g)),
-            "position_records": int(len(gp)),
-            "static_messages": int((g["msg_type"] == 5).sum()),
-            "clean_positions": int(((gp["dirty_kind"] == "") | (gp["dirty_kind"] == "sentinel_fields")).sum()),
-            "dirty": {k: int(n) for k, n in gp.loc[gp["dirty_kind"] != "", "dirty_kind"].value_counts()
-                      .sort_index().items()},
+            "records": int(rows.sum()),
+            "position_records": int(rows[pos].sum()),
+            "static_messages": int(rows[~pos].sum()),
+            "clean_positions": int(rows[pos & ((kind == "") | (kind == "sentinel_fields"))].sum()),
+            "dirty": {k: int(n) for k, n in rows[dirty].groupby(kind[dirty]).sum().sort_index().items()},
         })
     return files
 

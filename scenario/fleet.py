@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from scenario.generator import service_ranks, vessel_table
-from scenario.records import _quantise, build_records
+from scenario.records import _quantise, record_columns
 from scenario.sailing import _sail_vessel
 from scenario.spec import MED_MIDS, ScenarioSettings, ScenarioSpec, VesselSpec
 
@@ -76,9 +76,10 @@ def fleet_spec(spec: ScenarioSpec, n_vessels: int) -> ScenarioSpec:
 
 
 def sail_ship(spec: ScenarioSpec, st: ScenarioSettings, index: int, vessels: pd.DataFrame | None = None,
-              ranks: list[int] | None = None) -> dict:
-    """One ship of ``spec`` over the period of ``st``: its records (output order), voyages,
-    port stays and gaps, and how many fixes it reported.
+              ranks: list[int] | None = None, frame: bool = True) -> dict:
+    """One ship of ``spec`` over the period of ``st``: its records (output order; a DataFrame,
+    or with ``frame=False`` the dict of columns of :func:`scenario.records.record_columns`),
+    voyages, port stays and gaps, and how many fixes it reported.
 
     ``vessels`` (:func:`scenario.generator.vessel_table`) and ``ranks``
     (:func:`scenario.generator.service_ranks`) may be given when sailing many ships of one spec.
@@ -90,7 +91,8 @@ def sail_ship(spec: ScenarioSpec, st: ScenarioSettings, index: int, vessels: pd.
     fx, voyages, stays, gaps = _sail_vessel(index, v, ranks[index], spec, st)
     fixes = _quantise(fx)
     voy = pd.DataFrame(voyages)
-    recs = build_records(np.random.default_rng([st.seed, 2, index]), st, spec, fixes, vessels, voy)
+    recs = record_columns(np.random.default_rng([st.seed, 2, index]), st, spec, fixes, vessels, voy)
+    recs = pd.DataFrame(recs) if frame else recs
     return {"records": recs, "voyages": voy, "stays": pd.DataFrame(stays),
             "gaps": pd.DataFrame(gaps, columns=["mmsi", "kind", "start_s", "end_s", "fixes_lost"]),
             "fixes": int(len(fixes)), "received": int(fixes["received"].sum()) if len(fixes) else 0}

@@ -11,8 +11,8 @@ import pandas as pd
 
 from scenario.performance_law import ship_traits, speed_factor, surge_sd_kn
 from scenario.spec import NAV_AT_ANCHOR, NAV_UNDER_WAY, Port, ScenarioSettings, ScenarioSpec, VesselSpec
-from thresholds.geodesy import destination_point, haversine_nmi, initial_bearing_deg, intermediate_point
-from thresholds.units import METRES_PER_NMI, wrap_deg
+from thresholds.geodesy import destination_point, haversine_nmi, initial_bearing_deg
+from thresholds.units import EARTH_RADIUS_NMI, METRES_PER_NMI, wrap_deg
 
 
 # --------------------------------------------------------------------------------------------
@@ -26,16 +26,73 @@ def _land(lat, lon) -> np.ndarray:
     return np.asarray(is_land(np.asarray(lat, dtype=float), np.asarray(lon, dtype=float)), dtype=bool)
 
 
+def _squares(x: np.ndarray) -> np.ndarray:
+    """``x ** 2`` element by element as float64 scalars square (the C library's ``pow``; numpy
+    squares an array by multiplication, which differs in the last bit for some values)."""
+    return np.array([v ** 2 for v in x.tolist()], dtype=float)
+
+
+class _Legs:
+    """The per-leg terms of the great-circle formulas of :mod:`thresholds.geodesy` (Williams'
+    Aviation Formulary: haversine distance, intermediate point, initial course) for legs from
+    ``(lat1, lon1)`` to ``(lat2, lon2)`` (degrees, arrays), computed once per leg.
+
+    :meth:`points` and :meth:`course_to_end` then give, for points on the legs, the same
+    numbers to the last bit (tested) as ``intermediate_point`` and ``initial_bearing_deg`` called
+    on the legs' ends gathered per point, for a fraction of the trigonometry. ``square`` is how
+    the haversine term squares: numpy's array square for array ends (``_Path``), the scalar
+    ``pow`` where the reference called the functions on one leg's scalar ends (``densify``)."""
+
+    def __init__(self, lat1_deg, lon1_deg, lat2_deg, lon2_deg, square=np.square):
+        self.lat1, self.lon1, self.lat2, self.lon2 = (np.deg2rad(np.asarray(x, dtype=float))
+                                                      for x in (lat1_deg, lon1_deg, lat2_deg, lon2_deg))
+        self.cos_lat1, self.cos_lat2 = np.cos(self.lat1), np.cos(self.lat2)
+        self.sin_lat1, self.sin_lat2 = np.sin(self.lat1), np.sin(self.lat2)
+        a = square(np.sin((self.lat2 - self.lat1) / 2.0)) + self.cos_lat1 * self.cos_lat2 * square(
+            np.sin((self.lon2 - self.lon1) / 2.0))
+        self.root = np.arcsin(np.sqrt(np.clip(a, 0.0, 1.0)))  # half the central angle
+        self.d = 2.0 * self.root
+        self.sin_d = np.sin(self.d)
+
+    def length_nmi(self) -> np.ndarray:
+        """Each leg's great-circle length (``haversine_nmi``). [nmi]"""
+        return 2.0 * EARTH_RADIUS_NMI * self.root
+
+    def points(self, k: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(lat, lon)`` at fraction ``f`` of leg ``k`` (``intermediate_point``). [deg]"""
+        d, sin_d = self.d[k], self.sin_d[k]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            A = np.where(sin_d > 1e-15, np.sin((1.0 - f) * d) / sin_d, 1.0 - f)
+            B = np.where(sin_d > 1e-15, np.sin(f * d) / sin_d, f)
+        c1, c2 = self.cos_lat1[k], self.cos_lat2[k]
+        x = A * c1 * np.cos(self.lon1)[k] + B * c2 * np.cos(self.lon2)[k]
+        y = A * c1 * np.sin(self.lon1)[k] + B * c2 * np.sin(self.lon2)[k]
+        z = A * self.sin_lat1[k] + B * self.sin_lat2[k]
+        lat = np.rad2deg(np.arctan2(z, np.hypot(x, y)))
+        lon = (np.rad2deg(np.arctan2(y, x)) + 180.0) % 360.0 - 180.0
+        return lat, lon
+
+    def course_to_end(self, lat_deg: np.ndarray, lon_deg: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """Initial course from each point towards the end of its leg ``k``
+        (``initial_bearing_deg``), in [0, 360). [deg]"""
+        lat1, lon1 = np.deg2rad(lat_deg), np.deg2rad(lon_deg)
+        dlon = self.lon2[k] - lon1
+        cos_lat2 = self.cos_lat2[k]
+        y = np.sin(dlon) * cos_lat2
+        x = np.cos(lat1) * self.sin_lat2[k] - np.sin(lat1) * cos_lat2 * np.cos(dlon)
+        return np.mod(np.rad2deg(np.arctan2(y, x)), 360.0)
+
+
 def densify(waypoints: np.ndarray, step_nmi: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
-    """Points along a polyline of great-circle legs at most ``step_nmi`` apart (ends included)."""
-    lats, lons = [np.array([waypoints[0, 0]])], [np.array([waypoints[0, 1]])]
-    for (la1, lo1), (la2, lo2) in zip(waypoints[:-1], waypoints[1:]):
-        d = haversine_nmi(la1, lo1, la2, lo2)
-        n = max(1, int(math.ceil(d / step_nmi)))
-        la, lo = intermediate_point(la1, lo1, la2, lo2, np.arange(1, n + 1) / n)
-        lats.append(np.atleast_1d(la))
-        lons.append(np.atleast_1d(lo))
-    return np.concatenate(lats), np.concatenate(lons)
+    """Points along a polyline of great-circle legs at most ``step_nmi`` apart (ends included):
+    each leg of ``d`` nmi cut into ``ceil(d / step_nmi)`` equal parts, all legs in one pass
+    (:class:`_Legs`; the same points to the last bit as one ``intermediate_point`` call per leg)."""
+    legs = _Legs(waypoints[:-1, 0], waypoints[:-1, 1], waypoints[1:, 0], waypoints[1:, 1], square=_squares)
+    n = np.maximum(1, np.ceil(legs.length_nmi() / step_nmi)).astype(np.int64)
+    k = np.repeat(np.arange(len(n)), n)
+    f = (np.arange(len(k)) - np.repeat(np.cumsum(n) - n, n) + 1) / n[k]
+    la, lo = legs.points(k, f)
+    return np.concatenate(([waypoints[0, 0]], la)), np.concatenate(([waypoints[0, 1]], lo))
 
 
 def polyline_on_land(waypoints: np.ndarray, step_nmi: float = 0.5) -> bool:
@@ -45,14 +102,18 @@ def polyline_on_land(waypoints: np.ndarray, step_nmi: float = 0.5) -> bool:
 
 
 def _offset_route(wp: np.ndarray, offsets_nmi: np.ndarray) -> np.ndarray:
-    """Shift interior waypoints sideways (positive = starboard of the direction of travel)."""
+    """Shift interior waypoints sideways (positive = starboard of the direction of travel): each
+    by its offset, square to the mean of the courses in and out (all waypoints at once)."""
     out = wp.copy()
-    for i in range(1, len(wp) - 1):
-        b_in = initial_bearing_deg(wp[i - 1, 0], wp[i - 1, 1], wp[i, 0], wp[i, 1])
-        b_out = initial_bearing_deg(wp[i, 0], wp[i, 1], wp[i + 1, 0], wp[i + 1, 1])
-        mean = math.degrees(math.atan2(math.sin(math.radians(b_in)) + math.sin(math.radians(b_out)),
-                                       math.cos(math.radians(b_in)) + math.cos(math.radians(b_out))))
-        out[i] = destination_point(wp[i, 0], wp[i, 1], wrap_deg(mean + 90.0), offsets_nmi[i])
+    if len(wp) < 3:
+        return out
+    course = initial_bearing_deg(wp[:-1, 0], wp[:-1, 1], wp[1:, 0], wp[1:, 1]).tolist()
+    # the mean course by the math module, as the one-waypoint-at-a-time code did (the last bit)
+    mean = np.array([math.degrees(math.atan2(math.sin(math.radians(b_in)) + math.sin(math.radians(b_out)),
+                                             math.cos(math.radians(b_in)) + math.cos(math.radians(b_out))))
+                     for b_in, b_out in zip(course[:-1], course[1:])])
+    lat, lon = destination_point(wp[1:-1, 0], wp[1:-1, 1], wrap_deg(mean + 90.0), offsets_nmi[1:-1])
+    out[1:-1, 0], out[1:-1, 1] = lat, lon
     return out
 
 
@@ -60,12 +121,13 @@ class _Path:
     """A polyline of great-circle legs with arc-length interpolation (vectorised)."""
 
     def __init__(self, lat: np.ndarray, lon: np.ndarray):
-        keep = np.r_[True, haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]) > 1e-6]
+        keep = np.concatenate(([True], haversine_nmi(lat[:-1], lon[:-1], lat[1:], lon[1:]) > 1e-6))
         self.lat, self.lon = np.asarray(lat, float)[keep], np.asarray(lon, float)[keep]
-        seg = haversine_nmi(self.lat[:-1], self.lon[:-1], self.lat[1:], self.lon[1:])
-        self.seg = np.atleast_1d(seg)
-        self.cum = np.r_[0.0, np.cumsum(self.seg)]
+        self.legs = _Legs(self.lat[:-1], self.lon[:-1], self.lat[1:], self.lon[1:])
+        self.seg = np.atleast_1d(self.legs.length_nmi())
+        self.cum = np.concatenate(([0.0], np.cumsum(self.seg)))
         self.length = float(self.cum[-1])
+        self.leg_course = initial_bearing_deg(self.lat[:-1], self.lon[:-1], self.lat[1:], self.lon[1:])
 
     def at(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(lat, lon, course)`` at arc lengths ``s``; the course is the great-circle bearing
@@ -73,12 +135,9 @@ class _Path:
         s = np.clip(np.asarray(s, float), 0.0, self.length)
         i = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.seg) - 1)
         frac = np.where(self.seg[i] > 0, (s - self.cum[i]) / self.seg[i], 0.0)
-        la, lo = intermediate_point(self.lat[i], self.lon[i], self.lat[i + 1], self.lon[i + 1], frac)
-        la, lo = np.atleast_1d(la), np.atleast_1d(lo)
-        to_end = initial_bearing_deg(la, lo, self.lat[i + 1], self.lon[i + 1])
-        leg = initial_bearing_deg(self.lat[i], self.lon[i], self.lat[i + 1], self.lon[i + 1])
-        course = np.where(self.cum[i + 1] - s > 0.01, to_end, leg)
-        return la, lo, np.atleast_1d(course)
+        la, lo = self.legs.points(i, frac)
+        course = np.where(self.cum[i + 1] - s > 0.01, self.legs.course_to_end(la, lo, i), self.leg_course[i])
+        return np.atleast_1d(la), np.atleast_1d(lo), np.atleast_1d(course)
 
 
 def _noise_offsets_m(rng, n: int, sigma_m: float, lat_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -97,7 +156,7 @@ def _sample_times(rng, t0: float, t1: float, interval: int, jitter: int) -> np.n
     n = int((t1 - t0) / max(1, interval - jitter)) + 2
     steps = interval + rng.integers(-jitter, jitter + 1, n)
     first = rng.integers(1, max(2, interval))
-    t = np.floor(t0).astype(np.int64) + first + np.r_[0, np.cumsum(steps[:-1])]
+    t = np.floor(t0).astype(np.int64) + first + np.concatenate(([0], np.cumsum(steps[:-1])))
     return t[t < t1]
 
 
@@ -106,19 +165,26 @@ def _sample_times(rng, t0: float, t1: float, interval: int, jitter: int) -> np.n
 # --------------------------------------------------------------------------------------------
 
 
+#: The phases a fix is in (``phase`` of the fixes); :meth:`_Frames.add` takes one or their codes.
+PHASES = ("berth", "anchor", "harbour", "sea")
+
+
 @dataclass
 class _Frames:
+    """The fixes of one ship in sailing order, chunk by chunk (one chunk per stay or passage)."""
+
     t: list = field(default_factory=list)
     lat: list = field(default_factory=list)
     lon: list = field(default_factory=list)
     sog: list = field(default_factory=list)
     cog: list = field(default_factory=list)
     hdg: list = field(default_factory=list)
-    nav: list = field(default_factory=list)
-    phase: list = field(default_factory=list)
-    voyage: list = field(default_factory=list)
+    nav: list = field(default_factory=list)  # one status per chunk
+    phase: list = field(default_factory=list)  # per chunk: int8 codes of PHASES, one per fix
+    voyage: list = field(default_factory=list)  # one voyage id per chunk
 
     def add(self, t, lat, lon, sog, cog, hdg, nav, phase, voyage):
+        """A chunk of fixes; ``phase`` is a name of :data:`PHASES` or an array of their codes."""
         n = len(t)
         if n == 0:
             return
@@ -128,21 +194,33 @@ class _Frames:
         self.sog.append(np.asarray(sog, float))
         self.cog.append(np.asarray(cog, float))
         self.hdg.append(np.asarray(hdg, float))
-        self.nav.append(np.full(n, nav, np.int16))
-        self.phase.append(np.asarray(phase if np.ndim(phase) else np.full(n, phase), dtype=object))
-        self.voyage.append(np.full(n, voyage, dtype=object))
+        self.nav.append(nav)
+        self.phase.append(np.full(n, PHASES.index(phase), np.int8) if isinstance(phase, str) else phase)
+        self.voyage.append(voyage)
 
-    def frame(self) -> pd.DataFrame:
+    def frame(self, start_s: float, end_s: float, mmsi: int) -> pd.DataFrame:
+        """The fixes in ``[start_s, end_s)`` by time (stable), the first of any fixes sharing a
+        second, with ``mmsi`` as their first column; taken once per column (numpy), as pandas'
+        filter, ``sort_values(kind="stable")`` and ``drop_duplicates(keep="first")`` would."""
         if not self.t:
-            return pd.DataFrame(columns=["time_s", "lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg",
-                                         "nav_status", "phase", "voyage_id"])
-        return pd.DataFrame({
-            "time_s": np.concatenate(self.t), "lat_deg": np.concatenate(self.lat),
-            "lon_deg": np.concatenate(self.lon), "sog_kn": np.concatenate(self.sog),
-            "cog_deg": np.concatenate(self.cog), "heading_deg": np.concatenate(self.hdg),
-            "nav_status": np.concatenate(self.nav), "phase": np.concatenate(self.phase),
-            "voyage_id": np.concatenate(self.voyage),
-        })
+            fx = pd.DataFrame(columns=["time_s", "lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg",
+                                       "nav_status", "phase", "voyage_id"])
+            fx.insert(0, "mmsi", np.int64(mmsi))
+            return fx
+        t = np.concatenate(self.t)
+        inside = np.flatnonzero((t >= start_s) & (t < end_s))
+        order = inside[np.argsort(t[inside], kind="stable")]
+        ts = t[order]
+        keep = order[np.concatenate(([True], ts[1:] != ts[:-1]))] if len(ts) else order
+        cols = {"mmsi": np.full(len(keep), mmsi, dtype=np.int64), "time_s": t[keep]}
+        for name, parts in (("lat_deg", self.lat), ("lon_deg", self.lon), ("sog_kn", self.sog),
+                            ("cog_deg", self.cog), ("heading_deg", self.hdg)):
+            cols[name] = np.concatenate(parts)[keep]
+        chunk = np.repeat(np.arange(len(self.t)), [len(x) for x in self.t])[keep]
+        cols["nav_status"] = np.asarray(self.nav, dtype=np.int16)[chunk]
+        cols["phase"] = np.array(PHASES, dtype=object)[np.concatenate(self.phase)[keep]]
+        cols["voyage_id"] = np.array(self.voyage, dtype=object)[chunk]
+        return pd.DataFrame(cols)
 
 
 def _berth_position(rng, port: Port) -> tuple[float, float]:
@@ -231,7 +309,7 @@ SEAWAY_PASSES = 3
 
 def _timeline(s: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Seconds from the start to each arc length of a speed profile (trapezoidal pace)."""
-    return np.r_[0.0, np.cumsum(np.diff(s) / (0.5 * (v[:-1] + v[1:])))] * 3600.0
+    return np.concatenate(([0.0], np.cumsum(np.diff(s) / (0.5 * (v[:-1] + v[1:]))))) * 3600.0
 
 
 def _sail_profile(path: _Path, t0: float, s: np.ndarray, parts: tuple, sea: _Seaway | None):
@@ -278,7 +356,8 @@ def _move(rng, st: ScenarioSettings, frames: _Frames, path: _Path, t0: float, d_
         drift = rng.normal(0.0, 1.5)  # leeway/current: heading differs from COG by a voyage constant
         hdg = cog + drift + rng.normal(0.0, st.heading_noise_deg, n)
         cogn = cog + rng.normal(0.0, st.cog_noise_deg, n)
-        phase = np.where((sk < d_h1) | (sk > path.length - d_h2), "harbour", "sea").astype(object)
+        phase = np.where((sk < d_h1) | (sk > path.length - d_h2), PHASES.index("harbour"),
+                         PHASES.index("sea")).astype(np.int8)
         frames.add(t, la + dlat, lo + dlon, sog, wrap_deg(cogn), wrap_deg(hdg), NAV_UNDER_WAY, phase, voyage)
     t_sea0 = t0 + float(np.interp(d_h1, s, dt))
     t_sea1 = t0 + float(np.interp(path.length - d_h2, s, dt))
@@ -406,10 +485,7 @@ def _sail_vessel(index: int, v: VesselSpec, rank: int, spec: ScenarioSpec, st: S
         pos = (pos + 1) % len(rot)
         k += 1
 
-    fx = frames.frame()
-    fx = fx[(fx.time_s >= start) & (fx.time_s < end)].sort_values("time_s", kind="stable")
-    fx = fx.drop_duplicates("time_s", keep="first").reset_index(drop=True)
-    fx.insert(0, "mmsi", np.int64(v.mmsi))
+    fx = frames.frame(start, end, v.mmsi)
 
     # signal gaps: coverage holes at sea on some voyages, a long transponder outage on some ships
     gaps = []
