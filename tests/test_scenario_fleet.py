@@ -116,3 +116,96 @@ def test_fleet_memory_does_not_hold_the_fleet_period(tmp_path, spec):
     worker_mb = (big["worker_kb"] - small["worker_kb"]) / 1e3
     assert held_mb > 40 and parent_mb < 15, (held_mb, parent_mb)
     assert worker_mb < 0.6 * held_mb, (worker_mb, held_mb)
+
+
+def _reference_densify(wp, step_nmi):
+    """The one-call-per-leg densify the sailing used before (thresholds.geodesy on scalar ends)."""
+    import math
+
+    import numpy as np
+
+    from thresholds.geodesy import haversine_nmi, intermediate_point
+
+    lats, lons = [np.array([wp[0, 0]])], [np.array([wp[0, 1]])]
+    for (la1, lo1), (la2, lo2) in zip(wp[:-1], wp[1:]):
+        n = max(1, int(math.ceil(haversine_nmi(la1, lo1, la2, lo2) / step_nmi)))
+        la, lo = intermediate_point(la1, lo1, la2, lo2, np.arange(1, n + 1) / n)
+        lats.append(np.atleast_1d(la))
+        lons.append(np.atleast_1d(lo))
+    return np.concatenate(lats), np.concatenate(lons)
+
+
+def test_sailing_geometry_gives_the_reference_numbers_to_the_last_bit():
+    """densify, _offset_route and _Path.at compute each leg's terms once (scenario.sailing._Legs);
+    the points must equal thresholds.geodesy's functions called as before to the last bit (the
+    generator's files are byte-identical to before). Random polylines, among them the three of
+    the first 3,400 that came out 1-2 ulp off before the scalar squares (_squares: numpy squares
+    an array by multiplication, a float64 scalar by pow)."""
+    import math
+
+    import numpy as np
+
+    from scenario.sailing import _offset_route, _Path, densify
+    from thresholds.geodesy import destination_point, initial_bearing_deg, intermediate_point
+    from thresholds.units import wrap_deg
+
+    rng, other = np.random.default_rng(1), np.random.default_rng(2)
+    for k in range(3400):
+        m = rng.integers(2, 9)
+        wp = np.c_[rng.uniform(35, 45, m), rng.uniform(-2, 12, m)]
+        if k % 3 == 0:
+            wp = wp[0] + np.cumsum(rng.normal(0, 0.3, (m, 2)), axis=0)
+        if k % 7 == 0:
+            wp[1] = wp[0]  # a leg of zero length
+        step = [0.5, 0.05, 2.0][k % 3]
+        if k % 50 and k not in (196, 715, 3356):
+            continue
+        for got, want in zip(densify(wp, step), _reference_densify(wp, step)):
+            assert np.array_equal(got, want), k
+        offsets = other.normal(0.5, 1.5, m)
+        want = wp.copy()
+        for i in range(1, m - 1):
+            b_in = initial_bearing_deg(wp[i - 1, 0], wp[i - 1, 1], wp[i, 0], wp[i, 1])
+            b_out = initial_bearing_deg(wp[i, 0], wp[i, 1], wp[i + 1, 0], wp[i + 1, 1])
+            mean = math.degrees(math.atan2(math.sin(math.radians(b_in)) + math.sin(math.radians(b_out)),
+                                           math.cos(math.radians(b_in)) + math.cos(math.radians(b_out))))
+            want[i] = destination_point(wp[i, 0], wp[i, 1], wrap_deg(mean + 90.0), offsets[i])
+        assert np.array_equal(_offset_route(wp, offsets), want), k
+        path = _Path(wp[:, 0], wp[:, 1])
+        if len(path.seg) == 0:  # one point: no path to sail (nor did the code before sail one)
+            continue
+        s = np.sort(other.uniform(-1.0, path.length + 1.0, 50))
+        la, lo, course = path.at(s)
+        sc = np.clip(s, 0.0, path.length)
+        i = np.clip(np.searchsorted(path.cum, sc, side="right") - 1, 0, len(path.seg) - 1)
+        frac = np.where(path.seg[i] > 0, (sc - path.cum[i]) / path.seg[i], 0.0)
+        la_w, lo_w = intermediate_point(path.lat[i], path.lon[i], path.lat[i + 1], path.lon[i + 1], frac)
+        to_end = initial_bearing_deg(la_w, lo_w, path.lat[i + 1], path.lon[i + 1])
+        leg = initial_bearing_deg(path.lat[i], path.lon[i], path.lat[i + 1], path.lon[i + 1])
+        assert np.array_equal(la, la_w) and np.array_equal(lo, lo_w), k
+        assert np.array_equal(course, np.where(path.cum[i + 1] - sc > 0.01, to_end, leg)), k
+
+
+def test_spill_is_compressed_and_reads_back_the_records(tmp_path, spec):
+    """A ship's spill (LZ4-compressed Arrow IPC, one batch per day) holds its records exactly, in
+    under 60 bytes per row (143 uncompressed)."""
+    import numpy as np
+    import pyarrow as pa
+
+    from pipelines.scenario_fleet import SPILL_COLUMNS, FleetJob, spill_ship
+    from scenario.fleet import fleet_spec, sail_ship
+    from scenario.spec import ScenarioSettings
+
+    st = ScenarioSettings(seed=2, start_utc=pd.Timestamp("2025-03-01T00:00Z"), days=3)
+    job = FleetJob(None, None, 3, st, str(tmp_path), str(tmp_path))
+    spill_ship(job, 1)
+    path = tmp_path / "ship-000001.arrow"
+    with pa.memory_map(str(path)) as src:
+        reader = pa.ipc.open_file(src)
+        assert reader.num_record_batches == 3
+        back = pa.Table.from_batches([reader.get_batch(d) for d in range(3)]).to_pandas()
+    recs = sail_ship(fleet_spec(spec, 3), st, 1)["records"][list(SPILL_COLUMNS)]
+    pd.testing.assert_frame_equal(back, recs, check_exact=True)
+    assert path.stat().st_size / len(recs) < 60
+    day = (recs["sort_s"].to_numpy() - st.start_s) // 86400
+    assert np.all(np.diff(day) >= 0)
