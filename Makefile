@@ -6,6 +6,9 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 WORKDIR ?= demo
+# pytest processes of `make test` (pytest-xdist; each test file runs whole in one of them, so a
+# file's module fixtures are built once): one per core of the 2-core machines CI runs on
+TEST_WORKERS ?= 2
 
 export PREFECT_SERVER_ANALYTICS_ENABLED := false
 export DO_NOT_TRACK := 1
@@ -38,7 +41,7 @@ test: $(STAMP)
 	command -v chromium >/dev/null 2>&1 || { SUDO=$$(test "$$(id -u)" -eq 0 || echo sudo); \
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; }
 	$(VENV)/bin/lint-imports
-	STORMLANE_REQUIRE_BROWSER=1 $(PY) -m pytest -q
+	STORMLANE_REQUIRE_BROWSER=1 $(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # Every benchmark (bench/*.py through bench/_harness.py), within 30 min on 2 cores: writes
 # bench/results.json, README.md's benchmark table and docs/benchmarks.md.
