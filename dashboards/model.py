@@ -181,8 +181,7 @@ class RouteSet:
     def value_columns(self) -> list[str]:
         """Metric columns to show as values: known ones in :data:`METRIC_COLUMNS` order, then the
         rest, leaving out given deltas (``d_*``) and the seed comparison metrics."""
-        cols = list(self.metrics_table().columns)
-        plain = [c for c in cols if not str(c).startswith("d_") and c not in SEED_COLUMNS]
+        plain = [c for c in self.metrics_table().columns if _is_value_column(c)]
         return [c for c in METRIC_COLUMNS if c in plain] + [c for c in plain if c not in METRIC_COLUMNS]
 
     def deltas(self, reference: str | None = None) -> pd.DataFrame:
@@ -209,8 +208,7 @@ class RouteSet:
         """One cell of :meth:`deltas` (``role``'s row, ``column``), NaN where :meth:`deltas` has
         none; without building the table (a 60-lane night's page asks for about 2,700 cells)."""
         table = self.metrics if self.metrics is not None else self.metrics_table()
-        plain = not str(column).startswith("d_") and column not in SEED_COLUMNS
-        if not plain or column not in table.columns or role not in table.index or self.reference not in table.index:
+        if not _is_value_column(column) or column not in table.columns or role not in table.index or self.reference not in table.index:
             return float("nan")
         given = f"d_{column}"
         if given in table.columns:
@@ -300,6 +298,12 @@ def metric_delta(routes: RouteSet | None, column: str) -> float:
     if routes is None or routes.proposed is None:
         return float("nan")
     return routes.delta(column, routes.proposed)
+
+
+def _is_value_column(column) -> bool:
+    """A metric shown as a value (and given a delta): not a handed-over delta (``d_*``), not one
+    of the seed's comparison metrics (:data:`SEED_COLUMNS`)."""
+    return not str(column).startswith("d_") and column not in SEED_COLUMNS
 
 
 def _number(value) -> float:
