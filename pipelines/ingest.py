@@ -25,7 +25,8 @@ from typing import Callable, Iterable, Optional
 from ais.clean import DEFAULT_MAX_SPEED_KN
 from ais.io.files import expand_paths, inspect
 from pipelines.ingest_stage import (
-    check_inputs, loaded_record, plain_copy, skipped_counts, stage_file, stage_or_gzip_error, wants_plain_copy,
+    PlainCopiesAhead, check_inputs, loaded_record, plain_copy, skipped_counts, stage_file, stage_or_gzip_error,
+    wants_plain_copy,
 )
 from pipelines.runners import retry_transient
 from thresholds.errors import StormlaneError
@@ -54,8 +55,9 @@ def add_to_summary(summary: dict, counts: dict) -> dict:
 
 
 def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
-                progress: Callable[[int], None] | None = None, before_commit=None) -> dict:
-    """Load one AIS file into an open workspace; returns its counts (see module docstring)."""
+                progress: Callable[[int], None] | None = None, before_commit=None, plain_ahead=None) -> dict:
+    """Load one AIS file into an open workspace; returns its counts (see module docstring).
+    ``plain_ahead``: a future of the file's plain copy made ahead (:class:`PlainCopiesAhead`)."""
     from pipelines.storage import ais as store
 
     from concurrent.futures import ThreadPoolExecutor
@@ -75,23 +77,28 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     # staging, whose fast scan keeps both cores busy, so that it fills the single-threaded steps
     # of the commit instead. Only when a loaded file has the same quick key (size + first and
     # last MiB) is the full hash computed first, to skip an already loaded file.
-    full = None
+    full = plain = None
     try:
+        if plain_ahead is not None:  # a truncated or corrupt gzip file raises here, named
+            plain, fp = plain_ahead.result()
+            full = _done(fp + suffix)
         if store.quick_key_known(ws, quick):
-            full = pool.submit(content_fingerprint)
+            full = full or pool.submit(content_fingerprint)
             done = loaded_record(ws, f.path, suffix, quick, full)
         else:
             done = None
     except BaseException:
         pool.shutdown(wait=True)
+        _remove(plain)
         raise
     if done is not None:
         pool.shutdown(wait=True)
+        _remove(plain)
         log.info("%s: already loaded as file %s (%s), skipped", f.path, done["file_id"], done["path"])
         if progress is not None:
             progress(f.size_bytes)
         return skipped_counts(f.path, f.format, done["file_id"])
-    info = plain = None
+    info = None
     t_stage = time.perf_counter()
     try:
         if full is None and wants_plain_copy(f):
@@ -144,6 +151,20 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
             "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping"), "timings": timings}
 
 
+def _done(value):
+    """A future already holding ``value``."""
+    from concurrent.futures import Future
+
+    fut = Future()
+    fut.set_result(value)
+    return fut
+
+
+def _remove(plain) -> None:
+    if plain is not None:
+        plain.path.unlink(missing_ok=True)
+
+
 def _scratch_folder(ws):
     """Where temporary copies of inputs go: beside the workspace file (on disk, not in a RAM
     temporary folder), else the temporary folder."""
@@ -174,6 +195,7 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
         ``{"files", "read", "loaded", "quarantined", "duplicates", "reasons", "static",
         "ignored", "already_loaded"}`` summed over the files, plus ``"per_file"``.
     """
+    from pipelines.storage import ais as store
     from pipelines.storage import open_workspace
     from pipelines.storage.ais import limit_ingest_memory, sync_positions_parquet
 
@@ -184,13 +206,18 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
     with open_workspace(db) as ws:
         limit_ingest_memory(ws)
         sync_positions_parquet(ws)  # the positions dataset as the workspace says (after a crash)
-        for p in files:
-            try:
-                counts = ingest_file(ws, p, fmt=fmt, max_speed_kn=max_speed_kn, progress=progress)
-            except StormlaneError as err:
-                raise _with_committed(err, per_file)
-            add_to_summary(summary, counts)
-            per_file.append(counts)
+        ahead = PlainCopiesAhead(files, fmt, _scratch_folder(ws), lambda quick: store.quick_key_known(ws, quick))
+        try:
+            for i, p in enumerate(files):
+                try:
+                    counts = ingest_file(ws, p, fmt=fmt, max_speed_kn=max_speed_kn, progress=progress,
+                                         plain_ahead=ahead.take(i))
+                except StormlaneError as err:
+                    raise _with_committed(err, per_file)
+                add_to_summary(summary, counts)
+                per_file.append(counts)
+        finally:
+            ahead.close()
     summary["per_file"] = per_file
     return summary
 

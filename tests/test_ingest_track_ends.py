@@ -125,3 +125,79 @@ def test_truncated_large_gzip_is_an_error_naming_it(tmp_path, monkeypatch):
     with pytest.raises(AisInputError, match="cut.csv.gz.*truncated gzip"):
         ingest_paths([gz], tmp_path / "ws.duckdb")
     assert not list(tmp_path.glob(".stormlane-gunzip-*"))
+
+
+def _day_files(tmp_path, n=3):
+    """``n`` gzip DMA files continuing each other's tracks (time slices of one fleet), with the
+    dirty rows of the fast-stage tests mixed into each."""
+    import gzip
+
+    from test_ais_fast_csv import DIRTY, _mix, _rows
+
+    rows = _rows()
+    step = len(rows) // n
+    paths = []
+    for k in range(n):
+        part = _mix(rows[k * step:(k + 1) * step], DIRTY)
+        path = tmp_path / "in" / f"day{k}.csv.gz"
+        path.parent.mkdir(exist_ok=True)
+        path.write_bytes(gzip.compress(("\n".join([DMA_HEADER] + part) + "\n").encode()))
+        paths.append(path)
+    return paths
+
+
+def _tables(db):
+    with open_workspace(db) as ws:
+        return [ws.con.execute(sql).fetchall() for sql in (
+            "SELECT path, fingerprint, n_read, n_loaded, n_quarantined, n_duplicates, reasons FROM ais_files ORDER BY file_id",
+            "SELECT file_id, source_line, mmsi, time_utc, lat_deg, lon_deg, sog_kn FROM ais_positions ORDER BY ALL",
+            "SELECT file_id, line, reason, raw FROM ais_quarantine ORDER BY ALL")]
+
+
+def test_plain_copies_made_ahead_load_the_same_and_leave_nothing(tmp_path, monkeypatch):
+    # ingest_paths makes the next large gzip file's plain copy in a thread while the current one
+    # is committed (PlainCopiesAhead): the workspace is that of one file at a time, every copy
+    # is removed, and the copies of the files after the first were made on the copy thread.
+    import threading
+
+    from pipelines.ingest import ingest_file
+
+    paths = _day_files(tmp_path)
+    monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0)
+    monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0)
+    threads = []
+    copy = stage_mod.plain_copy
+    monkeypatch.setattr(stage_mod, "plain_copy",
+                        lambda f, folder: threads.append((f.path.name, threading.current_thread().name)) or copy(f, folder))
+    (tmp_path / "ahead").mkdir()
+    (tmp_path / "one").mkdir()
+    s = ingest_paths(paths, tmp_path / "ahead" / "ws.duckdb")
+    assert [n for n, t in threads if t.startswith("plain-copy")] == ["day1.csv.gz", "day2.csv.gz"]
+    assert [f["staging"] for f in s["per_file"]] == ["scan"] * 3 and s["quarantined"] >= 30
+    with open_workspace(tmp_path / "one" / "ws.duckdb") as ws:
+        for p in paths:
+            ingest_file(ws, p)
+    assert _tables(tmp_path / "ahead" / "ws.duckdb") == _tables(tmp_path / "one" / "ws.duckdb")
+    for label in ("ahead", "one"):
+        assert sorted(p.name for p in (tmp_path / label).iterdir()) == ["ws.duckdb", "ws.parquet"]
+
+
+def test_plain_copies_ahead_of_a_truncated_or_repeated_file(tmp_path, monkeypatch):
+    # The copy of a truncated file fails on the copy thread; the error is raised in the file's
+    # own turn, naming it, after the files before it are committed. A file with the bytes of one
+    # loaded before (its copy made ahead, its quick key only known once the first is committed)
+    # is skipped. No copy is left behind either way.
+    from ais.errors import AisInputError
+
+    paths = _day_files(tmp_path)
+    monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0)
+    again = tmp_path / "in" / "again.csv.gz"
+    again.write_bytes(paths[0].read_bytes())
+    s = ingest_paths([paths[0], again, paths[1]], tmp_path / "ws.duckdb")
+    assert [f["already_loaded"] for f in s["per_file"]] == [False, True, False]
+    paths[2].write_bytes(paths[2].read_bytes()[:-100])
+    with pytest.raises(AisInputError, match=r"day2\.csv\.gz: truncated gzip.*\(the 1 file\(s\) before it are loaded"):
+        ingest_paths([paths[1], paths[2], paths[0]], tmp_path / "ws2.duckdb")  # day0's copy made ahead
+    with open_workspace(tmp_path / "ws2.duckdb") as ws:
+        assert ws.con.execute("SELECT path FROM ais_files").fetchall() == [(str(paths[1]),)]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in", "ws.duckdb", "ws.parquet", "ws2.duckdb", "ws2.parquet"]

@@ -112,7 +112,11 @@ def fingerprint(path: str | Path, algo: str = FINGERPRINT_ALGOS[0], chunk: int =
 def gunzip_into(path: str | Path, sink, chunk: int = 1 << 22) -> int:
     """Decompress a gzip file (every member of it, RFC 1952 [1]; zero padding after a member is
     skipped, as Python's gzip does) and pass the content to ``sink`` block by block; returns the
-    content's size. zlib checks each member's CRC-32 and length.
+    content's size. Each member's CRC-32 and length are checked.
+
+    The inflate is Intel's ISA-L [2] (``isal.isal_zlib``, zlib's interface): about 2.9 times
+    zlib's speed on AIS CSV (a 12.6 MB daily file of 0.3 M rows: 0.095 against 0.274 CPU s,
+    measured for issue 23), and the largest single cost of a gzip file's ingest.
 
     Raises
     ------
@@ -121,8 +125,10 @@ def gunzip_into(path: str | Path, sink, chunk: int = 1 << 22) -> int:
         a member is corrupt (``corrupt gzip``), naming the file and how far it got.
 
     .. [1] P. Deutsch, "GZIP file format specification version 4.3," RFC 1952, 1996.
+    .. [2] Intel, "Intelligent Storage Acceleration Library (ISA-L)", igzip;
+       https://github.com/intel/isa-l (Python binding: python-isal, https://pypi.org/project/isal/).
     """
-    import zlib
+    from isal import isal_zlib as zlib
 
     size_in = Path(path).stat().st_size
     out = read = 0
