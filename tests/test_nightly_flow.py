@@ -700,9 +700,16 @@ def test_a_failing_lane_is_marked_failed_and_the_night_completes(world, night, t
     assert math.isfinite(res["timings_s"]["reroute_s"])
 
 
-def test_cli_planned_voyages_json_contract(world, night, tmp_path, capsys):
-    """Planned voyages instead of lanes: one on an adverse lane, one between ports with no lane."""
+def test_cli_planned_voyages_json_contract(world, night, tmp_path, capsys, monkeypatch):
+    """Planned voyages instead of lanes: one on an adverse lane, one between ports with no lane.
+    The weather files are read once: by the preflight, which hands the read to the flow."""
+    import weather.io
+
     from pipelines.storage import open_workspace
+
+    reads = []
+    read_local = weather.io.read_local
+    monkeypatch.setattr(weather.io, "read_local", lambda files, *a, **k: reads.append(files) or read_local(files, *a, **k))
     from pipelines.storage.lanes import read_lanes, read_ports
 
     _, t = night
@@ -723,6 +730,7 @@ def test_cli_planned_voyages_json_contract(world, night, tmp_path, capsys):
     rc, out, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--weather", str(world["weather"]), "--now", NOW,
                         "--voyages", str(plan), "--out", str(tmp_path / "out"), "--max-detail", "0", "--json")
     assert rc == 0, err
+    assert reads == [[str(world["weather"])]]
     res = json.loads(out)
     assert res["lanes_checked"] == 2 and res["departures_checked"] == 2
     assert res["adverse"] == 1 and res["failed"] == 1

@@ -193,6 +193,8 @@ def test_weather_not_covering_the_window_is_the_only_stderr_line(world, tmp_path
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1, res.stderr
     assert lines[0].startswith("error: the weather does not cover tonight's departures 2025-03-01T00:00Z -> 2025-03-02T21:00Z")
+    # found before Prefect started (its temporary server's database is made at start)
+    assert not (tmp_path / "prefect-home" / "prefect.db").exists()
 
 
 # --- the console hold-back itself ----------------------------------------------------------------------

@@ -50,7 +50,8 @@ def preflight(params: NightlyParams) -> None:
     """What a person can fix before a night starts, checked before Prefect starts: the
     workspace and the weather paths exist, the planned voyages file reads, the report folder
     can be created, the workspace has the lanes asked for and something can be sailed (every
-    planned voyage failing is one error with their reasons). The flow's steps run the same
+    planned voyage failing is one error with their reasons), the weather (local files or the
+    workspace grid) covers tonight's departures. The flow's steps run the same
     checks; a transient failure here (a workspace locked by another process) is left to the
     flow's I/O task, which retries it."""
     _require_workspace(params.db)
@@ -65,12 +66,15 @@ def preflight(params: NightlyParams) -> None:
         for out in (params.out, params.out_root):
             if out:
                 _require_out_dir(out)
+    from pipelines.nightly.plan import read_weather_before
+
     try:
-        load_paths(params.db, voyages=params.voyages, lanes=params.lanes, vessel=params.vessel)
+        paths = load_paths(params.db, voyages=params.voyages, lanes=params.lanes, vessel=params.vessel)
+        read_weather_before(params, paths)  # tonight's departures covered (read once: handed to the flow)
     except StormlaneError:
         raise
     except Exception:  # noqa: BLE001 - transient (locked workspace ...): the flow retries it
-        log.debug("preflight: lanes not checked", exc_info=True)
+        log.debug("preflight: lanes or weather not checked", exc_info=True)
 
 
 def _port_label(ports: pd.DataFrame, port_id) -> str:

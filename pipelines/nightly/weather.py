@@ -79,8 +79,39 @@ def fetch_weather(request, cache_dir: str | None = None) -> list[str]:
     return [str(p) for p in fetch_files(request, cache_dir)]
 
 
+#: A weather read made before the flow started (:func:`pipelines.nightly.plan.read_weather_before`,
+#: the CLI's preflight), taken by the flow's read of the same inputs in the same process: the
+#: files are read once, and a night they do not cover fails before Prefect starts.
+_READ_BEFORE: dict = {}
+
+
+def _inputs_key(source: str, files, db, start: pd.Timestamp, end: pd.Timestamp) -> tuple:
+    """What a weather read depends on: the source, each file's (or folder's files') size and
+    modification time, the workspace's, the span."""
+
+    def ident(p):
+        p = Path(p)
+        found = sorted(q for q in p.rglob("*") if q.is_file()) if p.is_dir() else [p]
+        return tuple((str(q), q.stat().st_size, q.stat().st_mtime_ns) for q in found if q.exists())
+
+    return (source, tuple(str(f) for f in files), tuple(ident(f) for f in files), str(db), ident(db),
+            pd.Timestamp(start).value, pd.Timestamp(end).value)
+
+
+def keep_read_for_flow(source: str, files, db, start, end, read: tuple) -> None:
+    """Hand ``read`` (a :func:`read_weather_source` result) to the flow's read of the same inputs."""
+    _READ_BEFORE.clear()
+    _READ_BEFORE[_inputs_key(source, files, db, start, end)] = read
+
+
 def read_weather_source(source: str, files, db, start: pd.Timestamp, end: pd.Timestamp) -> tuple:
-    """I/O step: the canonical weather Dataset and its metadata, from files or the workspace grid."""
+    """I/O step: the canonical weather Dataset and its metadata, from files or the workspace grid
+    (the read made before the flow, when its inputs are unchanged: :func:`keep_read_for_flow`)."""
+    if _READ_BEFORE:
+        got = _READ_BEFORE.pop(_inputs_key(source, files, db, start, end), None)
+        _READ_BEFORE.clear()
+        if got is not None:
+            return got
     if source in ("files", "fetch"):
         from weather.io import read_local
 
