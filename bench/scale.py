@@ -12,8 +12,10 @@ stage, so both see the same machine load):
   multiple of it;
 * ``lanes``: ``stormlane lanes`` on that workspace, and the Prefect lanes flow with the
   origin-destination partitions on the workers;
-* ``nightly``: one night (``stormlane nightly``) at the end of the AIS period with the demo's
-  storm weather for its last two days, sequentially and with the per-lane work on the workers.
+* ``nightly``: one night (``stormlane nightly``) at the end of the AIS period, or at
+  ``--night-at`` (e.g. a storm of the demo's weather: ``2025-01-15T00:00Z``), with the generated
+  weather of the two days before it, sequentially and with the per-lane work on the workers
+  (on the sequential side's workspace when the cluster side has none of its own).
 
 The cluster is a real one: ``dask scheduler`` and ``dask worker --nworkers W --nthreads 1`` as
 separate processes (:mod:`pipelines.dask_processes`), started fresh for each stage so that the
@@ -69,11 +71,12 @@ def _tree_bytes(path: Path) -> int:
 def generate(folder: str, vessels: int, days: float, seed: int, workers: int) -> dict:
     from pipelines.scenario_fleet import build_fleet_scenario
 
-    if not (Path(folder) / "scenario.json").exists():
+    reused = (Path(folder) / "scenario.json").exists()
+    if not reused:
         build_fleet_scenario(Path(folder), vessels=vessels, seed=seed, start=START_UTC, days=days, workers=workers)
     truth = json.loads((Path(folder) / "scenario.json").read_text())
     return {"work": int(truth["expected_ingest"]["position_records"]), "gzip_bytes": _tree_bytes(Path(folder) / "ais"),
-            **_peaks_mb()}
+            "reused": reused, **_peaks_mb()}
 
 
 def stage_setup(runner: str, workdir: str, **kwargs) -> dict:
@@ -179,15 +182,18 @@ def nightly(st: dict) -> dict:
     from weather.scenario import generate_weather
     from pipelines.weather import FORECAST_TAIL_H
 
-    end = pd.Timestamp(json.loads(Path(st["scenario_json"]).read_text())["scenario"]["end_utc"])
+    end = pd.Timestamp(st.get("night_at") or json.loads(Path(st["scenario_json"]).read_text())["scenario"]["end_utc"])
     wx = Path(st["weather_dir"])
+    if st.get("night_at"):
+        wx = wx.with_name(f"weather-{end:%Y%m%dT%H%M}")
     if not (wx / "weather").exists():
         write_scenario_weather(wx, seed=0, weather=generate_weather(0, start=end - pd.Timedelta(days=2),
                                                                      end=end + pd.Timedelta(hours=FORECAST_TAIL_H)))
     out = _cli(["nightly", "--db", st["db"], "--weather", str(wx / "weather"), "--now", end.isoformat(),
                 "--out", str(Path(st["db"]).parent / f"night-{st['side']}"), "--max-detail", "3"], st["runner"])
     return {"work": int(out["departures_checked"]), "lanes_checked": int(out["lanes_checked"]),
-            "adverse": int(out["adverse"]), **_peaks_mb(), **_worker_peaks(st)}
+            "adverse": int(out["adverse"]), "night_utc": end.isoformat(), **{k: out[k] for k in ("reroutes",) if k in out},
+            **_peaks_mb(), **_worker_peaks(st)}
 
 
 # ------------------------------------------------------------------ driver
@@ -221,7 +227,7 @@ def print_table(rows: list[dict], gzip_bytes: int) -> None:
 
 
 def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, seed: int = 23,
-              stages: tuple = ("ingest", "lanes", "nightly"), cluster: bool = True) -> dict:
+              stages: tuple = ("ingest", "lanes", "nightly"), cluster: bool = True, night_at: str | None = None) -> dict:
     cfg = Config(runs=1, timeout_s=12 * 3600.0)
     days = max(1.0, round(rows / (vessels * ROWS_PER_SHIP_DAY), 2))
     workdir.mkdir(parents=True, exist_ok=True)
@@ -242,6 +248,8 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
         # the ingest beside its raw baseline (DuckDB's own reader of the same files), first, in the same run
         for side in (["raw read"] if stage == "ingest" else []) + sides:
             db = workdir / side / "ws.duckdb"
+            if stage == "nightly" and not db.exists():  # a night reads lanes: any side's are the same (tested)
+                db = workdir / "sequential" / "ws.duckdb"
             db.parent.mkdir(exist_ok=True)
             if stage == "ingest":
                 for old in (db, Path(f"{db}.wal")):
@@ -251,10 +259,10 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
                 shutil.rmtree(db.parent / "ws.parquet", ignore_errors=True)
             kw = {"runner": side, "workdir": str(workdir / side), "workers": workers, "db": str(db),
                   "ais": str(scen / "ais"), "rows": n_rows, "scenario_json": str(scen / "scenario.json"),
-                  "weather_dir": str(workdir / "weather"), "side": side, "stage": stage}
+                  "weather_dir": str(workdir / "weather"), "side": side, "stage": stage, "night_at": night_at}
             run = "bench.scale:ingest_raw" if side == "raw read" else f"bench.scale:{stage}"
             rec = _child(cfg, tmp, "bench.scale:stage_setup", run, kw, 1, {})
-            table.append(_row(stage, side, rec))
+            table.append({**_row(stage, side, rec), "date_utc": time.strftime("%Y-%m-%dT%H:%MZ", time.gmtime())})
             print_table(table[-1:], gzip_bytes)
     out = {"rows_target": rows, "rows": n_rows, "vessels": vessels, "days": days, "workers": workers,
            "gzip_bytes": gzip_bytes, "cores": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%dT%H:%MZ", time.gmtime()),
@@ -281,17 +289,34 @@ def main(argv=None) -> dict:
     ap.add_argument("--stages", default="ingest,lanes,nightly")
     ap.add_argument("--no-cluster", action="store_true", help="the sequential side only")
     ap.add_argument("--no-write", action="store_true", help="do not record in bench/results-scale.json")
+    ap.add_argument("--night-at", default=None, help="the night's time (ISO UTC; default: the AIS period's end)")
     a = ap.parse_args(argv)
     import tempfile
 
     workdir = a.workdir or Path(tempfile.gettempdir()) / f"stormlane-scale-{a.rows}"
     out = run_scale(a.rows, workdir, a.vessels, a.workers, stages=tuple(s for s in a.stages.split(",") if s),
-                    cluster=not a.no_cluster)
+                    cluster=not a.no_cluster, night_at=a.night_at)
     if not a.no_write:
         prev = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-        prev[str(a.rows)] = out
+        prev[str(a.rows)] = merge_entry(prev.get(str(a.rows)), out)
         RESULTS.write_text(json.dumps(prev, indent=1, default=float) + "\n")
     return out
+
+
+def merge_entry(old: dict | None, new: dict) -> dict:
+    """The stored entry of a size after a run of some of its stages: the new rows replace the
+    stored rows of the same stage and side (a night at another time is another row); the
+    others are kept (a 100 M-row run is made stage by stage, hours apart)."""
+    if not old or old.get("rows") != new.get("rows"):
+        return new
+
+    def key(r):
+        return r["stage"], r["side"], r.get("night_utc")
+
+    ran = {key(r) for r in new["stages"] if not r.get("reused")}  # a scenario found on disk was not generated
+    kept = [r for r in old["stages"] if key(r) not in ran]
+    fresh = [r for r in new["stages"] if key(r) in ran]
+    return {**old, **{k: v for k, v in new.items() if k != "stages"}, "stages": kept + fresh}
 
 
 if __name__ == "__main__":

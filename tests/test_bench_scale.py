@@ -1,0 +1,31 @@
+"""bench/scale.py's stored entries: a run of some stages replaces only those stages' rows."""
+
+from __future__ import annotations
+
+from bench.scale import merge_entry
+
+
+def _entry(rows, stages, **kw):
+    return {"rows": rows, "date_utc": kw.pop("date", "d0"), "stages": stages, **kw}
+
+
+def test_a_partial_run_replaces_its_own_rows_and_keeps_the_others():
+    old = _entry(100, [{"stage": "generate", "side": "2 procs", "wall_s": 2738.0},
+                       {"stage": "ingest", "side": "sequential", "wall_s": 809.5},
+                       {"stage": "nightly", "side": "sequential", "wall_s": 6.2, "night_utc": "2025-12-28"}])
+    new = _entry(100, [{"stage": "generate", "side": "2 procs", "wall_s": 0.8, "reused": True},
+                       {"stage": "nightly", "side": "sequential", "wall_s": 90.0, "night_utc": "2025-01-15"},
+                       {"stage": "nightly", "side": "cluster", "wall_s": 70.0, "night_utc": "2025-01-15"}], date="d1")
+    got = merge_entry(old, new)
+    assert [(r["stage"], r["side"], r["wall_s"]) for r in got["stages"]] == [
+        ("generate", "2 procs", 2738.0), ("ingest", "sequential", 809.5), ("nightly", "sequential", 6.2),
+        ("nightly", "sequential", 90.0), ("nightly", "cluster", 70.0)]
+    assert got["date_utc"] == "d1"
+    rerun = merge_entry(got, _entry(100, [{"stage": "ingest", "side": "sequential", "wall_s": 700.0}]))
+    assert [r["wall_s"] for r in rerun["stages"]] == [2738.0, 6.2, 90.0, 70.0, 700.0]
+
+
+def test_another_scenario_size_starts_a_new_entry():
+    old = _entry(100, [{"stage": "ingest", "side": "sequential", "wall_s": 1.0}])
+    new = _entry(101, [{"stage": "lanes", "side": "sequential", "wall_s": 2.0}])
+    assert merge_entry(old, new) == new and merge_entry(None, new) == new
