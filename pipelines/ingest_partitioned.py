@@ -27,7 +27,9 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from ais.clean import DEFAULT_MAX_SPEED_KN
-from pipelines.ingest_stage import _Scratch, loaded_record, skipped_counts, stage_or_gzip_error
+from pipelines.ingest_stage import (
+    _Scratch, loaded_record, plain_copy, skipped_counts, stage_file, stage_or_gzip_error, wants_plain_copy,
+)
 
 log = logging.getLogger(__name__)
 
@@ -59,12 +61,16 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
 
     f = inspect(path, fmt, with_fingerprint=False)
     suffix = identity_suffix(f.path, fmt)
+    plain = None
     with ThreadPoolExecutor(max_workers=1) as pool:
-        # the hash releases the GIL: it overlaps the staging
-        full = pool.submit(lambda: fingerprint(f.path) + suffix)
+        if wants_plain_copy(f):  # as the sequential ingest: inflated once (hashed on the way), then scanned
+            plain, fp = plain_copy(f)
+            full = pool.submit(lambda: fp + suffix)
+        else:  # the hash releases the GIL: it overlaps the staging
+            full = pool.submit(lambda: fingerprint(f.path) + suffix)
         mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
         try:
-            info = stage_or_gzip_error(mem, f, full)
+            info = stage_file(mem, plain) if plain is not None else stage_or_gzip_error(mem, f, full)
             try:
                 stage = store.read_stage(mem)
             finally:
@@ -72,6 +78,8 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
                     info["line_index"].close()
         finally:
             mem.con.close()
+            if plain is not None:
+                plain.path.unlink(missing_ok=True)
         fp = full.result()
     out = Path(spool_dir) / f"{fp.replace(':', '-').replace('#', '-')}.parquet"
     tmp = out.with_suffix(f".{os.getpid()}.part")

@@ -105,20 +105,33 @@ def test_partitioned_ingest_equals_the_sequential_one(tmp_path, batch):
     assert todo == [] and set(skipped) == set(batch)
 
 
-def test_partitioned_fast_csv_staging_equals_sequential(tmp_path, monkeypatch):
-    """Large-file staging (scanner split + line index) through the spool: raw text from the index."""
+@pytest.mark.parametrize("gz", [False, True], ids=["plain", "gzip"])
+def test_partitioned_fast_csv_staging_equals_sequential(tmp_path, monkeypatch, gz):
+    """Large-file staging (scanner split + line index) through the spool: raw text from the index.
+    A large gzip file is inflated into a plain copy on the staging side too (removed after)."""
+    import gzip
+    import tempfile
+
     rows = [dma_row(f"02/01/2025 00:{m:02d}:{s:02d}", str(219300000 + v), f"{54 + v * 0.05 + m * 1e-3:.6f}",
                     f"{8 + s * 1e-4:.6f}", name=f"SHIP {v}") for m in range(20) for s in range(0, 60, 10)
             for v in range(5)]
     rows[40:40] = DMA_LINES[1:]  # dirty rows of every kind, a quoted name, a blank line
     path = write_dma(tmp_path / "big.csv", [DMA_HEADER] + rows)
+    if gz:
+        path.with_suffix(".csv.gz").write_bytes(gzip.compress(path.read_bytes()))
+        path.unlink()
+        path = path.with_suffix(".csv.gz")
     monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0)
+    monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0)
+    (scratch := tmp_path / "tmp").mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     seq = ingest_paths([path], tmp_path / "seq.duckdb")
     assert seq["per_file"][0]["staging"] not in ("lines", "python")  # the fast path really ran
     (spool := tmp_path / "spool").mkdir()
     per_file = _partitioned([str(path)], tmp_path / "part.duckdb", spool)
     assert per_file[0]["staging"] == seq["per_file"][0]["staging"]
     _assert_same_workspace(tmp_path / "part.duckdb", tmp_path / "seq.duckdb")
+    assert list(scratch.iterdir()) == []
 
 
 def test_a_bad_file_fails_its_stage_with_a_clear_error(tmp_path):
