@@ -143,3 +143,45 @@ def test_min_vessels_turns_single_vessel_clusters_into_noise():
     stops = _stops_at([A, B], [3, 1], 4)
     labels = cluster_stops(stops, PortParams(min_vessels=2))
     assert (labels[:12] >= 0).all() and (labels[12:] == -1).all()
+
+
+def _berth_stops(seed: int) -> pd.DataFrame:
+    """Stops at berths spread round the globe (the equator, 55 N, 70 N, 60 S, both sides of the
+    antimeridian), each berth's stops scattered over tens to hundreds of metres, plus lone stops."""
+    from thresholds.geodesy import destination_point
+
+    rng = np.random.default_rng(seed)
+    places = [(0.0, 10.0), (55.7, 12.6), (70.6, 23.7), (-60.0, -45.0), (51.0, 179.998), (51.0, -179.998), (0.1, 10.0)]
+    lat, lon = [], []
+    for la, lo in places:
+        for _ in range(rng.integers(2, 6)):  # berths of the place
+            b = destination_point(la, lo, rng.uniform(0, 360), rng.uniform(0.0, 0.6))
+            n = int(rng.integers(1, 120))
+            spread = rng.uniform(0.01, 0.12)
+            p = destination_point(np.full(n, b[0]), np.full(n, b[1]), rng.uniform(0, 360, n),
+                                  np.abs(rng.normal(0.0, spread, n)))
+            lat += list(np.atleast_1d(p[0]))
+            lon += list((np.atleast_1d(p[1]) + 180.0) % 360.0 - 180.0)
+    return pd.DataFrame({"lat_deg": lat, "lon_deg": lon, "track": np.arange(len(lat))})
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("min_samples", [1, 2, 5])
+def test_stop_clusters_are_scikit_learns_haversine_dbscan(seed, min_samples):
+    # cluster_stops runs the grid DBSCAN on the chords between unit vectors: the same labels as
+    # scikit-learn's DBSCAN on the haversine metric (ball tree), at any latitude and across the
+    # antimeridian, where a plane projection would not give them.
+    from sklearn.cluster import DBSCAN
+
+    from thresholds.units import EARTH_RADIUS_NMI
+
+    stops = _berth_stops(seed)
+    params = PortParams(min_samples=min_samples)
+    want = DBSCAN(eps=params.eps_nmi / EARTH_RADIUS_NMI, min_samples=min_samples, metric="haversine",
+                  algorithm="ball_tree").fit(np.deg2rad(stops[["lat_deg", "lon_deg"]].to_numpy())).labels_
+    got = cluster_stops(stops, params)
+    assert len(stops) > 200 and (want >= 0).sum() > 100 and len(set(want)) > 10
+    np.testing.assert_array_equal(got, want)
+    # a berth across the antimeridian is one cluster
+    east, west = stops["lon_deg"] > 179.9, stops["lon_deg"] < -179.9
+    assert east.any() and west.any() and set(got[east.to_numpy()]) & set(got[west.to_numpy()]) - {-1}
