@@ -227,7 +227,8 @@ def print_table(rows: list[dict], gzip_bytes: int) -> None:
 
 
 def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, seed: int = 23,
-              stages: tuple = ("ingest", "lanes", "nightly"), cluster: bool = True, night_at: str | None = None) -> dict:
+              stages: tuple = ("ingest", "lanes", "nightly"), sides: tuple = ("sequential", "cluster"),
+              night_at: str | None = None) -> dict:
     cfg = Config(runs=1, timeout_s=12 * 3600.0)
     days = max(1.0, round(rows / (vessels * ROWS_PER_SHIP_DAY), 2))
     workdir.mkdir(parents=True, exist_ok=True)
@@ -243,12 +244,14 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
     gzip_bytes = int(table[0].get("gzip_bytes") or 0)
     n_rows = int(table[0].get("work") or 0)
     print_table(table, gzip_bytes)
-    sides = ["sequential"] + (["cluster"] if cluster else [])
+    sides = list(sides)
     for stage in stages:
         # the ingest beside its raw baseline (DuckDB's own reader of the same files), first, in the same run
         for side in (["raw read"] if stage == "ingest" else []) + sides:
             db = workdir / side / "ws.duckdb"
-            if stage == "nightly" and not db.exists():  # a night reads lanes: any side's are the same (tested)
+            if stage in ("lanes", "nightly") and side != "sequential" and not db.exists():
+                # no workspace of its own (its ingest not run at this size): the sequential side's,
+                # whose lanes the run replaces (any side's tables are the same: tested)
                 db = workdir / "sequential" / "ws.duckdb"
             db.parent.mkdir(exist_ok=True)
             if stage == "ingest":
@@ -288,6 +291,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--workdir", type=Path, default=None, help="default: $TMPDIR/stormlane-scale-ROWS")
     ap.add_argument("--stages", default="ingest,lanes,nightly")
     ap.add_argument("--no-cluster", action="store_true", help="the sequential side only")
+    ap.add_argument("--sides", default="sequential,cluster", help="the sides to run, in this order")
     ap.add_argument("--no-write", action="store_true", help="do not record in bench/results-scale.json")
     ap.add_argument("--night-at", default=None, help="the night's time (ISO UTC; default: the AIS period's end)")
     a = ap.parse_args(argv)
@@ -295,7 +299,8 @@ def main(argv=None) -> dict:
 
     workdir = a.workdir or Path(tempfile.gettempdir()) / f"stormlane-scale-{a.rows}"
     out = run_scale(a.rows, workdir, a.vessels, a.workers, stages=tuple(s for s in a.stages.split(",") if s),
-                    cluster=not a.no_cluster, night_at=a.night_at)
+                    sides=("sequential",) if a.no_cluster else tuple(x for x in a.sides.split(",") if x),
+                    night_at=a.night_at)
     if not a.no_write:
         prev = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
         prev[str(a.rows)] = merge_entry(prev.get(str(a.rows)), out)
