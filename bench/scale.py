@@ -247,7 +247,7 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
     sides = list(sides)
     for stage in stages:
         # the ingest beside its raw baseline (DuckDB's own reader of the same files), first, in the same run
-        for side in (["raw read"] if stage == "ingest" else []) + sides:
+        for side in (["raw read"] if stage == "ingest" and "sequential" in sides else []) + sides:
             db = workdir / side / "ws.duckdb"
             if stage in ("lanes", "nightly") and side != "sequential" and not db.exists():
                 # no workspace of its own (its ingest not run at this size): the sequential side's,
