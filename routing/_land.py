@@ -191,7 +191,8 @@ def _disk_interval(ax, ay, az, bx, by, bz, d, px, py, pz, cos_rho):
 @njit(cache=True)
 def legs_ocean(lat, lon, berth_lat, berth_lon, berth_rho, ocean, r0, c0, ppd):
     """Per leg of a polyline (deg): True when the parts of its great circle farther than the
-    berth radius (angular, rad) from every berth touch no land pixel. bool (n - 1,)"""
+    berth radius (angular, rad) from every berth touch no land pixel; a leg of zero length (a
+    repeated point) is its point, tested as a leg (the same 0.02-pixel margin). bool (n - 1,)"""
     n = lat.size
     nb = berth_lat.size
     out = np.ones(max(n - 1, 0), dtype=np.bool_)
@@ -219,7 +220,7 @@ def legs_ocean(lat, lon, berth_lat, berth_lon, berth_rho, ocean, r0, c0, ppd):
                 e0, e1 = s0s[order[q]], s1s[order[q]]
             else:
                 e0, e1 = d, d
-            if e0 > s:
+            if e0 > s or (d == 0.0 and m == 0):  # a zero-length leg off every berth: its point
                 la_a, lo_a = _point_at(ax, ay, az, bx, by, bz, d, s)
                 la_b, lo_b = _point_at(ax, ay, az, bx, by, bz, d, e0)
                 if s == 0.0:

@@ -185,8 +185,7 @@ def repair_route(lat_deg, lon_deg, *, berths=None, spacing_deg: float = REPAIR_S
             continue
         path = sea_path(lat[k], lon[k], lat[k + 1], lon[k + 1], berths=berths, spacing_deg=spacing_deg)
         if path is None:
-            failed.append({"leg": k, "reason": f"no sea path from ({lat[k]:.4f}, {lon[k]:.4f}) to ({lat[k + 1]:.4f}, "
-                                                f"{lon[k + 1]:.4f}) on a {spacing_deg * 60:.2g}-nmi mesh around the leg"})
+            failed.append({"leg": k, "reason": _no_path_reason(lat[k], lon[k], lat[k + 1], lon[k + 1], berths, spacing_deg)})
             out_lat.append(lat[k + 1 : k + 2])
             out_lon.append(lon[k + 1 : k + 2])
             src.append(np.array([-1]))
@@ -200,3 +199,16 @@ def repair_route(lat_deg, lon_deg, *, berths=None, spacing_deg: float = REPAIR_S
         out_lon.append(plo[1:])
         src.append(np.r_[np.full(pla.size - 2, k), -1])
     return RepairResult(np.concatenate(out_lat), np.concatenate(out_lon), not failed, np.concatenate(src), repaired, failed)
+
+
+def _no_path_reason(lat1, lon1, lat2, lon2, berths, spacing_deg) -> str:
+    """Why :func:`sea_path` found nothing: an end that is not at sea by the one land check (its
+    pixel is land, or it lies within the check's 0.02-pixel margin of one: no leg can leave it),
+    else no connection within the mesh."""
+    off = [f"({la:.5f}, {lo:.5f})" for la, lo in ((lat1, lon1), (lat2, lon2))
+           if not land.legs_at_sea([la, la], [lo, lo], berths=berths)[0]]
+    if off:
+        return (f"no sea path: {' and '.join(off)} not at sea by the land check (on a land pixel of the 30\" "
+                f"mask, or within 0.02 pixel, about 18 m, of one: no leg can leave it)")
+    return (f"no sea path from ({lat1:.4f}, {lon1:.4f}) to ({lat2:.4f}, {lon2:.4f}) on a {spacing_deg * 60:.2g}-nmi "
+            f"mesh around the leg")

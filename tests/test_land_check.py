@@ -177,8 +177,33 @@ def test_astar_edges_use_the_same_check():
     assert checked > 5000 and refused > 200
 
 
+def _at_sea(lat, lon) -> bool:
+    """At sea by the one land check (a zero-length leg: its point with the check's margin)."""
+    return bool(land.legs_at_sea([lat, lat], [lon, lon], berths=())[0])
+
+
 def _sea_point(lat, lon) -> bool:
-    return bool(land_raster.is_ocean(lat, lon))
+    """Ocean to the pixel test and at sea by the land check (not within its 0.02-pixel margin of
+    a land pixel, where no leg can leave: test_a_point_on_a_land_pixel_edge_is_not_at_sea)."""
+    return bool(land_raster.is_ocean(lat, lon)) and _at_sea(lat, lon)
+
+
+def test_a_point_on_a_land_pixel_edge_is_not_at_sea():
+    # Found by the property test below: (39.53125, 2.6) lies exactly on the east edge of a land
+    # pixel (2.6 E = 312 pixels of 30"): ocean to the pixel test, but every leg from it comes
+    # within the land check's 0.02-pixel margin of that pixel. The land check says so for the
+    # point too (a zero-length leg was never tested: it passed even on land, e.g. in the
+    # Caspian, which the mask counts as land), and the repair names the point; 0.0002 deg
+    # (0.024 pixel) east, the same leg is repaired round Mallorca.
+    from routing.seapath import repair_route
+
+    assert land_raster.is_ocean(39.53125, 2.6) and not _at_sea(39.53125, 2.6) and _at_sea(40.0, 3.0)
+    assert not land_raster.is_ocean(42.0, 50.0) and not _at_sea(42.0, 50.0)
+    assert land.legs_at_sea([42.0, 42.0], [50.0, 50.0], berths=[(42.0, 50.0)])[0]  # a berth tolerates it
+    rr = repair_route([40.0, 39.53125], [3.0, 2.6], berths=())
+    assert not rr.sea_only and "no sea path: (39.53125, 2.60000) not at sea by the land check" in rr.reason
+    rr = repair_route([40.0, 39.53125], [3.0, 2.6002], berths=())
+    assert rr.sea_only and land_points(rr.lat_deg, rr.lon_deg) == 0
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
