@@ -13,7 +13,7 @@ TEST_WORKERS ?= 2
 export PREFECT_SERVER_ANALYTICS_ENABLED := false
 export DO_NOT_TRACK := 1
 
-.PHONY: demo test venv lint bench clean
+.PHONY: demo test fuzz venv lint bench clean
 
 # A PYTHON given on the command line must be the interpreter of an existing VENV.
 ifeq ($(origin PYTHON),command line)
@@ -42,6 +42,10 @@ test: $(STAMP)
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; }
 	$(VENV)/bin/lint-imports
 	STORMLANE_REQUIRE_BROWSER=1 $(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+
+# The property tests (Hypothesis) with new random examples each run (`make test` runs fixed ones).
+fuzz: $(STAMP)
+	$(PY) -m pytest -q --hypothesis-profile=explore $$(grep -l "@given" tests/test_*.py)
 
 # Every benchmark (bench/*.py through bench/_harness.py), within 30 min on 2 cores: writes
 # bench/results.json, README.md's benchmark table and docs/benchmarks.md.

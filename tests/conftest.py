@@ -10,6 +10,16 @@ import pytest
 os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
 os.environ.setdefault("DO_NOT_TRACK", "1")
 
+# Property tests (Hypothesis): `make test` (and CI) runs the same examples every time
+# ("derandomize": a failure is reproducible, and a pass is not luck); `make fuzz` draws new
+# random examples (`--hypothesis-profile=explore`), which is how the land check's edge-of-pixel
+# bug was found. A test's own @settings keep their example counts under either profile.
+from hypothesis import settings  # noqa: E402
+
+settings.register_profile("ci", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile("ci")
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("STORMLANE_SHARED_DATA", REPO_ROOT.parent / "shared" / "data"))
 
