@@ -25,8 +25,8 @@ from typing import Callable, Iterable, Optional
 from ais.clean import DEFAULT_MAX_SPEED_KN
 from ais.io.files import expand_paths, inspect
 from pipelines.ingest_stage import (
-    PlainCopiesAhead, check_inputs, loaded_record, plain_copy, skipped_counts, stage_file, stage_or_gzip_error,
-    wants_plain_copy,
+    PlainCopiesAhead, check_inputs, done_future, loaded_record, plain_copy, skipped_counts, stage_file,
+    stage_or_gzip_error, wants_plain_copy,
 )
 from pipelines.runners import retry_transient
 from thresholds.errors import StormlaneError
@@ -81,7 +81,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     try:
         if plain_ahead is not None:  # a truncated or corrupt gzip file raises here, named
             plain, fp = plain_ahead.result()
-            full = _done(fp + suffix)
+            full = done_future(fp + suffix)
         if store.quick_key_known(ws, quick):
             full = full or pool.submit(content_fingerprint)
             done = loaded_record(ws, f.path, suffix, quick, full)
@@ -105,7 +105,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
             # A large gzip CSV file: decompressed once into a plain copy beside the workspace
             # (hashed on the way: its fingerprint), which the fast stage reads.
             plain, fp = plain_copy(f, _scratch_folder(ws))
-            full = pool.submit(lambda: fp + suffix)
+            full = done_future(fp + suffix)
         elif full is None and f.gzip:
             # A gzip file's fingerprint reads the whole stream, which proves it complete: started
             # at once, beside the staging (whose gzip reading is single-threaded).
@@ -149,15 +149,6 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
                **meta.get("timings", {})}
     return {"path": str(f.path), "format": f.format, **counts, "already_loaded": False,
             "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping"), "timings": timings}
-
-
-def _done(value):
-    """A future already holding ``value``."""
-    from concurrent.futures import Future
-
-    fut = Future()
-    fut.set_result(value)
-    return fut
 
 
 def _remove(plain) -> None:

@@ -28,7 +28,8 @@ from pathlib import Path
 
 from ais.clean import DEFAULT_MAX_SPEED_KN
 from pipelines.ingest_stage import (
-    _Scratch, loaded_record, plain_copy, skipped_counts, stage_file, stage_or_gzip_error, wants_plain_copy,
+    _Scratch, done_future, loaded_record, plain_copy, skipped_counts, stage_file, stage_or_gzip_error,
+    wants_plain_copy,
 )
 
 log = logging.getLogger(__name__)
@@ -65,7 +66,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
     with ThreadPoolExecutor(max_workers=1) as pool:
         if wants_plain_copy(f):  # as the sequential ingest: inflated once (hashed on the way), then scanned
             plain, fp = plain_copy(f)
-            full = pool.submit(lambda: fp + suffix)
+            full = done_future(fp + suffix)
         else:  # the hash releases the GIL: it overlaps the staging
             full = pool.submit(lambda: fingerprint(f.path) + suffix)
         mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables

@@ -45,6 +45,16 @@ def wants_plain_copy(f: AisFile) -> bool:
                 and FAST_CSV_ENGINES)
 
 
+def done_future(value):
+    """A future already holding ``value`` (a fingerprint known before the staging: the plain
+    copy's, where the callers otherwise hold a future of one being computed)."""
+    from concurrent.futures import Future
+
+    fut = Future()
+    fut.set_result(value)
+    return fut
+
+
 def plain_copy(f: AisFile, folder=None) -> tuple[AisFile, str]:
     """Decompress the gzip file ``f`` into a temporary plain file in ``folder`` (default: the
     temporary folder) and hash the content on the way: returns the plain file (its
