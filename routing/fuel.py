@@ -63,6 +63,8 @@ DEFAULT_CORRIDOR = 0
 DEFAULT_FRONT_CAP = 16
 #: Arrival tolerance of the same-arrival reference (bisection on its constant setting). [h]
 ARRIVAL_TOL_H = 1.0 / 60.0
+#: Slowest constant setting of a same-arrival reference when no settings bound it (the audit's sailed track). [kn]
+REFERENCE_MIN_KN = 0.5
 
 
 class InfeasibleArrivalError(NoRouteError):
@@ -370,12 +372,18 @@ def retime_constant(mesh: Mesh, wx: WeatherArrays, ship: ShipModel, lat, lon, t_
     return evaluate_path(mesh, wx, s, lat, lon, t_start_h=t_h)[0]
 
 
-def same_arrival_reference(mesh: Mesh, wx: WeatherArrays, ship: ShipModel, lat, lon, t_h: float, arrive_h: float, engine: Engine):
+def same_arrival_reference(mesh: Mesh, wx: WeatherArrays, ship: ShipModel, lat, lon, t_h: float, arrive_h: float, engine: Engine,
+                           lo_kn: float = REFERENCE_MIN_KN):
     """The constant setting at which the polyline (the minimum-distance route) arrives at ``arrive_h``,
-    by bisection on the setting between 0.5 kn and the maximum-power speed (the arrival falls as the
+    by bisection on the setting between ``lo_kn`` and the maximum-power speed (the arrival falls as the
     setting rises). Returns ``(setting_kn, times_h, fuel_t)``, or None when no setting arrives
-    within :data:`ARRIVAL_TOL_H` of it (too early even at 0.5 kn, or too late at maximum power)."""
-    lo, hi = 0.5, max_power_speed_kn(engine)
+    within :data:`ARRIVAL_TOL_H` of it (too early even at ``lo_kn``, or too late at maximum power).
+
+    ``lo_kn``: the slowest setting the compared route may use (its lowest offered setting), so the reference is
+    sailed by the same model: below it a reference could beat a least-fuel route the settings forbid to sail as
+    slowly (a loose deadline: -15.5 % on a storm the least-fuel route waits out at its 10 kn floor while the
+    reference crawls through it at 7.9 kn)."""
+    lo, hi = float(lo_kn), max_power_speed_kn(engine)
     t_hi = retime_constant(mesh, wx, ship, lat, lon, t_h, hi)
     if t_hi[-1] > arrive_h + ARRIVAL_TOL_H:
         return None

@@ -26,7 +26,7 @@ import pandas as pd
 from routing.audit import _safety_key, not_proposable
 from routing.emissions import Engine
 from routing.errors import NoRouteError
-from routing.fuel import FuelSpec, fuel_summary, legs_fuel, max_power_speed_kn, same_arrival_reference
+from routing.fuel import REFERENCE_MIN_KN, FuelSpec, fuel_summary, legs_fuel, max_power_speed_kn, same_arrival_reference
 from routing.planner_fuel import fuel_routes
 from routing.planner_parts import make_route
 
@@ -101,10 +101,10 @@ def least_fuel_role(plan, vessel, arrive_utc) -> dict:
     return {"least_fuel": lf, "min_distance_same_arrival": None if ref is None else for_table(ref), "stats": stats, "error": None}
 
 
-def same_arrival_twin(plan, lat_deg, lon_deg, depart_utc, arrive_utc, engine, name: str):
+def same_arrival_twin(plan, lat_deg, lon_deg, depart_utc, arrive_utc, engine, name: str, lo_kn: float = REFERENCE_MIN_KN):
     """A polyline (the sailed track) sailed by the plan's vessel model at the one constant setting that arrives at
     ``arrive_utc`` (the voyage's real arrival; :func:`routing.fuel.same_arrival_reference`), or None when no setting
-    from 0.5 kn to the maximum-power speed does."""
+    from ``lo_kn`` (the compared least-fuel route's slowest setting) to the maximum-power speed does."""
     from routing.planner import _props_maker
 
     st = plan.stage
@@ -113,7 +113,8 @@ def same_arrival_twin(plan, lat_deg, lon_deg, depart_utc, arrive_utc, engine, na
     lon = lon + 360.0 * np.round((st.start[1] - lon) / 360.0)  # the mesh's longitude frame
     depart = pd.Timestamp(depart_utc)
     t0_h = st.wx.rel_h(int(depart.value))
-    ref = same_arrival_reference(st.mesh, st.wx, plan.ship, lat, lon, t0_h, st.wx.rel_h(int(pd.Timestamp(arrive_utc).value)), engine)
+    ref = same_arrival_reference(st.mesh, st.wx, plan.ship, lat, lon, t0_h, st.wx.rel_h(int(pd.Timestamp(arrive_utc).value)), engine,
+                                 lo_kn=lo_kn)
     if ref is None:
         return None
     s_kn, times, fuel_t = ref
@@ -237,7 +238,7 @@ def audit_least_fuel(plan, track, vessel, alts: dict, notes: list):
         return None
     alts["least_fuel"] = lf["least_fuel"]
     return same_arrival_twin(plan, track.lat_deg, track.lon_deg, track.time_utc[0], arrive, Engine.from_vessel(vessel),
-                             "as_sailed_same_arrival")
+                             "as_sailed_same_arrival", lo_kn=min(lf["stats"]["speeds_kn"]))
 
 
 def audit_least_fuel_saving(out: dict, twin, sampler, vessel, limits, speed_loss_model: str, learned=None) -> dict:

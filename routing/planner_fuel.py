@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from routing.astar import evaluate_path, search
-from routing.fuel import (FuelProblem, FuelSpec, InfeasibleArrivalError, corridor_edges, earliest_arrival_h, fuel_summary, least_fuel,
+from routing.fuel import (ARRIVAL_TOL_H, FuelProblem, FuelSpec, InfeasibleArrivalError, corridor_edges, earliest_arrival_h, fuel_summary, least_fuel,
                           fuel_rates_t_per_h, retime_constant, same_arrival_reference, saving_pct)
 from routing.planner_parts import make_route
 from routing.field import NS_PER_HOUR
@@ -194,7 +194,7 @@ def fuel_routes(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, props, *,
             f"the corridor of the time-optimal paths at every setting and the minimum-distance path (width {spec.corridor} nodes)"),
         **fuel_summary(fuel_t, engine),
     }
-    stats.update(_reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props))
+    stats.update(_reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props, min(spec.speeds_kn)))
     for name, r in routes.items():
         if "fuel_t" in r.properties:
             continue
@@ -222,13 +222,17 @@ def _setting_paths(st, prob) -> list:
         return list(pool.map(path, ships))
 
 
-def _reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props) -> dict:
-    """The same-arrival reference route (into ``routes``) and the saving against it."""
+def _reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props, lo_kn: float) -> dict:
+    """The same-arrival reference route (into ``routes``) and the saving against it: the minimum-distance route at the
+    one constant setting from the slowest offered one (``lo_kn``) to the maximum-power speed that arrives together."""
     md_lat, md_lon = st.polyline(md_nodes)
-    ref = same_arrival_reference(st.mesh, st.wx, st.req.ship, md_lat, md_lon, st.t0_h, arrive_h, engine)
+    ref = same_arrival_reference(st.mesh, st.wx, st.req.ship, md_lat, md_lon, st.t0_h, arrive_h, engine, lo_kn=lo_kn)
     if ref is None:
+        early_h = arrive_h - retime_constant(st.mesh, st.wx, st.req.ship, md_lat, md_lon, st.t0_h, lo_kn)[-1]
+        why = (f"even at the slowest setting offered, {lo_kn:g} kn, it arrives {early_h:.2f} h earlier"
+               if early_h > ARRIVAL_TOL_H else "not even at the maximum-power speed")
         return {"reference": None, "saving_pct": None,
-                "saving_note": "no constant setting sails the minimum-distance route to the same arrival: no saving shown"}
+                "saving_note": f"no constant setting sails the minimum-distance route to the same arrival ({why}): no saving shown"}
     s_ref, ref_times, ref_fuel = ref
     setting = [round(s_ref, 6)] * (ref_times.size - 1)
     routes["min_distance_same_arrival"] = make_route("min_distance_same_arrival", st.mesh, st.mw, md_lat, md_lon, ref_times, st.req.depart_utc,

@@ -347,3 +347,43 @@ def test_pareto_front_is_non_dominated_and_holds_the_least_fuel_route():
     assert len(front) >= 3 and arrive == sorted(arrive) and all(b < a for a, b in zip(fuel, fuel[1:]))
     chosen = [r for r in front if r.get("least_fuel")]
     assert len(chosen) == 1 and chosen[0]["fuel_t"] == pytest.approx(lf.properties["fuel_t"], rel=1e-6)
+
+
+def test_same_arrival_reference_sails_no_slower_than_the_slowest_setting_and_waits_are_said():
+    """A storm on the whole path for the first 12 h, calm after, a deadline 40 h ahead for 180 nmi: least fuel waits
+    the storm out and sails at its slowest setting (10 kn). The reference arriving with it would need 7.9 kn, a
+    setting the least-fuel route may not use: it beat least fuel by 15.5 % ('saving -15.50 %'). Now the reference
+    keeps to the offered settings' floor, so no saving is shown, and the output says the floor binds (waits count)."""
+    from pipelines.commands._route_fuel import slack_note
+    from pipelines.config import load_vessel
+    from routing.astar import ShipModel
+    from routing.field import WeatherField
+    from routing.planner import RouteRequest, plan_routes
+
+    field = zermelo_field(0.0, 0.0, hs=0.0)
+    hs = np.zeros((field.time_ns.size, field.lat_deg.size, field.lon_deg.size))
+    hs[:13] = 6.0  # head seas (from the east) for the first 12 h
+    field = WeatherField(field.time_ns, field.lat_deg, field.lon_deg, {"hs_m": hs, "wave_from_deg": np.full(hs.shape, 90.0)})
+    v = load_vessel("container-feeder")
+    req = RouteRequest((0.0, 0.0), (0.0, 3.0), pd.Timestamp("2024-01-01T00:00Z"), ShipModel.from_vessel(v, "bowditch"),
+                       spacing_deg=0.05, bbox=(-0.25, -0.25, 3.25, 0.25), edges=16, ignore_land=True, vessel_name=v.name)  # fmt: skip
+    spec = FuelSpec((10.0, 13.5, 17.0), Engine.from_vessel(v), arrive_by=pd.Timestamp("2024-01-02T16:00Z"))
+    plan = plan_routes(req, field, fuel=spec)
+    f, lf = plan.stats["fuel"], plan.routes["least_fuel"]
+    assert set(lf.properties["speed_setting_kn"]) == {0.0, 10.0}  # waits and the slowest setting
+    assert f["reference"] is None and "min_distance_same_arrival" not in plan.routes and f["saving_pct"] is None
+    assert "even at the slowest setting offered, 10 kn, it arrives" in f["saving_note"]
+    note = slack_note(plan)
+    assert note is not None and ", after waiting " in note and "slowest setting offered (10 kn)" in note
+
+
+@pytest.mark.parametrize("option", [("--speeds", ","), ("--speeds", "nan"), ("--speed-range", "5,inf")])
+def test_cli_empty_or_infinite_speeds_are_one_error_line(capsys, option):
+    """`--speeds ,` gave a traceback (ValueError: at least one speed setting is needed, exit 1); inf gave a numpy
+    warning and 'speed setting nan kn is not positive'."""
+    from cli_runner import run_cli
+
+    code, out, err = run_cli(capsys, "route", "--from", "10,0", "--to", "10,2", "--depart", "2021-03-01T06:00Z", "--ignore-land",
+                             "--objective", "fuel", *option)
+    assert code == 2 and err.startswith(f"error: Invalid value for {option[0]}: expected comma-separated finite speeds in knots")
+    assert len(err.strip().splitlines()) == 1

@@ -3,6 +3,8 @@ the table prints about the least-fuel route, its reference and the time-fuel fro
 
 from __future__ import annotations
 
+import math
+
 import typer
 
 OBJECTIVES = ("time", "fuel", "co2")
@@ -10,9 +12,12 @@ OBJECTIVES = ("time", "fuel", "co2")
 
 def _float_list(text: str, option: str) -> list[float]:
     try:
-        return [float(p) for p in str(text).split(",") if p.strip()]
+        out = [float(p) for p in str(text).split(",") if p.strip()]
     except ValueError:
-        raise typer.BadParameter(f"expected comma-separated speeds in knots, got {text!r}", param_hint=option) from None
+        out = []
+    if not out or not all(math.isfinite(x) for x in out):  # ',' gave a traceback; 'inf' a numpy warning and 'nan kn'
+        raise typer.BadParameter(f"expected comma-separated finite speeds in knots, got {text!r}", param_hint=option)
+    return out
 
 
 def fuel_spec(vessel, objective: str, speeds: str | None, speed_range: str | None, speed_steps: int | None, arrive_by: str | None,
@@ -63,21 +68,30 @@ def _corridor(text: str) -> int:
 
 
 def slack_note(plan) -> str | None:
-    """When the least-fuel route arrives well before the deadline because every leg already sails
-    at the slowest setting offered (the fuel per mile keeps falling with speed, so only the
-    settings' floor stops it), say so: the time left is the settings' limit, not the optimum's."""
+    """When the least-fuel route arrives well before the deadline, or waits on the way, because every leg already
+    sails at the slowest setting offered (the fuel per mile keeps falling with speed, so only the settings' floor
+    stops it), say so: the time left is the settings' limit, not the optimum's. The legs off the mesh's start and
+    goal nodes, sailed at the service speed whatever the settings, do not count."""
     f, route = plan.stats.get("fuel"), plan.routes.get("least_fuel")
     if not f or route is None or not f.get("deadline_utc") or not f.get("speeds_kn"):
         return None
-    import pandas as pd  # here, not at the top: `stormlane --help` imports this module
+    import numpy as np  # here, not at the top: `stormlane --help` imports this module
+    import pandas as pd
 
     slack_h = (pd.Timestamp(f["deadline_utc"]) - route.time_utc[-1]).total_seconds() / 3600.0
-    sailed = [float(s) for s in route.properties.get("speed_setting_kn") or [] if s > 0]
+    setting = np.asarray(route.properties.get("speed_setting_kn") or [], dtype=float)
+    leg_h = np.diff(route.time_utc.asi8) / 3.6e12
+    stage = getattr(plan, "stage", None)
+    first, last = int(bool(getattr(stage, "lead", False))), setting.size - int(bool(getattr(stage, "tail", False)))
+    setting, leg_h = setting[first:last], leg_h[first:last]
+    wait_h = float(leg_h[setting <= 0.0].sum()) if leg_h.size == setting.size else 0.0
+    sailed = setting[setting > 0.0]
     lowest = min(float(s) for s in f["speeds_kn"])
-    if slack_h < 1.0 / 60.0 or not sailed or max(sailed) > lowest + 1e-9:
+    if (slack_h < 1.0 / 60.0 and wait_h < 1.0 / 60.0) or not sailed.size or float(sailed.max()) > lowest + 1e-9:
         return None
-    return (f"least fuel arrives {slack_h:.2f} h before the deadline with every leg at the slowest setting offered "
-            f"({lowest:g} kn): lower --speeds or --speed-range would use that time")
+    waits = f", after waiting {wait_h:.2f} h on the way," if wait_h >= 1.0 / 60.0 else ""
+    return (f"least fuel arrives {slack_h:.2f} h before the deadline{waits} with every leg at the slowest setting offered "
+            f"({lowest:g} kn): lower --speeds or --speed-range {'could' if waits else 'would'} use that time")
 
 
 def echo_fuel(plan) -> None:
