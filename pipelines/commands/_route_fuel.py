@@ -81,7 +81,7 @@ def slack_note(plan) -> str | None:
     slack_h = (pd.Timestamp(f["deadline_utc"]) - route.time_utc[-1]).total_seconds() / 3600.0
     setting = np.asarray(route.properties.get("speed_setting_kn") or [], dtype=float)
     leg_h = np.diff(route.time_utc.asi8) / 3.6e12
-    stage = getattr(plan, "stage", None)
+    stage = getattr(plan, "stage", None) if f.get("least_fuel_from") == "search" else None  # a candidate sails one setting throughout
     first, last = int(bool(getattr(stage, "lead", False))), setting.size - int(bool(getattr(stage, "tail", False)))
     setting, leg_h = setting[first:last], leg_h[first:last]
     wait_h = float(leg_h[setting <= 0.0].sum()) if leg_h.size == setting.size else 0.0
