@@ -11,8 +11,9 @@ the vessel's limits at its own ETAs (:func:`routing.safety.limits_exposure`, ope
 IMO rules), and with a fuel objective the saving against that departure's own same-arrival reference
 (``saving_pct``, ``reference_fuel_t``: :mod:`routing.planner_fuel`); the best departure (least time for
 ``time``, least fuel otherwise; ties: the earlier) is marked. A departure no route serves (an arrival
-it cannot meet) is a row with its error, never
-dropped.
+it cannot meet, or a departure after the weather's last time, which `route --depart` refuses too) is a row
+with its error, never dropped; a route arriving after the last weather time has ``weather_held_after_h``
+(the hours sailed in the held last field), as a single plan's routes.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ def plan_window(req: RouteRequest, weather, times: list, *, objective: str = "ti
     place_ends(base)
     md = search(base.mesh, base.wx, req.ship, base.start_node, base.goal_node, cost="distance")
     exposure = _exposure(vessel, limits, base) if vessel is not None else None
+    end_ns = None if base.mw is None or base.wx.time0_ns is None else int(base.mw.end_ns)
 
     def one(when) -> dict:
         st = dataclasses.replace(base, req=dataclasses.replace(req, depart_utc=pd.Timestamp(when)), timings={}, notes=list(base.notes))
@@ -67,6 +69,9 @@ def plan_window(req: RouteRequest, weather, times: list, *, objective: str = "ti
             s_lat, s_lon = (float(x) for x in st.grid.node_latlon(st.start_node))
             st.t_node_h = float(evaluate_path(st.mesh, st.wx, req.ship, [st.start[0], s_lat], [st.start[1], s_lon], t_start_h=st.t0_h)[0][-1])
         row = {"depart_utc": st.req.depart_utc.isoformat()}
+        if end_ns is not None and st.req.depart_utc.value > end_ns:  # as `route --depart` refuses it: never routed in a held field
+            end = pd.Timestamp(end_ns, tz="UTC").isoformat()
+            return {**row, "route": None, "error": f"departure after the weather's last time {end}: not routed"}
         try:
             opt = search(st.mesh, st.wx, req.ship, st.start_node, st.goal_node, t_start_h=st.t_node_h, cost="time")
             routes = plain_routes(st, {"time": opt, "distance": md})
@@ -103,6 +108,8 @@ def _row(r, exposure) -> dict:
            "max_hs_m": None if np.isnan(r.max_hs_m) else round(r.max_hs_m, 4)}  # fmt: skip
     if exposure is not None:
         out["hours_over_limits"] = round(exposure(r)["hours_over_limits"], 4)
+    if r.properties.get("weather_held_after_h"):  # arrives after the last weather time: the last field was held
+        out["weather_held_after_h"] = r.properties["weather_held_after_h"]
     return out
 
 

@@ -387,3 +387,28 @@ def test_cli_empty_or_infinite_speeds_are_one_error_line(capsys, option):
                              "--objective", "fuel", *option)
     assert code == 2 and err.startswith(f"error: Invalid value for {option[0]}: expected comma-separated finite speeds in knots")
     assert len(err.strip().splitlines()) == 1
+
+
+def test_window_departure_after_the_weather_is_an_error_row_and_held_weather_is_said(capsys):
+    """`route --depart` refuses a departure after the weather's last time, but --depart-window routed it in the
+    held last field with no word (nor a word for the departures arriving after the weather's end)."""
+    from pipelines.commands._route_fuel import echo_window
+    from pipelines.config import load_vessel
+    from routing.astar import ShipModel
+    from routing.planner import RouteRequest
+    from routing.planner_window import plan_window
+
+    v = load_vessel("container-feeder")
+    req = RouteRequest((0.0, 0.0), (0.0, 3.0), pd.Timestamp("2024-01-02T12:00Z"), ShipModel.from_vessel(v, "bowditch"),
+                       spacing_deg=0.05, bbox=(-0.25, -0.25, 3.25, 0.25), edges=16, ignore_land=True, vessel_name=v.name)  # fmt: skip
+    times = [pd.Timestamp(t) for t in ("2024-01-02T12:00Z", "2024-01-02T20:00Z", "2024-01-03T04:00Z")]  # weather ends 01-03T00:00
+    res = plan_window(req, zermelo_field(), times)
+    first, held, after = res["rows"]
+    assert "weather_held_after_h" not in first and first["route"] == "optimal_smoothed"
+    end_h = (pd.Timestamp("2024-01-03T00:00Z") - pd.Timestamp(held["arrive_utc"])) / pd.Timedelta(hours=1)
+    assert held["weather_held_after_h"] == pytest.approx(-end_h, abs=1e-3) and held["weather_held_after_h"] > 1.0
+    assert after["route"] is None and after["error"] == "departure after the weather's last time 2024-01-03T00:00:00+00:00: not routed"
+    echo_window(res)
+    out = capsys.readouterr().out
+    assert f"note: the weather ends before arrival; its last field was held for the last {held['weather_held_after_h']:.2f} h of the " \
+           "2024-01-02T20:00:00+00:00 departure" in out

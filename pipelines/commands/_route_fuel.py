@@ -152,6 +152,9 @@ def echo_window(result: dict) -> None:
         typer.echo(f"{mark} {r['depart_utc']:<27}{r['arrive_utc']:<27}{r['time_h']:>8.2f}{r['dist_nmi']:>10.2f}{f_t:>9}{c_t:>9}{hs:>9}{over:>11}")
     import pandas as pd  # here, not at the top: `stormlane --help` imports this module
 
+    held = [f"{r['weather_held_after_h']:.2f} h of the {r['depart_utc']} departure" for r in result["rows"] if r.get("weather_held_after_h")]
+    if held:
+        typer.echo(f"note: the weather ends before arrival; its last field was held for the last {', '.join(held)}")
     arrivals = [pd.Timestamp(r["arrive_utc"]) for r in result["rows"] if r.get("arrive_utc")]
     if fuel and arrivals and max(arrivals) - min(arrivals) > pd.Timedelta(minutes=1):
         typer.echo("note: the departures arrive at different times: their fuel differences are not savings")
