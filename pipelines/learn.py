@@ -358,6 +358,19 @@ class SpeedLossChoice:
         except OutsideTraining as err:
             raise LearnError(f"--speed-loss {self.label}: {err}") from None
 
+    def check_settings(self, vessel, speeds_kn) -> None:
+        """The least-fuel search sails every speed setting with the table of the service speed (its speed ratios):
+        a setting outside the calm-water speeds the model saw for the vessel's class is refused as a vessel's speed
+        is (one ``error:`` line), never sailed by a model extrapolating beyond its data. Nothing for a formula."""
+        if self.learned_name is None or not len(speeds_kn):
+            return
+        for s in sorted({min(speeds_kn), max(speeds_kn)}):
+            try:
+                self.table(vessel, float(s))
+            except LearnError as err:
+                raise LearnError(f"{err} (the least-fuel speed setting {float(s):g} kn: give --speeds or --speed-range "
+                                 "within the speeds the model saw)") from None
+
     def ship(self, vessel, speed_kn: float | None = None, table=None, **kwargs):
         """The router's :class:`routing.astar.ShipModel` of ``vessel`` with this model (``table``: one
         already tabulated for this vessel and speed)."""

@@ -186,6 +186,8 @@ def test_route_with_the_learned_model_states_it_and_sails_slower_than_calm(world
     (["--speed-loss", "learned:fleet", "--speed-kn", "40"], "kn calm-water speed; this vessel's 40.0 lies outside"),
     (["--speed-loss", "learned:fleet", "--vessel", "container-large", "--speed-kn", "15"],
      "m length; this vessel's 320.0 lies outside"),
+    # least fuel sailed its default settings from 12.6 kn (60 % of 21) with the table, below every speed the model saw
+    (["--speed-loss", "learned:fleet", "--objective", "fuel"], "(the least-fuel speed setting 12.6 kn: give --speeds or --speed-range"),
 ])
 def test_route_refuses_a_learned_model_it_cannot_use(world, extra, message):
     vessel = [] if "--vessel" in extra else ["--vessel", "ro-pax"]

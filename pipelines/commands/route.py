@@ -124,6 +124,10 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
         ship_vessel, ship = _ship(vessel, speed_loss, learned, speed_kn, aertssen_bands, db)
         fspec = fuel_spec(ship_vessel, objective, speeds, speed_range, speed_steps, arrive_by, pareto, fuel_buckets, fuel_corridor)
+        if learned is not None and fspec is not None:  # every setting within the speeds the learned model saw
+            from pipelines.commands._common import speed_loss_choice
+
+            speed_loss_choice(speed_loss, db).check_settings(ship_vessel, fspec.speeds_kn)
         field = _weather_field(list(weather or []), t, () if ignore_land else (("start", start), ("goal", goal)))
         spacing = mesh_deg if mesh_deg is not None else (mesh_nmi / 60.0 if mesh_nmi is not None else None)
         req = RouteRequest(
