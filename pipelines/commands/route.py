@@ -124,10 +124,7 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
         ship_vessel, ship = _ship(vessel, speed_loss, learned, speed_kn, aertssen_bands, db)
         fspec = fuel_spec(ship_vessel, objective, speeds, speed_range, speed_steps, arrive_by, pareto, fuel_buckets, fuel_corridor)
-        if learned is not None and fspec is not None:  # every setting within the speeds the learned model saw
-            from pipelines.commands._common import speed_loss_choice
-
-            speed_loss_choice(speed_loss, db).check_settings(ship_vessel, fspec.speeds_kn)
+        _check_learned_settings(speed_loss, learned, db, ship_vessel, fspec)
         field = _weather_field(list(weather or []), t, () if ignore_land else (("start", start), ("goal", goal)))
         spacing = mesh_deg if mesh_deg is not None else (mesh_nmi / 60.0 if mesh_nmi is not None else None)
         req = RouteRequest(
@@ -191,6 +188,15 @@ def _ship(vessel: str | None, speed_loss: str, learned, speed_kn: float | None, 
     from pipelines.commands._common import speed_loss_choice
 
     return ship_vessel, speed_loss_choice(speed_loss, db).ship(ship_vessel, speed_kn=speed_kn)
+
+
+def _check_learned_settings(speed_loss: str, learned, db: Path, vessel, fspec) -> None:
+    """With a learned model, every least-fuel setting within the calm-water speeds it saw (one `error:` line)."""
+    if learned is None or fspec is None:
+        return
+    from pipelines.commands._common import speed_loss_choice
+
+    speed_loss_choice(speed_loss, db).check_settings(vessel, fspec.speeds_kn)
 
 
 def _weather_field(files: list[Path], depart_utc, points):
