@@ -157,7 +157,9 @@ table.matrix th, table.matrix td { padding:1px 4px; text-align:center; white-spa
 table.matrix th.dep { font-weight:normal; font-size:11px; line-height:1.1; }
 table.matrix td.route { text-align:left; max-width:260px; overflow:hidden; text-overflow:ellipsis; }
 table.matrix td a, .key { color:inherit; text-decoration:none; font-weight:bold; }
-.m-ok { background:#eef4f8; } .m-none { background:#fff; } .m0 { background:#d9d9d9; } .m-na { background:#f4f4f4; color:#777; }
+.m-ok { background:#eef4f8; } .m-part { background:#fff; color:#555; outline:1px dashed #8a9bb0; outline-offset:-2px; }
+p.warn { border-left:4px solid #d08c00; background:#fff8e6; padding:4px 8px; }
+.m-none { background:#fff; } .m0 { background:#d9d9d9; } .m-na { background:#f4f4f4; color:#777; }
 .m1 { background:#fee090; } .m2 { background:#fdae61; } .m3 { background:#f46d43; color:#fff; } .m4 { background:#a50026; color:#fff; }
 .m-fail { background:#000; color:#fff; }
 .key { display:inline-block; padding:0 5px; margin:0 2px; border:1px solid var(--line); font-weight:normal; }

@@ -142,6 +142,10 @@ def _cell(rec) -> Markup:
     status, case = rec["status"], rec["case"]
     when = fmt_time(rec["depart_utc"])
     if status == "ok":
+        beyond = rec.get("beyond", 0)
+        if beyond and not pd.isna(beyond):  # the screen could not check the part after the weather's last time
+            return el("td", "?", class_="m-part", title=f"{when}: no rule fired on the part with weather; {int(beyond)} centroid(s) "
+                                                          "after the weather's last time were not screened")
         return el("td", "", class_="m-ok", title=f"{when}: no rule fired")
     k = int(case) if case is not None and not pd.isna(case) else None
     if status == "failed":
@@ -180,7 +184,9 @@ def matrix(model: NightlyReport, rows: list[dict]) -> Markup:
     legend = el("p", "Cells: hours at risk avoided by the proposed route (",
                 *(el("span", label, class_=f"key {c}") for c, label in (("m1", "< 1 h"), ("m2", "1\u20133 h"), ("m3", "3\u20136 h"),
                                                                        ("m4", "\u2265 6 h"), ("m0", "0 h (other gains)"), ("m-na", "\u2013 no safer route"),
-                                                                       ("m-ok", "no rule fired"), ("m-fail", "failed"))),
+                                                                       ("m-ok", "no rule fired"),
+                                                                       ("m-part", "? no rule fired on the part with weather"),
+                                                                       ("m-fail", "failed"))),
                 "); letters: the proposed route, ", "; ".join(f"{role_short(k)} = {plots.label_for(k)}" for k in _roles_shown(model)),
                 ". Departure times UTC (day, hour). Worst at risk: the lane as planned, worst departure.", class_="muted small")
     return join([el("table", el("thead", head), el("tbody", *body), class_="matrix"), legend])
@@ -239,10 +245,28 @@ def overview(model: NightlyReport) -> Markup:
     figure = el("div", fleet_map(model, rows) if rows else Markup(""), class_="fleetbox") if rows else Markup("")
     sums = el("p", f"Sums over the proposed reroutes; \u0394 = proposed \u2212 {reference_text(model)} (negative time, fuel "
               "and CO2 are savings).", class_="muted small")
-    parts = [el("h2", "Overview", id="overview"), line, _cards(model), sums, el("div", figure, top, class_="overview-row")]
+    parts = [el("h2", "Overview", id="overview"), line, _cards(model), sums, *beyond_weather_note(model),
+             el("div", figure, top, class_="overview-row")]
     if rows:
         parts += [el("h3", "Lanes \u00d7 departures"), matrix(model, rows)]
     return join(parts)
+
+
+def beyond_weather_text(n: int, n_ok: int, end: str) -> str:
+    """What the night says (page, terminal) when lane-departures sail on after the weather's last
+    time: the screen could not check those centroids, which is never the same as safe."""
+    return (f"{n} lane-departure(s) sail on after the weather's last time ({end}): their centroids after it were not "
+            f"screened (no rule can fire without weather), so {n_ok} of them shown as 'no rule fired' were screened on "
+            "their part with weather only; time without weather is never counted as safe.")
+
+
+def beyond_weather_note(model: NightlyReport) -> list:
+    s = model.summary or {}
+    n = int(s.get("beyond_weather") or 0)
+    if not n:
+        return []
+    end = fmt_time(model.provenance.weather_end_utc) if model.provenance.weather_end_utc is not None else DASH
+    return [el("p", beyond_weather_text(n, int(s.get("beyond_weather_ok") or 0), end), class_="warn small")]
 
 
 def departure_windows(model: NightlyReport) -> Markup:

@@ -9,7 +9,7 @@ import typer
 
 from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption, TaskRunnerOption,
                                         check_output_dir, emit_json, paths_text, progress, vessel_option, weather_option,
-                                        xarray_without_dask_arrays)
+                                        warning, xarray_without_dask_arrays)
 
 #: Deployment name used by `stormlane schedule` (the flow is ``nightly-reroute``).
 DEPLOYMENT_NAME = "nightly"
@@ -89,7 +89,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Run one nightly reroute now: screen every lane x departure of the forecast window against the vessel's limits, reroute the adverse ones (cargo-safe deviation and time-optimal A*), evaluate, rank, store under a run id and write the report.
 
-        Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window the weather does not cover fails at once. With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes, lanes_at_risk, lanes_with_reroute), the sums over the proposed reroutes (risk_avoided_h, events_avoided, delta_time_h, delta_fuel_t, delta_co2_t: proposed minus the lane as planned), report, model, exports_zip, timings_s and the top-ranked lane-departures with the ranking key (risk_avoided_h): the figures of the report's overview.
+        Weather: --weather files or folders; --fetch (or download credentials configured) uses the real clients; otherwise the grid loaded in the workspace. A window whose departures the weather does not cover fails at once; voyages sailing on after the weather's last time are screened on their part with weather only, said in one warning line (beyond_weather in --json). With --json one object is printed: run_id, counts (lanes_checked, departures_checked, adverse, failed, reroutes, lanes_at_risk, lanes_with_reroute, beyond_weather, beyond_weather_ok), the sums over the proposed reroutes (risk_avoided_h, events_avoided, delta_time_h, delta_fuel_t, delta_co2_t: proposed minus the lane as planned), report, model, exports_zip, timings_s and the top-ranked lane-departures with the ranking key (risk_avoided_h): the figures of the report's overview.
 
         Example (the next 24 h of departures from a given time, with local forecast files):
 
@@ -117,6 +117,7 @@ def register(app: typer.Typer) -> None:
         with user_errors_one_line(hold_console=not _prefect_console_verbose()), progress("rerouting lanes") as advance:
             with reroute_progress(lambda done, total: advance(1 if done else 0, total=total)):
                 summary = flow_with_runner(task_runner)(**params.model_dump())
+        warn_beyond_weather(summary)
         if json_out:
             emit_json(summary)
             return
@@ -185,6 +186,20 @@ def register(app: typer.Typer) -> None:
 
 def _num(x, spec: str, unit: str = "") -> str:
     return "-" if x is None else f"{format(x, spec)}{unit}"
+
+
+def warn_beyond_weather(summary: dict) -> None:
+    """One ``warning:`` line when lane-departures sail on after the weather's last time (the
+    report's overview says the same): their centroids after it were not screened."""
+    n = int(summary.get("beyond_weather") or 0)
+    if n:
+        from dashboards.nightly_page import beyond_weather_text
+
+        from datetime import datetime
+
+        end = (summary.get("weather") or {}).get("end_utc")
+        end = datetime.fromisoformat(end).strftime("%Y-%m-%dT%H:%MZ") if end else "?"
+        warning(beyond_weather_text(n, int(summary.get("beyond_weather_ok") or 0), end))
 
 
 def print_summary(summary: dict) -> None:

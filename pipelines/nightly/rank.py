@@ -34,6 +34,7 @@ def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightR
     paths = {p.path_id: p for p in night.paths}
     cases = []
     dep_rows, route_rows, event_rows = [], [], []
+    beyond = {}
     for r in screen.to_dict("records"):
         key = (r["path_id"], pd.Timestamp(r["depart_utc"]))
         p = paths[r["path_id"]]
@@ -59,6 +60,9 @@ def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightR
             row["proposed"] = o["proposed"]
             row.update(_risk(o))
         dep_rows.append(row)
+        n_beyond = int(r.get("n_points_beyond_weather") or 0)
+        if n_beyond and status != "failed":
+            beyond[key] = {"n_points": int(r["n_points"]), "n_beyond": n_beyond, "status": status}
         if status in ("adverse", "failed"):
             cases.append({"row": row, "reasons": r["reasons"], "outcome": o if status == "adverse" else None})
 
@@ -98,7 +102,7 @@ def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightR
     }
     windows = sorted((o["lane_window"] for o in outcomes if o.get("lane_window")), key=lambda w: w["lane"])
     return NightResult(deps, pd.DataFrame(route_rows, columns=list(ROUTE_COLUMNS)),
-                       pd.DataFrame(event_rows, columns=list(EVENT_COLUMNS)), cases, counts, windows)
+                       pd.DataFrame(event_rows, columns=list(EVENT_COLUMNS)), cases, counts, windows, beyond)
 
 
 def overview_of(result: NightResult, top: int = 10) -> dict:
@@ -115,8 +119,13 @@ def overview_of(result: NightResult, top: int = 10) -> dict:
         return round(float(v.sum()), 6) if v.notna().any() else None
 
     ranked = d[d["rank"].notna()].sort_values("rank").head(top)
+    beyond = result.beyond_weather or {}
     return {
         **result.counts,
+        # sailing on after the weather's last time: those centroids were not screened (no rule
+        # can fire without weather), so an `ok` among these was screened on its part with weather only
+        "beyond_weather": len(beyond),
+        "beyond_weather_ok": sum(1 for b in beyond.values() if b["status"] == "ok"),
         "lanes_at_risk": int(adverse["path_id"].nunique()),
         "lanes_with_reroute": int(re["path_id"].nunique()),
         "risk_avoided_h": total("risk_avoided_h"),

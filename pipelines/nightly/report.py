@@ -167,6 +167,8 @@ def _grid(result: NightResult) -> pd.DataFrame:
         "risk_avoided_h": pd.to_numeric(d["risk_avoided_h"], errors="coerce").to_numpy(dtype=float),
         "proposed": [x if isinstance(x, str) else None for x in d["proposed"]],
         "case": pd.to_numeric(d["rank"], errors="coerce").to_numpy(dtype=float),
+        # centroids timed after the weather's last time (not screened): the matrix marks an `ok` cell with them
+        "beyond": [int(result.beyond_weather.get(k, {}).get("n_beyond", 0)) for k in keys],
     }).assign(depart_utc=lambda f: pd.to_datetime(f["depart_utc"], utc=True))
 
 

@@ -39,7 +39,10 @@ def screen_departures(night: Night) -> pd.DataFrame:
     -------
     DataFrame
         One row per (``path_id``, ``depart_utc``): ``n_points``, ``n_points_no_weather``
-        (beyond the forecast, on the weather's land cells, or off the grid), ``adverse``,
+        (beyond the forecast, on the weather's land cells, or off the grid), of them
+        ``n_points_beyond_weather`` (timed outside the weather's time span: no rule can fire there,
+        so a departure screened ``ok`` with such points was screened on its part with weather
+        only; the night says so), ``adverse``,
         ``rules`` (rule names, sorted), ``reasons`` (per rule: the worst centroid, its value
         against the limit, time and place), ``max_hs_m`` and the worst point, ``error`` (a path
         that could not be screened at all).
@@ -54,7 +57,7 @@ def screen_departures(night: Night) -> pd.DataFrame:
         if p.error or len(p.centroids) < 2:
             err = p.error or f"lane {p.lane_id} has {len(p.centroids)} centroid(s); at least 2 are needed"
             rows += [{"path_id": p.path_id, "depart_utc": t, "n_points": len(p.centroids), "n_points_no_weather": len(p.centroids),
-                      "adverse": False, "rules": [], "reasons": [], "max_hs_m": np.nan, "worst_time_utc": None,
+                      "n_points_beyond_weather": 0, "adverse": False, "rules": [], "reasons": [], "max_hs_m": np.nan, "worst_time_utc": None,
                       "worst_lat_deg": np.nan, "worst_lon_deg": np.nan, "error": err} for t in night.path_departures(p)]
             continue
         c = p.centroids.assign(path_id=p.path_id)
@@ -97,7 +100,7 @@ def screen_departures(night: Night) -> pd.DataFrame:
             ok = (g["status"] == "ok").to_numpy()
             hs = g["hs_m"].to_numpy(dtype=float)
             row = {"path_id": pid, "depart_utc": pd.Timestamp(dep), "n_points": len(g), "n_points_no_weather": int((~ok).sum()),
-                   "adverse": bool(g["fired_any"].any()), "rules": [], "reasons": [], "max_hs_m": np.nan, "worst_time_utc": None,
+                   "n_points_beyond_weather": int((g["status"] == "outside_time").sum()), "adverse": bool(g["fired_any"].any()), "rules": [], "reasons": [], "max_hs_m": np.nan, "worst_time_utc": None,
                    "worst_lat_deg": np.nan, "worst_lon_deg": np.nan, "error": None}
             if np.isfinite(hs).any():
                 k = int(np.nanargmax(hs))
@@ -121,7 +124,7 @@ def screen_departures(night: Night) -> pd.DataFrame:
                     "value": float(d["value"].iloc[j]), "limit": float(d["limit"].iloc[j]),
                 })
             rows.append(row)
-    out = pd.DataFrame(rows, columns=["path_id", "depart_utc", "n_points", "n_points_no_weather", "adverse", "rules", "reasons",
-                                      "max_hs_m", "worst_time_utc", "worst_lat_deg", "worst_lon_deg", "error"])
+    out = pd.DataFrame(rows, columns=["path_id", "depart_utc", "n_points", "n_points_no_weather", "n_points_beyond_weather", "adverse",
+                                      "rules", "reasons", "max_hs_m", "worst_time_utc", "worst_lat_deg", "worst_lon_deg", "error"])
     out["depart_utc"] = pd.to_datetime(out["depart_utc"], utc=True)
     return out.sort_values(["path_id", "depart_utc"], kind="stable").reset_index(drop=True)

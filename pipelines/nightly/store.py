@@ -58,7 +58,7 @@ def summary_of(night: Night, result: NightResult, report: dict | None, timings: 
                    "departures": len(night.departures)},
         **overview_of(result, top=top),
         "weather": {"source": night.weather_source, "product": str(night.weather_meta.get("product", "")),
-                    "digest": night.weather_digest[:16]},
+                    "digest": night.weather_digest[:16], "end_utc": _last_time(night.weather_ds)},
         "report": rep.get("report"),
         "model": rep.get("model"),
         "exports": rep.get("exports", 0),
@@ -70,3 +70,10 @@ def summary_of(night: Night, result: NightResult, report: dict | None, timings: 
         "reference": "lane: the lane as planned, sailed by the same vessel model (the lane's typical AIS speed minus the speed "
                      "loss) from the same departure in the same weather; every delta is proposed minus it",
     }
+
+
+def _last_time(ds) -> str | None:
+    """The weather's last time (ISO, UTC): a centroid timed after it was not screened."""
+    if ds is None or "time_utc" not in ds.coords or ds.sizes.get("time_utc", 0) == 0:
+        return None
+    return pd.Timestamp(ds["time_utc"].values[-1]).tz_localize("UTC").isoformat()
