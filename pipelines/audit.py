@@ -519,10 +519,15 @@ def store_audit(db, inputs: AuditInputs, result: dict, report: str | Path | None
             evaluations=result["evaluations"],
         )
     if report is not None:
+        from dashboards.model import report_to_json
         from dashboards.report import render_audit_report
 
-        path = render_audit_report(audit_model(inputs, result, None if speed_loss_model is None else str(speed_loss_model)), Path(report))
-        summary["report"] = str(path)
+        model = audit_model(inputs, result, None if speed_loss_model is None else str(speed_loss_model))
+        path = render_audit_report(model, Path(report))
+        # the model beside the page (as the nightly run's report.json): `stormlane report` re-renders it
+        model_path = path.with_suffix(".json") if path.suffix.lower() != ".json" else path.with_name(f"{path.stem}.model.json")
+        model_path.write_text(report_to_json(model), encoding="utf-8")
+        summary["report"], summary["model"] = str(path), str(model_path)
     return summary
 
 

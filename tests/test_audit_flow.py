@@ -119,7 +119,8 @@ def workspace(tmp_path_factory):
     return db
 
 
-def test_audit_of_a_voyage_through_the_storm(workspace, tmp_path):
+def test_audit_of_a_voyage_through_the_storm(workspace, tmp_path, capsys):
+    from cli_runner import run_cli
     from pipelines.audit import run_audit
     from pipelines.storage import open_workspace
     from pipelines.storage.results import read_audit_events, read_audit_routes
@@ -159,6 +160,11 @@ def test_audit_of_a_voyage_through_the_storm(workspace, tmp_path):
     assert (events["role"] == "as_sailed").any()
     html = report.read_text()
     assert "TEST &lt;b&gt;SHIP&lt;/b&gt;" in html and "<b>SHIP</b>" not in html
+    # the model beside the page (as a night's report.json): `stormlane report` renders the same page from it
+    assert out["model"] == str(tmp_path / "audit.json")
+    code, printed, err = run_cli(capsys, "report", "--model", out["model"], "--out", str(tmp_path / "again.html"), "--json")
+    assert (code, err) == (0, "") and json.loads(printed)["kind"] == "audit"
+    assert (tmp_path / "again.html").read_bytes() == report.read_bytes()
 
 
 def test_audit_cli_json_and_errors(workspace):

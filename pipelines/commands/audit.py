@@ -33,7 +33,7 @@ def register(app: typer.Typer) -> None:
         profile: Optional[str] = ProfileOption,
         speed_loss: str = SpeedLossOption,
         report: Optional[Path] = typer.Option(None, "--report", metavar="FILE.html", callback=lambda v: check_output_file(v, "--report"),
-                                              help="Also write the self-contained HTML audit report to this file."),
+                                              help="Also write the self-contained HTML audit report to this file, and its model beside it (FILE.json: `stormlane report --model` re-renders it)."),
         json_out: bool = JsonOption,
     ) -> None:
         """Evaluate a sailed voyage in the hindcast weather and compare it with the time-optimal and
@@ -105,3 +105,5 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"- {line}")
         if summary.get("report"):
             typer.echo(f"report: {summary['report']}")
+        if summary.get("model"):
+            typer.echo(f"model: {summary['model']} (`stormlane report --model` re-renders it)")
