@@ -500,7 +500,7 @@ def test_terminal_json_and_page_hold_the_same_overview(world, night, capsys):
     out = world["folder"] / "out"
     model = report_from_json((out / "report.json").read_text(encoding="utf-8"))
     keys = ("lanes_checked", "departures_checked", "adverse", "failed", "reroutes", "lanes_at_risk", "risk_avoided_h",
-            "events_avoided", "delta_time_h", "delta_fuel_t", "delta_co2_t")
+            "events_avoided", "delta_time_h", "delta_fuel_t", "delta_co2_t", "beyond_weather", "beyond_weather_ok")
     assert {k: model.summary[k] for k in keys} == {k: summary[k] for k in keys}
     # recomputed from the stored tables (not from the summary's own helper)
     d = t["departures"]
