@@ -205,6 +205,27 @@ def test_an_input_that_loads_nothing_says_why(tmp_path, capsys, shared_data):
     assert len(lines) == 1 and "nothing loaded" in lines[0] and "are not AIS sentences" in lines[0], err
 
 
+def test_files_skipped_in_a_folder_are_warning_lines_said_once(tmp_path, capsys, monkeypatch):
+    """A folder's hidden, empty and dangling files: one `warning:` line each, also on a terminal
+    (where the progress bar's byte count walked the folder a second time: every line came twice,
+    and none had the `warning:` prefix)."""
+    import pipelines.commands.ingest as ingest_cmd
+
+    folder = tmp_path / "ais"
+    folder.mkdir()
+    (folder / "a.csv").write_text("MMSI,BaseDateTime,LAT,LON,SOG,COG,Heading\n"
+                                  "367752440,2023-01-11T00:00:00,43.07917,-70.75733,0.0,360.0,95.0\n")
+    (folder / "empty.csv").write_text("")
+    (folder / ".hidden.csv").write_text("x")
+    (folder / "gone.csv").symlink_to(tmp_path / "missing.csv")
+    monkeypatch.setattr(ingest_cmd, "interactive", lambda: True)  # the progress bar's path, as on a terminal
+    main(["ingest-ais", str(folder), "--db", str(tmp_path / "ws.duckdb")])
+    err = [line for line in capsys.readouterr().err.splitlines() if "skipped" in line]
+    assert sorted(err) == sorted(f"warning: {folder / f}: {why} in {folder}, skipped"
+                                 for f, why in ((".hidden.csv", "hidden file"), ("empty.csv", "empty file"),
+                                                ("gone.csv", "link to nothing")))
+
+
 def test_cli_doc_lists_every_command():
     text = (REPO / "docs" / "cli.md").read_text(encoding="utf-8")
     for path in COMMANDS:

@@ -175,6 +175,25 @@ def warning(text: str) -> None:
     typer.echo(f"warning: {text}", err=True)
 
 
+@contextmanager
+def warnings_as_lines(logger: str):
+    """While the block runs, the WARNING records of ``logger`` (and its children) print as the
+    convention's ``warning:`` lines on stderr: without a handler, Python's last-resort handler
+    printed the bare message (``x/empty.csv: empty file in x, skipped``)."""
+    import logging
+
+    class _Lines(logging.Handler):
+        def emit(self, record):
+            warning(record.getMessage())
+
+    target, handler = logging.getLogger(logger), _Lines(logging.WARNING)
+    target.addHandler(handler)
+    try:
+        yield
+    finally:
+        target.removeHandler(handler)
+
+
 def interactive() -> bool:
     """Progress bars only when a person is watching."""
     return sys.stderr.isatty()

@@ -7,7 +7,8 @@ from typing import List, Optional
 
 import typer
 
-from pipelines.commands._common import DbOption, JsonOption, check_output_dir, emit_json, interactive, progress, warning
+from pipelines.commands._common import (DbOption, JsonOption, check_output_dir, emit_json, interactive, progress, warning,
+                                        warnings_as_lines)
 
 
 def register(app: typer.Typer) -> None:
@@ -49,7 +50,7 @@ def register(app: typer.Typer) -> None:
         \b
           stormlane ingest-ais ais/ more/aisdk-2025-01-14.csv.gz --db work/stormlane.duckdb
         """
-        from ais.io.files import FORMATS
+        from ais.io.files import FORMATS, expand_paths
         from pipelines.ingest import ingest_paths, nothing_loaded_reason, total_bytes
         from pipelines.runners import parse_task_runner
         from thresholds.errors import StormlaneError
@@ -58,12 +59,14 @@ def register(app: typer.Typer) -> None:
             raise StormlaneError(f"--format {fmt!r} is not one of {', '.join(FORMATS)}")
         kind, _ = parse_task_runner(task_runner)  # a bad spec fails here, before any work
         show = interactive() and not json_out
-        if kind == "sequential":
-            total = total_bytes(paths) if show else None
-            with progress("ingest AIS", total=total, enabled=show) as advance:
-                summary = ingest_paths(paths, db, fmt=fmt, max_speed_kn=max_speed_kn, progress=advance)
-        else:
-            summary = _run_partitioned(paths, db, fmt, max_speed_kn, task_runner, spool, show)
+        with warnings_as_lines("ais"):  # files skipped in a folder (hidden, empty, links to nothing)
+            paths = [str(f) for f in expand_paths(paths)]  # once: each skipped file is said once
+            if kind == "sequential":
+                total = total_bytes(paths) if show else None
+                with progress("ingest AIS", total=total, enabled=show) as advance:
+                    summary = ingest_paths(paths, db, fmt=fmt, max_speed_kn=max_speed_kn, progress=advance)
+            else:
+                summary = _run_partitioned(paths, db, fmt, max_speed_kn, task_runner, spool, show)
         per_file = summary.pop("per_file")
         for f in per_file:  # an input that loads nothing says why, in one line (also with --json)
             why = nothing_loaded_reason(f)
