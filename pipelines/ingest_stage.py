@@ -186,7 +186,8 @@ def check_inputs(files: list, fmt: str | None = None) -> None:
             elif f.format == "parquet" and not f.gzip:
                 if con is None:
                     con = duckdb.connect()
-                column_mapping([c for c, _ in store.parquet_columns(_Scratch(con), f.path)], f.path)
+                cols = store.parquet_columns(_Scratch(con), f.path)
+                column_mapping([c for c, _ in cols], f.path, types=dict(cols))
     finally:
         if con is not None:
             con.close()
@@ -229,8 +230,8 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
         from ais.io.parquet import column_mapping
 
         with _plain_file(f) as src:  # DuckDB reads Parquet from a plain file only
-            cols = [c for c, _ in store.parquet_columns(ws, src, shown=f.path)]
-            info = store.stage_parquet(ws, src, column_mapping(cols, f.path))
+            cols = store.parquet_columns(ws, src, shown=f.path)
+            info = store.stage_parquet(ws, src, column_mapping([c for c, _ in cols], f.path, types=dict(cols)))
     else:
         from ais.io.nmea import read_nmea
 

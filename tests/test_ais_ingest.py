@@ -355,6 +355,30 @@ def test_gzipped_parquet_loads_like_the_plain_file(tmp_path, workspace_path):
     assert ingest_paths([plain], workspace_path)["already_loaded"] == 1  # same content
 
 
+def test_a_parquet_time_column_of_numbers_is_one_error_naming_it(tmp_path, workspace_path):
+    """Epoch numbers are not times (seconds? milliseconds?): one error naming the column and its
+    type, nothing loaded; they used to be quarantined row by row as bad_time, the file said to
+    "have no time" (found by the acceptance sweep)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from ais.io.parquet import read_parquet_stage
+
+    epoch = tmp_path / "epoch.parquet"
+    pq.write_table(pa.table({"mmsi": [219000001] * 3, "time": [1735689600, 1735689660, 1735689720],
+                             "lat": [55.0, 55.001, 55.002], "lon": [11.0] * 3}), epoch)
+    gz = tmp_path / "epoch2.parquet.gz"
+    gz.write_bytes(gzip.compress(epoch.read_bytes()))
+    for path in (epoch, gz):
+        with pytest.raises(AisFormatError, match=r"Parquet column 'time' \(the time\) holds numbers \(BIGINT\), not times"):
+            ingest_paths([path], workspace_path)
+    with pytest.raises(AisFormatError, match=r"holds numbers"):  # the pure twin says the same
+        read_parquet_stage(epoch)
+    if workspace_path.exists():
+        with open_workspace(workspace_path) as ws:
+            assert len(read_files(ws)) == 0
+
+
 def test_repeated_header_lines_count_as_ignored(tmp_path):
     # Two files concatenated with their headers, and empty lines: lines = 1 + read + ignored.
     rows = [dma_row(f"01/01/2025 00:0{i}:00", "219000001", f"{55 + i * 0.001:.6f}", "11.0") for i in range(6)]

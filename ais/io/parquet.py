@@ -48,13 +48,21 @@ _FIELD_CODES = {"lat_deg": BAD_LAT, "lon_deg": BAD_LON, "sog_kn": BAD_SOG, "cog_
                 "heading_deg": BAD_HEADING, "nav_status": BAD_NAV_STATUS}
 
 
-def column_mapping(columns, path) -> dict[str, str]:
+#: Column types that hold numbers: a time column of one of these is refused (``column_mapping``).
+_NUMERIC_TYPES = ("INT", "DECIMAL", "DOUBLE", "FLOAT", "REAL", "NUMERIC")
+
+
+def column_mapping(columns, path, types: dict | None = None) -> dict[str, str]:
     """Stage field -> source column for the columns of a Parquet file.
+
+    ``types`` (column -> DuckDB type name), when given, is checked too: a time column of numbers
+    is refused, since epoch seconds, milliseconds and nanoseconds cannot be told apart (read as
+    times they quarantined every row as ``bad_time``, the file said to "have no time").
 
     Raises
     ------
     AisFormatError
-        When a required column (mmsi, time, lat, lon) is missing.
+        When a required column (mmsi, time, lat, lon) is missing, or the time column holds numbers.
     """
     lower = {c.lower(): c for c in columns}
     mapping = {}
@@ -74,6 +82,11 @@ def column_mapping(columns, path) -> dict[str, str]:
         raise AisFormatError(
             path, f"Parquet file lacks column(s) for {', '.join(missing)}; columns are {', '.join(columns)}{hint}"
         )
+    ttype = str((types or {}).get(mapping["time_utc"], "")).upper()
+    if any(k in ttype for k in _NUMERIC_TYPES):
+        raise AisFormatError(path, f"Parquet column {mapping['time_utc']!r} (the time) holds numbers ({ttype}), not times: "
+                                   "epoch seconds, milliseconds and nanoseconds cannot be told apart; store it as a "
+                                   "timestamp or as ISO 8601 text")
     return mapping
 
 
@@ -84,7 +97,8 @@ def read_parquet_stage(path) -> tuple[pd.DataFrame, dict]:
     path = Path(path)
     table = pq.read_table(path)
     df = table.to_pandas()
-    mapping = column_mapping(list(df.columns), path)
+    numeric = {c: "DOUBLE" for c in df.columns if pd.api.types.is_numeric_dtype(df[c]) and not pd.api.types.is_bool_dtype(df[c])}
+    mapping = column_mapping(list(df.columns), path, types=numeric)
     n = len(df)
     out = pd.DataFrame({"line": np.arange(1, n + 1, dtype=np.int64)})
     out["raw"] = df.astype(str).where(df.notna(), "").agg(",".join, axis=1) if n else []
