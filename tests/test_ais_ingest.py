@@ -444,7 +444,7 @@ def test_odd_paths(tmp_path, workspace_path, caplog):
     assert ingest_paths([d / ".b.csv"], workspace_path)["already_loaded"] == 1  # named alone: read (same content)
 
 
-@pytest.mark.parametrize("case", ["empty path", "foreign database", "truncated gzip"])
+@pytest.mark.parametrize("case", ["empty path", "foreign database", "truncated gzip", "truncated small gzip"])
 def test_cli_whole_file_errors_are_one_line(tmp_path, capsys, case):
     import duckdb
 
@@ -458,6 +458,10 @@ def test_cli_whole_file_errors_are_one_line(tmp_path, capsys, case):
         con.execute("CREATE TABLE ais_positions (x INTEGER)")
         con.close()
         args, expect = [str(write_dma(tmp_path / "a.csv"))], "is a DuckDB database but not a stormlane workspace"
+    elif case == "truncated small gzip":  # cut within the first 64 KiB the format check reads (it said Python's EOFError)
+        data = gzip.compress(write_dma(tmp_path / "a.csv").read_bytes())
+        (tmp_path / "s.csv.gz").write_bytes(data[: len(data) // 2])
+        args, expect = [str(tmp_path / "s.csv.gz")], "s.csv.gz: truncated gzip: the"
     else:
         data = gzip.compress(_big_dma(tmp_path / "big.csv").read_bytes())
         (tmp_path / "b.csv.gz").write_bytes(data[: len(data) // 3])

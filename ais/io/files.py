@@ -174,13 +174,22 @@ def quick_key(path: str | Path, n: int = 1 << 20) -> str:
     return "quick:" + h.hexdigest()
 
 
+def _unreadable(path, err: Exception) -> AisInputError:
+    """The one error for a file its first bytes could not be read from; a gzip file that ends
+    inside its member (EOFError) is said as :func:`gunzip_into` says it, not in Python's words."""
+    if isinstance(err, EOFError):
+        return AisInputError(path, f"truncated gzip: the {Path(path).stat().st_size:,}-byte file ends inside a compressed "
+                                   "member; a partial download or copy?")
+    return AisInputError(path, f"cannot read: {err}")
+
+
 def head_text(path: str | Path, n_bytes: int = 65536) -> str:
     """The first ``n_bytes`` of the (decompressed) content as text (undecodable bytes replaced)."""
     try:
         with open_binary(path) as fh:
             data = fh.read(n_bytes)
     except (OSError, EOFError) as err:
-        raise AisInputError(path, f"cannot read: {err}") from err
+        raise _unreadable(path, err) from err
     return data.decode("utf-8", errors="replace").lstrip("\ufeff")
 
 
@@ -205,7 +214,7 @@ def detect_format(path: str | Path) -> str:
         with open_binary(path) as fh:
             magic = fh.read(4)
     except (OSError, EOFError) as err:
-        raise AisInputError(path, f"cannot read: {err}") from err
+        raise _unreadable(path, err) from err
     if magic == PARQUET_MAGIC:
         return "parquet"
     text = head_text(path)
