@@ -112,7 +112,15 @@ def speed_settings(vessel, engine: Engine, speeds=None, speed_range=None, steps:
         k = int(steps or DEFAULT_SPEED_STEPS)
         if k < 1 or not (0.0 < lo <= hi):
             raise ValueError(f"speed range {lo:g}..{hi:g} kn with {k} steps is not a range of positive speeds")
-        out = sorted(set(np.minimum(np.round(np.linspace(lo, hi, k), 6), v_max).tolist()) | ({float(vessel.speed_kn)} if speed_range is None else set()))
+        if speed_range is not None and hi > v_max * (1.0 + 1e-9):
+            raise ValueError(f"speed range MAX {hi:g} kn is above vessel {vessel.name}'s maximum-power speed {v_max:.2f} kn "
+                             f"({engine.installed_power_kw:g} kW installed, {engine.design_speed_kn:g} kn at {engine.engine_load_frac:g} MCR)")
+        grid = np.round(np.linspace(lo, hi, k), 6)
+        if speed_range is None:  # the default range ends at the maximum-power speed: only its rounding is clipped
+            grid = np.minimum(grid, v_max)
+        # a given range is not clipped: a MAX above the maximum-power speed is refused below, as in --speeds (before: cut
+        # to it without a word, --speed-range 10,30 sailing 21.43 and 21.46 kn)
+        out = sorted(set(grid.tolist()) | ({float(vessel.speed_kn)} if speed_range is None else set()))
     for s in out:
         if not s > 0.0:
             raise ValueError(f"speed setting {s:g} kn is not positive")

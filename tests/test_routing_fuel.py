@@ -259,6 +259,8 @@ def test_cli_fuel_objective_json_and_errors(capsys):
     assert code == 2 and err.startswith("error: no route arrives by 2021-03-01T08:00:00+00:00: the earliest possible arrival is 2021-03-01T1")
     code, out, err = run_cli(capsys, *base, "--objective", "fuel", "--speeds", "10,30")
     assert code == 2 and "above vessel container-feeder's maximum-power speed 21.46 kn" in err
+    code, out, err = run_cli(capsys, *base, "--objective", "fuel", "--speed-range", "10,30")  # was cut to 21.46 kn without a word
+    assert code == 2 and "speed range MAX 30 kn is above vessel container-feeder's maximum-power speed 21.46 kn" in err
     code, out, err = run_cli(capsys, *base, "--arrive-by", "2021-03-01T08:00Z")
     assert code == 2 and "apply with --objective fuel|co2" in err
 
