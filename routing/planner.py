@@ -452,6 +452,11 @@ def plan_routes(
 
         with _Clock(st.timings, "search_fuel"):
             safety_stats["fuel"] = fuel_routes(st, routes, results["time"].nodes, results["distance"].nodes, fuel, _props_maker(st))
+        if spec.mode != "none":
+            from routing.planner_fuel import FUEL_ROUTE_NAMES
+            from routing.planner_safe import fuel_routes_exposure
+
+            fuel_routes_exposure(spec, st, routes, FUEL_ROUTE_NAMES)
     st.timings["total_s"] = _time.perf_counter() - t_all
     st.timings["total_cpu_s"] = _time.process_time() - c_all
     stats = {

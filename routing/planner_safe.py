@@ -74,6 +74,21 @@ def _search_with_fallback(spec: SafetySpec, flags: _Flags, start_node, goal_node
         return flags.search(start_node, goal_node, t_node_h), fallback
 
 
+def fuel_routes_exposure(spec: SafetySpec, st, routes: dict, names) -> None:
+    """The least-fuel route and its reference judged like every route of a safety plan: hours over the limits at their
+    own ETAs (:func:`routing.safety.limits_exposure`, the same weather on the mesh). The least-fuel search does not avoid
+    the limits, so a table beside the safe routes must show what it meets (before: an empty column)."""
+    mesh, mw, wx = st.mesh, st.mw, st.wx
+
+    def weather_at(times, lat, lon):
+        t_h = (pd.DatetimeIndex(times).asi8 - (wx.time0_ns or 0)) / NS_PER_HOUR
+        return sample_weather(mesh, mw, lat, lon, t_h)
+
+    for name in names:
+        if name in routes:
+            routes[name].properties.update(limits_exposure(routes[name], weather_at, spec))
+
+
 def safe_routes(spec: SafetySpec, req, mesh, mw, wx, routes: dict, timings: dict, *, start_node, goal_node, t_node_h, t0_h,
                 polyline, props) -> dict:
     """Add ``safe_optimal`` and ``safe_optimal_smoothed`` to ``routes`` and the hours over the limits

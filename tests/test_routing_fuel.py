@@ -351,26 +351,38 @@ def test_pareto_front_is_non_dominated_and_holds_the_least_fuel_route():
     assert len(chosen) == 1 and chosen[0]["fuel_t"] == pytest.approx(lf.properties["fuel_t"], rel=1e-6)
 
 
+def storm_request(storm_h: int = 12):
+    """(request, field): 0,0 -> 0,3 (180 nmi), container feeder, 6 m head seas for the first ``storm_h`` hours, calm after."""
+    from pipelines.config import load_vessel
+    from routing.astar import ShipModel
+    from routing.field import WeatherField
+    from routing.planner import RouteRequest
+
+    field = zermelo_field(0.0, 0.0, hs=0.0)
+    hs = np.zeros((field.time_ns.size, field.lat_deg.size, field.lon_deg.size))
+    hs[: storm_h + 1] = 6.0  # head seas (from the east)
+    field = WeatherField(field.time_ns, field.lat_deg, field.lon_deg, {"hs_m": hs, "wave_from_deg": np.full(hs.shape, 90.0)})
+    v = load_vessel("container-feeder")
+    req = RouteRequest((0.0, 0.0), (0.0, 3.0), pd.Timestamp("2024-01-01T00:00Z"), ShipModel.from_vessel(v, "bowditch"),
+                       spacing_deg=0.05, bbox=(-0.25, -0.25, 3.25, 0.25), edges=16, ignore_land=True, vessel_name=v.name)  # fmt: skip
+    return req, field
+
+
+def storm_spec():
+    from pipelines.config import load_vessel
+
+    return FuelSpec((10.0, 13.5, 17.0), Engine.from_vessel(load_vessel("container-feeder")), arrive_by=pd.Timestamp("2024-01-02T16:00Z"))
+
+
 def test_same_arrival_reference_sails_no_slower_than_the_slowest_setting_and_waits_are_said():
     """A storm on the whole path for the first 12 h, calm after, a deadline 40 h ahead for 180 nmi: least fuel waits
     the storm out and sails at its slowest setting (10 kn). The reference arriving with it would need 7.9 kn, a
     setting the least-fuel route may not use: it beat least fuel by 15.5 % ('saving -15.50 %'). Now the reference
     keeps to the offered settings' floor, so no saving is shown, and the output says the floor binds (waits count)."""
     from pipelines.commands._route_fuel import slack_note
-    from pipelines.config import load_vessel
-    from routing.astar import ShipModel
-    from routing.field import WeatherField
-    from routing.planner import RouteRequest, plan_routes
+    from routing.planner import plan_routes
 
-    field = zermelo_field(0.0, 0.0, hs=0.0)
-    hs = np.zeros((field.time_ns.size, field.lat_deg.size, field.lon_deg.size))
-    hs[:13] = 6.0  # head seas (from the east) for the first 12 h
-    field = WeatherField(field.time_ns, field.lat_deg, field.lon_deg, {"hs_m": hs, "wave_from_deg": np.full(hs.shape, 90.0)})
-    v = load_vessel("container-feeder")
-    req = RouteRequest((0.0, 0.0), (0.0, 3.0), pd.Timestamp("2024-01-01T00:00Z"), ShipModel.from_vessel(v, "bowditch"),
-                       spacing_deg=0.05, bbox=(-0.25, -0.25, 3.25, 0.25), edges=16, ignore_land=True, vessel_name=v.name)  # fmt: skip
-    spec = FuelSpec((10.0, 13.5, 17.0), Engine.from_vessel(v), arrive_by=pd.Timestamp("2024-01-02T16:00Z"))
-    plan = plan_routes(req, field, fuel=spec)
+    plan = plan_routes(*storm_request(), fuel=storm_spec())
     f, lf = plan.stats["fuel"], plan.routes["least_fuel"]
     assert set(lf.properties["speed_setting_kn"]) == {0.0, 10.0}  # waits and the slowest setting
     assert f["reference"] is None and "min_distance_same_arrival" not in plan.routes and f["saving_pct"] is None
@@ -414,3 +426,19 @@ def test_window_departure_after_the_weather_is_an_error_row_and_held_weather_is_
     out = capsys.readouterr().out
     assert f"note: the weather ends before arrival; its last field was held for the last {held['weather_held_after_h']:.2f} h of the " \
            "2024-01-02T20:00:00+00:00 departure" in out
+
+
+def test_least_fuel_beside_the_safe_routes_has_its_hours_over_the_limits():
+    """--safety with --objective fuel: least_fuel and its reference had no hours over the limits (an empty column
+    beside the safe routes), though the least-fuel search does not avoid them; here it waits in 6 m seas, over the
+    feeder's 4.5 m Hs limit, so its hours are real, and a note says it does not avoid them."""
+    from pipelines.commands._route_fuel import limits_note
+    from pipelines.config import load_operator_profile, load_vessel
+    from routing.planner import plan_routes
+
+    req, field = storm_request()
+    plan = plan_routes(req, field, safety="soft", vessel=load_vessel("container-feeder"), limits=load_operator_profile(None), fuel=storm_spec())
+    lf, opt = plan.routes["least_fuel"].properties, plan.routes["optimal"].properties
+    assert lf["hours_over_limits"] > 1.0 and opt["hours_over_limits"] > 1.0 and "hs" in lf["hours_by_rule"]
+    assert "hours_over_limits" in plan.routes["optimal_smoothed"].properties
+    assert limits_note(plan).startswith("the least-fuel search does not avoid the vessel's limits")

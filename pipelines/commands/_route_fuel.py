@@ -94,15 +94,23 @@ def slack_note(plan) -> str | None:
             f"({lowest:g} kn): lower --speeds or --speed-range {'could' if waits else 'would'} use that time")
 
 
+def limits_note(plan) -> str | None:
+    """Beside the safe routes (``--safety``), that the least-fuel route does not avoid the limits (its hours over them
+    are in the table, judged like every route's)."""
+    if not plan.stats.get("safety") or "least_fuel" not in plan.routes:
+        return None
+    return "the least-fuel search does not avoid the vessel's limits: least_fuel's hours over them are evaluated like every route's"
+
+
 def echo_fuel(plan) -> None:
     """The least-fuel summary under the route table: the deadline, the search's gap, the reference and the saving, the front."""
     f = plan.stats["fuel"]
     first, second = ("co2_t", "fuel_t") if f["objective"] == "co2" else ("fuel_t", "co2_t")
     typer.echo(f"least {first[:-2]}: {f[first]:.3f} t ({second[:-2]} {f[second]:.3f} t), arriving by {f['deadline_utc']} "
                f"({f['deadline_source']}); settings {', '.join(f'{s:g}' for s in f['speeds_kn'])} kn; from {f['least_fuel_from']}")
-    slack = slack_note(plan)
-    if slack is not None:
-        typer.echo(f"note: {slack}")
+    for extra in (slack_note(plan), limits_note(plan)):
+        if extra is not None:
+            typer.echo(f"note: {extra}")
     if f.get("lower_bound_fuel_t") is not None:
         gap = f"gap {f['gap_pct']:.2f} %" if f.get("gap_pct") is not None else f"no gap: {f['bound_note']}"
         typer.echo(f"search: {f['graph']}; lower bound {f['lower_bound_fuel_t']:.3f} t fuel over mesh routes at the offered "

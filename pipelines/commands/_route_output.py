@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import emit_json
-from pipelines.commands._route_fuel import echo_fuel, slack_note
+from pipelines.commands._route_fuel import echo_fuel, limits_note, slack_note
 
 
 def show_plan(plan, vessel, ship, *, safety: str, fuel: bool, learned: bool, out: Path | None, json_out: bool) -> None:
@@ -19,6 +19,8 @@ def show_plan(plan, vessel, ship, *, safety: str, fuel: bool, learned: bool, out
     notes += _snap_notes(plan)
     if fuel and (slack := slack_note(plan)) is not None:
         notes.append(slack)
+    if fuel and (limits := limits_note(plan)) is not None:
+        notes.append(limits)
     held = {name: h for name in names if (h := plan.routes[name].properties.get("weather_held_after_h"))}
     if held:
         notes.append("the weather ends before arrival; its last field was held for the last "
