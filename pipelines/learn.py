@@ -222,7 +222,8 @@ def beside_operator_limits(voluntary: list[dict], profile: str | None = None, ve
                      "learned_hs_m": None if head is None else head["threshold_hs_m"],
                      "learned_interval_hs_m": [head["from_hs_m"], head["to_hs_m"]] if head and head["threshold_hs_m"] is not None else None,
                      "learned_sectors": found,
-                     "why_none": None if head is None else head.get("why")})
+                     # a class the model never saw: nothing was looked for (not "none found", which reads as evidence)
+                     "why_none": f"the model holds no {cls} ships" if cls not in by_class else None if head is None else head.get("why")})
     return rows
 
 
@@ -247,7 +248,9 @@ def learned_limits(db, name: str | None = None, *, profile: str | None = None, v
 def limit_line(r: dict) -> str:
     """One row of :func:`beside_operator_limits` in words."""
     op = "none" if r["operator_hs_max_m"] is None else f"Hs {r['operator_hs_max_m']:.2f} m"
-    if r["learned_hs_m"] is None:
+    if r["learned_hs_m"] is None and str(r.get("why_none") or "").startswith("the model holds no "):
+        got = f"not learned: {r['why_none']}"
+    elif r["learned_hs_m"] is None:
         got = "no voluntary slow-down found in head-to-bow seas" + (f" ({r['why_none']})" if r.get("why_none") else "")
     else:
         got = f"masters slow down above Hs {r['learned_hs_m']:.2f} m in head-to-bow seas (0-60 deg)"

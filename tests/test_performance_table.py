@@ -180,3 +180,16 @@ def test_scores_are_r2_mae_and_bias_in_knots():
     assert got["n"] == 3 and got["mae_kn"] == pytest.approx(1.0) and got["bias_kn"] == pytest.approx(1.0)
     assert got["r2_speed"] == pytest.approx(1.0 - 3.0 / 8.0)
     assert got["r2_loss"] == pytest.approx(1.0 - 3.0 / 8.0)
+
+
+def test_a_class_the_model_never_saw_is_not_learned_rather_than_none_found():
+    """`nightly --speed-loss learned:pax` (a model of passenger ships only) on tanker lanes printed 'tanker
+    (tanker-aframax): no voluntary slow-down found in head-to-bow seas', evidence the model never had."""
+    from pipelines.config import load_vessel
+    from pipelines.learn import beside_operator_limits, limit_line
+
+    voluntary = [{"ship_class": "passenger", "sector": "head-bow", "threshold_hs_m": 3.5, "from_hs_m": 3.4, "to_hs_m": 3.6}]
+    rows = beside_operator_limits(voluntary, None, [load_vessel("tanker-aframax"), load_vessel("ro-pax")])
+    tanker, pax = rows
+    assert tanker["learned_hs_m"] is None and limit_line(tanker).startswith("tanker (tanker-aframax): not learned: the model holds no tanker ships;")
+    assert limit_line(pax).startswith("passenger (ro-pax): masters slow down above Hs 3.50 m")

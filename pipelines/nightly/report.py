@@ -102,7 +102,8 @@ def _vessels(night: Night) -> list[dict]:
         if name in learned:  # beside the configured limits: evidence, not a limit
             r = learned[name]
             shown[f"AIS voluntary slow-down ({beside['model']}, {r['ship_class']})"] = (
-                "none found" if r["learned_hs_m"] is None else f"above Hs {r['learned_hs_m']:.2f} m, head-to-bow seas")
+                f"not learned: {r['why_none']}" if str(r.get("why_none") or "").startswith("the model holds no ")
+                else "none found" if r["learned_hs_m"] is None else f"above Hs {r['learned_hs_m']:.2f} m, head-to-bow seas")
         out.append({"name": name, "lanes": lanes.get(name, 0),
                     "thresholds_profile": f"{getattr(night.limits, 'name', '')}: {getattr(limits, 'name', '')}".strip(": "),
                     "limits": shown,
