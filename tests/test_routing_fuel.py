@@ -442,3 +442,22 @@ def test_least_fuel_beside_the_safe_routes_has_its_hours_over_the_limits():
     assert lf["hours_over_limits"] > 1.0 and opt["hours_over_limits"] > 1.0 and "hs" in lf["hours_by_rule"]
     assert "hours_over_limits" in plan.routes["optimal_smoothed"].properties
     assert limits_note(plan).startswith("the least-fuel search does not avoid the vessel's limits")
+
+
+def test_no_reference_note_names_the_real_cause(monkeypatch):
+    """Marseille -> Alger in the demo's storm B (tanker-aframax, --arrive-by 2025-02-02T00:00Z): the minimum-distance
+    route at 13.740 kn arrives 36.047 h out, at 13.745 kn 35.958 h (a leg's sailing time changes in steps with the
+    weather's quarter-hour pieces), least fuel at 35.996 h between: no reference, and the note said 'not even at the
+    maximum-power speed', which was false. Here the bisection's failure is simulated at an arrival that the slowest
+    setting and the maximum-power speed bracket (no such jump on this small synthetic field): the note names the jump."""
+    import routing.planner_fuel as pf
+    from routing.fuel import retime_constant
+    from routing.planner import _props_maker, plan_routes
+
+    plan = plan_routes(*storm_request(), fuel=storm_spec())
+    st = plan.stage
+    lat, lon = st.polyline(st.paths["distance"])
+    arrive_h = retime_constant(st.mesh, st.wx, st.req.ship, lat, lon, st.t0_h, 12.6)[-1]
+    monkeypatch.setattr(pf, "same_arrival_reference", lambda *a, **k: None)
+    out = pf._reference(st, dict(plan.routes), st.paths["distance"], arrive_h, 1.0, storm_spec().engine, _props_maker(st), 10.0)
+    assert out["reference"] is None and "its arrival jumps across that time as the constant setting varies" in out["saving_note"]
