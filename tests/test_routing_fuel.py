@@ -461,3 +461,19 @@ def test_no_reference_note_names_the_real_cause(monkeypatch):
     monkeypatch.setattr(pf, "same_arrival_reference", lambda *a, **k: None)
     out = pf._reference(st, dict(plan.routes), st.paths["distance"], arrive_h, 1.0, storm_spec().engine, _props_maker(st), 10.0)
     assert out["reference"] is None and "its arrival jumps across that time as the constant setting varies" in out["saving_note"]
+
+
+def test_window_refuses_the_options_of_one_departure_and_takes_a_profile(capsys, tmp_path):
+    """--depart-window with --out wrote nothing and exited 0; --safety and --pareto were dropped without a word; and
+    --profile (the limits of the window's hours over them) was refused for want of --safety."""
+    from cli_runner import run_cli
+
+    base = ["route", "--from", "10,0", "--to", "10,2", "--mesh-deg", "0.25", "--ignore-land", "--vessel", "container-feeder",
+            "--depart-window", "2021-03-01T06:00Z/2021-03-01T09:00Z", "--step-h", "3"]
+    code, out, err = run_cli(capsys, *base, "--out", str(tmp_path / "w.geojson"))
+    assert code == 2 and "--out applies to one --depart, not to --depart-window" in err and not (tmp_path / "w.geojson").exists()
+    code, out, err = run_cli(capsys, *base, "--safety", "hard", "--objective", "fuel", "--pareto")
+    assert code == 2 and "--safety, --pareto apply to one --depart" in err
+    code, out, err = run_cli(capsys, *base, "--profile", "default", "--json")
+    assert code == 0, err
+    assert len(json.loads(out)["rows"]) == 2

@@ -115,11 +115,10 @@ A speed-loss model outside its published range is refused (Khokhlov: 4 000-20 00
         if operator is not None:
             note("--operator is deprecated: use --profile")
             profile = profile or operator
-        if profile is not None and safety == "none":
-            raise typer.BadParameter("--profile applies with --safety soft|hard", param_hint="--profile")
         start, goal = _latlon(from_, "--from"), _latlon(to, "--to")
         box = _floats(bbox, 4, "LONMIN,LATMIN,LONMAX,LATMAX", "--bbox") if bbox else None
         window, t = _departures(depart, depart_window, step_h)
+        _check_window_options(window, out, safety, pareto, profile)
 
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
         ship_vessel, ship = _ship(vessel, speed_loss, learned, speed_kn, aertssen_bands, db)
@@ -161,6 +160,20 @@ def _check_choices(mesh_nmi, mesh_deg, edges: int, speed_loss: str, learned, aer
         raise typer.BadParameter(f"{aertssen_bands!r} is not one of {', '.join(AERTSSEN_BANDS)}", param_hint="--aertssen-bands")
     if safety not in SAFETY_MODES:
         raise typer.BadParameter(f"{safety!r} is not one of {', '.join(SAFETY_MODES)}", param_hint="--safety")
+
+
+def _check_window_options(window, out, safety: str, pareto: bool, profile) -> None:
+    """Options of one departure's plan refused with --depart-window, which ranks the departures (rows only): before,
+    --out wrote nothing and --safety/--pareto were dropped without a word. --profile names the limits of the window's
+    hours over them; for one departure it applies with --safety."""
+    if window is not None:
+        given = [name for name, v in (("--out", out), ("--safety", None if safety == "none" else safety), ("--pareto", pareto or None))
+                 if v is not None]
+        if given:
+            raise typer.BadParameter(f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to one --depart, not to --depart-window (a table of departures): "
+                                     "route the chosen departure with --depart", param_hint="--depart-window")
+    elif profile is not None and safety == "none":
+        raise typer.BadParameter("--profile applies with --safety soft|hard", param_hint="--profile")
 
 
 def _departures(depart: str | None, depart_window: str | None, step_h: float | None):
