@@ -44,6 +44,11 @@ def test_parameters_are_validated_before_the_run():
         NightlyParams(step_h=0)
     with pytest.raises(ValidationError, match="ISO 8601"):
         NightlyParams(now="tomorrow")
+    from pipelines.nightly.night import NightlyError
+
+    with pytest.raises(NightlyError) as err:  # the CLI's one line: the field once, no "Value error,"
+        NightlyParams.checked(now="now")
+    assert str(err.value) == "invalid nightly parameters: now: 'now' is not an ISO 8601 time"
     with pytest.raises(TaskRunnerError, match="sequential, dask or dask:ADDRESS"):
         make_task_runner("threads")
     assert type(make_task_runner("sequential")).__name__ == "ThreadPoolTaskRunner"
@@ -222,3 +227,16 @@ def test_cli_progress_bar_without_a_total_renders(capsys):
     with progress("reading weather", enabled=True) as advance:
         advance(2)  # "2/?" while the total is unknown
     assert capsys.readouterr().err.strip() == ""
+
+
+def test_a_tiny_negative_delta_is_zero_not_minus_zero():
+    """The least-fuel route arrives at the lane's time to within 1e-9 h: its delta printed as
+    "-0.0 h" on the terminal and -0.0 in the JSON, "+0.0 h" on the page."""
+    import math
+
+    from pipelines.commands.nightly import _num
+    from pipelines.nightly.rank import _num as json_num
+
+    assert _num(-7.3e-10, "+.1f", " h") == "+0.0 h" and _num(-0.04, ".1f") == "0.0" and _num(-0.06, "+.1f") == "-0.1"
+    assert json_num(-7.3e-10) == 0.0 and math.copysign(1.0, json_num(-7.3e-10)) == 1.0 and json_num(-2.5) == -2.5
+

@@ -185,7 +185,12 @@ def register(app: typer.Typer) -> None:
 
 
 def _num(x, spec: str, unit: str = "") -> str:
-    return "-" if x is None else f"{format(x, spec)}{unit}"
+    if x is None:
+        return "-"
+    text = format(x, spec)
+    if text.startswith("-") and float(text) == 0.0:  # a tiny negative rounds to "-0.0": the page says "+0.0"
+        text = format(0.0, spec)
+    return f"{text}{unit}"
 
 
 def warn_beyond_weather(summary: dict) -> None:

@@ -99,8 +99,16 @@ class NightlyParams(BaseModel):
         try:
             return cls(**kwargs)
         except ValidationError as err:
-            problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in err.errors())
+            problems = "; ".join(_problem(e) for e in err.errors())
             raise NightlyError(f"invalid nightly parameters: {problems}") from None
+
+
+def _problem(e: dict) -> str:
+    """One of pydantic's errors as ``field: what`` (without its "Value error, " and without the
+    field named twice: it said ``now: Value error, now: 'now' is not an ISO 8601 time``)."""
+    loc = ".".join(map(str, e["loc"]))
+    msg = str(e["msg"]).removeprefix("Value error, ")
+    return msg if msg.startswith(f"{loc}: ") else f"{loc}: {msg}"
 
 
 def parse_utc(text, what: str = "time") -> pd.Timestamp:

@@ -116,7 +116,7 @@ def overview_of(result: NightResult, top: int = 10) -> dict:
 
     def total(col):
         v = pd.to_numeric(re[col], errors="coerce")
-        return round(float(v.sum()), 6) if v.notna().any() else None
+        return round(float(v.sum()), 6) + 0.0 if v.notna().any() else None
 
     ranked = d[d["rank"].notna()].sort_values("rank").head(top)
     beyond = result.beyond_weather or {}
@@ -146,4 +146,4 @@ def overview_of(result: NightResult, top: int = 10) -> dict:
 
 
 def _num(x) -> float | None:
-    return None if x is None or pd.isna(x) else round(float(x), 6)
+    return None if x is None or pd.isna(x) else round(float(x), 6) + 0.0  # + 0.0: no -0.0 in the JSON
