@@ -235,6 +235,22 @@ _NMEA_TIME_HINT = (": NMEA needs a tag block with a c: time (\\c:1736899200*hh\\
                    "a plain receiver log without either cannot be placed in time")
 
 
+def _time_layout_hint(fmt: str | None) -> str:
+    """What a CSV or Parquet file's times must look like: its rows "have no time" said alone read
+    as if the column were empty when it held times in another layout (``...T00:00:00Z``, month-first)."""
+    if fmt == "parquet":
+        return " readable as a timestamp or ISO 8601 text within 1990-2099"
+    from datetime import datetime
+
+    from ais.io.csv_formats import SPECS
+
+    spec = SPECS.get(fmt)
+    if spec is None or not spec.time_formats:
+        return ""
+    shown = " or ".join(f"'{datetime(2025, 1, 31, 23, 59, 0).strftime(f)}'" for f in spec.time_formats)
+    return f" readable in the {fmt} layout ({shown}, UTC) within 1990-2099"
+
+
 def nothing_loaded_reason(counts: dict) -> str | None:
     """Why a file loaded no position at all, in one line; None when it loaded some, was loaded
     before, or held no AIS record (that is the caller's ``ignored`` count).
@@ -256,7 +272,8 @@ def nothing_loaded_reason(counts: dict) -> str | None:
     template = _FILE_LEVEL_WHY.get(code)
     if template:
         hint = _NMEA_TIME_HINT if (code == "bad_time" and nmea) else (
-            f" (is it really {counts.get('format')}?)" if code in ("bad_sentence", "bad_line") else "")
+            f" (is it really {counts.get('format')}?)" if code in ("bad_sentence", "bad_line") else
+            _time_layout_hint(counts.get("format")) if code == "bad_time" else "")
         head = template.format(n=f"{n:,}", read=f"{read:,}", unit="messages" if nmea else "rows", hint=hint)
     else:
         from ais.clean import REASONS

@@ -205,6 +205,20 @@ def test_an_input_that_loads_nothing_says_why(tmp_path, capsys, shared_data):
     assert len(lines) == 1 and "nothing loaded" in lines[0] and "are not AIS sentences" in lines[0], err
 
 
+def test_a_file_of_times_in_another_layout_says_which_layout_it_needs(tmp_path, capsys):
+    """Its rows have times, in a layout the format does not read: "have no time" alone read as
+    if the column were empty (found by the acceptance sweep)."""
+    zulu = tmp_path / "zulu.csv"
+    zulu.write_text("MMSI,BaseDateTime,LAT,LON,SOG,COG,Heading\n"
+                    "367752440,2023-01-11T00:00:00Z,43.07917,-70.75733,0.0,360.0,95.0\n"
+                    "367752440,2023-01-11T00:01:00Z,43.07917,-70.75733,0.0,360.0,95.0\n")
+    main(["ingest-ais", str(zulu), "--db", str(tmp_path / "ws.duckdb"), "--json"])
+    out, err = capsys.readouterr()
+    assert json.loads(out)["reasons"] == {"bad_time": 2}
+    assert err == (f"warning: {zulu}: nothing loaded: 2 of its 2 rows have no time readable in the noaa layout "
+                   "('2025-01-31T23:59:00' or '2025-01-31 23:59:00', UTC) within 1990-2099\n")
+
+
 def test_files_skipped_in_a_folder_are_warning_lines_said_once(tmp_path, capsys, monkeypatch):
     """A folder's hidden, empty and dangling files: one `warning:` line each, also on a terminal
     (where the progress bar's byte count walked the folder a second time: every line came twice,
