@@ -29,3 +29,15 @@ def test_another_scenario_size_starts_a_new_entry():
     old = _entry(100, [{"stage": "ingest", "side": "sequential", "wall_s": 1.0}])
     new = _entry(101, [{"stage": "lanes", "side": "sequential", "wall_s": 2.0}])
     assert merge_entry(old, new) == new and merge_entry(None, new) == new
+
+
+def test_warm_inputs_reads_every_gzip_file_once(tmp_path):
+    # Every daily file's bytes, and nothing else of the folder, pass through the read.
+    from bench.scale import warm_inputs
+
+    sizes = {"aisdk-2025-01-01.csv.gz": 3, "aisdk-2025-01-02.csv.gz": (8 << 20) + 5}
+    for name, n in sizes.items():
+        (tmp_path / name).write_bytes(b"x" * n)
+    (tmp_path / "scenario.json").write_bytes(b"{}" * 100)
+    n_bytes, seconds = warm_inputs(tmp_path)
+    assert n_bytes == sum(sizes.values()) and seconds >= 0
