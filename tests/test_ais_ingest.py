@@ -115,8 +115,14 @@ def test_invalid_utf8_is_read_with_replacement(tmp_path, workspace_path):
 def test_format_detection_forcing_and_errors(tmp_path, workspace_path):
     junk = tmp_path / "notes.csv"
     junk.write_text("hello,world\n1,2\n")
-    with pytest.raises(AisFormatError, match=r"notes.csv:1: unknown AIS format"):
+    with pytest.raises(AisFormatError, match=r"notes.csv:1: unknown AIS format \(first line: 'hello,world'\)"):
         ingest_paths([junk], workspace_path)
+    binary = tmp_path / "image.csv"  # bytes, not text: said so, not printed as a garbled "first line"
+    binary.write_bytes(bytes((i * 37 + 11) % 256 for i in range(3000)))
+    with pytest.raises(AisFormatError, match=r"image.csv:1: unknown AIS format \(binary content: \d+ of its first \d+ "
+                                             r"characters are not text\)") as err:
+        ingest_paths([binary], workspace_path)
+    assert "\ufffd" not in str(err.value)
     with pytest.raises(AisInputError, match="no such file"):
         ingest_paths([tmp_path / "missing.csv"], workspace_path)
     # Forcing NOAA on a DMA file: the header lacks the NOAA columns -> clear error naming them.

@@ -229,10 +229,15 @@ def detect_format(path: str | Path) -> str:
         return "noaa"
     if {"timestamp", "mmsi", "latitude", "longitude"} <= names:
         return "dma"
-    shown = first if len(first) <= 120 else first[:117] + "..."
+    head = first[:200]
+    garbled = sum(1 for ch in head if ch == "\ufffd" or (ord(ch) < 32 and ch != "\t"))
+    if garbled > max(2, len(head) // 10):  # not text: say so rather than print the bytes as a "line"
+        shown = f"binary content: {garbled} of its first {len(head)} characters are not text"
+    else:
+        shown = "first line: " + repr(first if len(first) <= 120 else first[:117] + "...")
     raise AisFormatError(
         path,
-        f"unknown AIS format (first line: {shown!r}); expected a DMA CSV header ('# Timestamp,...,MMSI,"
+        f"unknown AIS format ({shown}); expected a DMA CSV header ('# Timestamp,...,MMSI,"
         "Latitude,Longitude,...'), a NOAA MarineCadastre header ('MMSI,BaseDateTime,...'), NMEA "
         "sentences ('!AIVDM,...') or Parquet; use --format to force one",
         line=1,
