@@ -64,7 +64,8 @@ def register(app: typer.Typer) -> None:
         formula and the learned model against its AIS time); bands (with learned:NAME: P10/P50/P90 time
         and fuel of the reference and the proposed route); least_fuel_saving (fuel_t, reference: the sailed
         track at the constant setting meeting the AIS arrival, reference_fuel_t, saving_pct or saving_note,
-        proposal: why least_fuel was or was not proposed); findings.
+        proposal: why least_fuel was or was not proposed); findings; with --report, report and model
+        (the HTML file and its model, FILE.json, which `stormlane report --model` re-renders).
 
         Example (a ship through a storm, between two times):
 
