@@ -193,10 +193,10 @@ def planned_words(diff: dict | None, planned_t) -> str:
             f"ends' weather when the ship leaves them), most on {legs})")
 
 
-def fuel_saving(evaluations: dict, role: str, reference, reference_words: str, engine) -> dict:
+def fuel_saving(evaluations: dict, role: str, reference, reference_words: str, engine, why_none: str | None = None) -> dict:
     """The fuel and CO2 saving of ``role`` against ``reference`` (a RouteEvaluation arriving at the same time),
     both evaluated by the same model in the same weather: ``saving_fuel_t`` and ``saving_pct`` (reference minus route,
-    positive = less fuel), or ``saving_note`` why none is shown (no reference, or the route arrives later: a
+    positive = less fuel), or ``saving_note`` why none is shown (no reference: ``why_none`` when given, or the route arrives later: a
     difference at different arrival times is never a saving), and ``planned_vs_evaluated``
     (:func:`planned_difference` with the vessel's ``engine``: required, so that no caller drops that line)."""
     s = evaluations[role].summary
@@ -204,8 +204,8 @@ def fuel_saving(evaluations: dict, role: str, reference, reference_words: str, e
     out = {"fuel_t": round(float(s["fuel_t"]), 6), "co2_t": round(float(s["co2_t"]), 6), "arrive_utc": evaluations[role].route.time_utc[-1].isoformat(),
            "planned_fuel_t": None if planned is None else round(float(planned), 6), "reference": reference_words,
            "planned_vs_evaluated": planned_difference(evaluations[role], engine)}
-    if reference is None:
-        return {**out, "saving_pct": None, "saving_note": f"no {reference_words}: no saving shown"}
+    if reference is None:  # why_none: the plan's own reason (routing.planner_fuel), else the reference named
+        return {**out, "saving_pct": None, "saving_note": why_none or f"no reference ({reference_words}): no saving shown"}
     late_h = (evaluations[role].route.time_utc[-1] - reference.route.time_utc[-1]).total_seconds() / 3600.0
     rf = float(reference.summary["fuel_t"])
     out.update(reference_fuel_t=round(rf, 6), reference_arrive_utc=reference.route.time_utc[-1].isoformat())

@@ -477,3 +477,19 @@ def test_window_refuses_the_options_of_one_departure_and_takes_a_profile(capsys,
     code, out, err = run_cli(capsys, *base, "--profile", "default", "--json")
     assert code == 0, err
     assert len(json.loads(out)["rows"]) == 2
+
+
+def test_fuel_saving_without_a_reference_says_why_in_words():
+    """The night's least-fuel note read 'no the minimum-distance route at a constant setting arriving at the same time:
+    no saving shown'; now the plan's own reason when it has one, else the reference named."""
+    from types import SimpleNamespace
+
+    from routing.least_fuel_role import fuel_saving
+
+    ev = SimpleNamespace(summary={"fuel_t": 5.0, "co2_t": 15.6}, route=SimpleNamespace(
+        properties={}, time_utc=pd.DatetimeIndex([pd.Timestamp("2025-01-01T00:00Z"), pd.Timestamp("2025-01-01T10:00Z")])))
+    words = "the minimum-distance route at a constant setting arriving at the same time"
+    out = fuel_saving({"least_fuel": ev}, "least_fuel", None, words, ENGINE)
+    assert out["saving_pct"] is None and out["saving_note"] == f"no reference ({words}): no saving shown"
+    why = "no constant setting sails the minimum-distance route to the same arrival (...): no saving shown"
+    assert fuel_saving({"least_fuel": ev}, "least_fuel", None, words, ENGINE, why_none=why)["saving_note"] == why

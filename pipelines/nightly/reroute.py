@@ -194,7 +194,7 @@ def least_fuel_outcome(lf: dict, evs: dict, proposed, sampler, vessel, job: Lane
     if ref is not None:
         ref = evaluate_route(_clean_route(ref), sampler, vessel, limits=job.limits, speed_loss_model=job.speed_loss, learned=job.learned)
         words = f"the minimum-distance route at a constant {ref.route.properties['planned_setting_kn'][0]:.2f} kn arriving at the same time"
-    out = fuel_saving(evs, "least_fuel", ref, words, Engine.from_vessel(vessel))
+    out = fuel_saving(evs, "least_fuel", ref, words, Engine.from_vessel(vessel), why_none=lf["stats"].get("saving_note"))
     out["arrive_by_utc"] = evs["least_fuel"].route.properties.get("arrive_by_utc")
     out["proposal"] = proposal_words(evs, "least_fuel", proposed, REFERENCE)
     out["note"] = least_fuel_note(out, out["proposal"], LIMITS_NOTE, evs["least_fuel"].route.properties.get("speed_cap"))
