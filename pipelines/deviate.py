@@ -97,21 +97,29 @@ def check_lane_meets_weather(evaluation: dict, lane: pd.DataFrame, lane_id: str,
 
 
 def not_safer_note(lane: dict, deviation: dict) -> str | None:
-    """The note saying the deviation is not safer than the lane, or None.
+    """The note saying the deviation is less safe than the lane, or None.
 
-    Not safer = more hours over the limits or in IMO situations (``adverse_h``), or a higher max
-    Hs, than the lane, by more than 0.05. ``lane`` and ``deviation`` are the evaluation summaries
-    (``RouteEvaluation.to_dict()``). The table output and ``--json`` (``"note"``) both carry it.
+    Less safe by the rule that ranks proposals (:func:`routing.audit.safety_order`): more hours
+    over the limits or in IMO situations (``adverse_h``), else more IMO events, else a max Hs
+    higher by more than :data:`routing.audit.HS_TIE_M`. ``lane`` and ``deviation`` are the
+    evaluation summaries (``RouteEvaluation.to_dict()``). The table output and ``--json``
+    (``"note"``) both carry it.
     """
-    worse = [what for what, key in (("more hours over the limits or in IMO situations", "adverse_h"), ("a higher max Hs", "max_hs_m"))
-             if deviation.get(key) is not None and lane.get(key) is not None and deviation[key] > lane[key] + 0.05]
-    if not worse:
+    from routing.audit import ADVERSE_TIE_H, safety_order
+
+    if lane.get("adverse_h") is None or deviation.get("adverse_h") is None or safety_order(deviation, lane) <= 0:
         return None
+    if deviation["adverse_h"] > lane["adverse_h"] + ADVERSE_TIE_H:
+        worse = "more hours over the limits or in IMO situations"
+    elif deviation.get("n_safety_events", 0) > lane.get("n_safety_events", 0):
+        worse = "more IMO events"
+    else:
+        worse = "a higher max Hs"
 
     def num(x, fmt):
         return "n/a" if x is None or x != x else format(x, fmt)
 
-    return (f"the deviation meets {' and '.join(worse)} than the lane ({num(deviation.get('adverse_h'), '.1f')} h against "
+    return (f"the deviation meets {worse} than the lane ({num(deviation.get('adverse_h'), '.1f')} h against "
             f"{num(lane.get('adverse_h'), '.1f')} h; max Hs {num(deviation.get('max_hs_m'), '.2f')} against "
             f"{num(lane.get('max_hs_m'), '.2f')} m): Algorithm 1 looks one step ahead at a time; compare the safe "
             "time-optimal route (`stormlane route --safety hard`)")

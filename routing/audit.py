@@ -193,38 +193,65 @@ def not_proposable(summary: dict, reference: dict) -> str | None:
 def propose(evaluations: dict, reference: str = AS_SAILED_MODELLED) -> str | None:
     """The alternative to recommend: safer than the reference, else faster at no extra risk.
 
-    Safer means fewer hours over the operator limits plus IMO events (``adverse_h``), then fewer
-    IMO events, then a lower maximum Hs. An alternative that is not safer may still be proposed
-    when it is as safe (same adverse hours and events, max Hs not higher) and faster. Routes that
-    are not sea-only or have more hours without weather than the reference are never proposed
-    (:func:`not_proposable`); nor are the reference's own siblings (``as_sailed``). ``None``
-    when no alternative improves on the reference.
+    Safer (:func:`safety_order`) means fewer hours over the operator limits plus IMO events
+    (``adverse_h``), then fewer IMO events, then a maximum Hs lower by more than
+    :data:`HS_TIE_M`. An alternative that is not safer may still be proposed when it is as safe
+    and faster. Among the alternatives that qualify, the safest is proposed, and of those as safe
+    as it (within the same tolerance) the fastest. Routes that are not sea-only or have more
+    hours without weather than the reference are never proposed (:func:`not_proposable`); nor
+    are the reference's own siblings (``as_sailed``). ``None`` when no alternative improves on
+    the reference.
     """
     ref = evaluations.get(reference)
     if ref is None:
         return None
     r = ref.summary
-    key = _safety_key
     skip = {reference, AS_SAILED, AS_SAILED_MODELLED, "historical", "lane"}
-    best, best_key = None, None
+    qualified = []
     for role in [x for x in PREFERENCE if x in evaluations] + sorted(set(evaluations) - set(PREFERENCE) - skip):
         s = evaluations[role].summary
         if not_proposable({**s, **{k: v for k, v in evaluations[role].route.properties.items() if k == "not_proposed"}}, r):
             continue
-        k = key(s)
-        safer = k < key(r)
-        as_safe_faster = k <= key(r) and s["time_h"] < r["time_h"] - 1e-6
-        if not (safer or as_safe_faster):
+        order = safety_order(s, r)
+        if order < 0 or (order == 0 and s["time_h"] < r["time_h"] - 1e-6):
+            qualified.append(role)
+    best = None
+    for role in qualified:  # in preference order: the first of equals stays
+        s = evaluations[role].summary
+        if best is None:
+            best = role
             continue
-        cand = (k, s["time_h"])
-        if best is None or cand < best_key:
-            best, best_key = role, cand
+        order = safety_order(s, evaluations[best].summary)
+        if order < 0 or (order == 0 and s["time_h"] < evaluations[best].summary["time_h"] - 1e-6):
+            best = role
     return best
 
 
-def _safety_key(s: dict) -> tuple:
-    """What "safer" compares (:func:`propose`): adverse hours, then IMO events, then the highest Hs."""
-    return (round(s["adverse_h"], 6), s["n_safety_events"], round(s["max_hs_m"], 3) if np.isfinite(s["max_hs_m"]) else np.inf)
+#: Maximum Hs within this of each other is the same for "safer": wave heights measured by
+#: instruments are reported in units of 0.1 m (WMO-No. 306, Manual on Codes, FM 13 SHIP, group
+#: 70HwaHwaHwa); a difference below it is interpolation along two tracks through the same
+#: field, not a safer sea (a proposal once rested on 1 mm). [m]
+HS_TIE_M = 0.1
+#: Adverse hours within this of each other are the same (sums of leg times). [h]
+ADVERSE_TIE_H = 1e-6
+
+
+def safety_order(s: dict, r: dict) -> int:
+    """-1 when the route summarised by ``s`` is safer than ``r``, +1 when less safe, 0 as safe.
+
+    Compared in turn: ``adverse_h`` (hours over the limits or in IMO situations; ties within
+    :data:`ADVERSE_TIE_H`), ``n_safety_events`` (missing: none), ``max_hs_m`` (ties within
+    :data:`HS_TIE_M`; a missing Hs is the highest)."""
+    da = s["adverse_h"] - r["adverse_h"]
+    if abs(da) > ADVERSE_TIE_H:
+        return -1 if da < 0 else 1
+    ev_s, ev_r = s.get("n_safety_events", 0), r.get("n_safety_events", 0)
+    if ev_s != ev_r:
+        return -1 if ev_s < ev_r else 1
+    hs_s, hs_r = (x if x is not None and np.isfinite(x) else np.inf for x in (s.get("max_hs_m"), r.get("max_hs_m")))
+    if hs_s == hs_r or abs(hs_s - hs_r) <= HS_TIE_M:
+        return 0
+    return -1 if hs_s < hs_r else 1
 
 
 def _hours(h: float) -> str:

@@ -23,7 +23,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from routing.audit import _safety_key, not_proposable
+from routing.audit import not_proposable, safety_order
 from routing.emissions import Engine
 from routing.errors import NoRouteError
 from routing.fuel import REFERENCE_MIN_KN, FuelSpec, fuel_summary, legs_fuel, max_power_speed_kn, same_arrival_reference
@@ -132,7 +132,8 @@ def proposal_words(evaluations: dict, role: str, proposed: str | None, reference
         return (f"{x['adverse_h']:.1f} h over the limits or in IMO situations, {x['n_safety_events']} IMO events, "
                 f"max Hs {x['max_hs_m']:.2f} m")
 
-    safer, same = _safety_key(s) < _safety_key(r), _safety_key(s) <= _safety_key(r)
+    order = safety_order(s, r)
+    safer, same = order < 0, order <= 0
     if role == proposed:
         return f"proposed: {'safer than' if safer else 'as safe as and faster than'} {reference} ({risk(s)} against {risk(r)})"
     why = not_proposable({**s, **{k: v for k, v in evaluations[role].route.properties.items() if k == "not_proposed"}}, r)

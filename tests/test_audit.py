@@ -104,6 +104,28 @@ def test_propose_as_safe_and_faster_or_nothing():
     assert propose({}) is None
 
 
+def test_safer_needs_more_than_a_tenth_of_a_metre_of_max_hs():
+    # Same adverse hours and events: a max Hs 1 mm lower is as safe (not a reason to propose a
+    # slower route: the demo proposed one on 1.08 mm), 0.2 m lower is safer; more adverse hours
+    # are less safe whatever the Hs.
+    from routing.audit import HS_TIE_M, safety_order
+
+    r = {"adverse_h": 2.0, "n_safety_events": 1, "max_hs_m": 4.47}
+    assert HS_TIE_M == 0.1
+    assert safety_order({**r, "max_hs_m": 4.469}, r) == 0 and safety_order({**r, "max_hs_m": 4.37}, r) == 0
+    assert safety_order({**r, "max_hs_m": 4.27}, r) == -1 and safety_order(r, {**r, "max_hs_m": 4.27}) == 1
+    assert safety_order({**r, "adverse_h": 2.01, "max_hs_m": 1.0}, r) == 1
+    assert safety_order({**r, "n_safety_events": 0, "max_hs_m": 9.0}, r) == -1
+    assert safety_order({**r, "max_hs_m": float("nan")}, r) == 1  # a missing Hs is the highest
+
+    track = route(41.0, "as_sailed")
+    evs = audit_routes(track, layered, VESSEL, limits=LIMITS, alternatives={"min_distance": route(41.0, "min_distance", speed=10.0)})["evaluations"]
+    slower = evs["min_distance"].summary
+    for lower_m, proposed in ((0.001, None), (0.2, "min_distance")):  # the slower route's max Hs lower by
+        evs["as_sailed"].summary["max_hs_m"] = slower["max_hs_m"] + lower_m
+        assert propose(evs, reference="as_sailed") == proposed
+
+
 def test_track_waypoints_every_spacing_with_speeds_made_good():
     from thresholds.units import EARTH_RADIUS_NMI
 

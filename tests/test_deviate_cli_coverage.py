@@ -170,15 +170,21 @@ def test_covered_lane_runs_and_carries_no_note(workspaces, capsys):
 
 
 def test_not_safer_note_text_and_condition():
+    # The note says "less safe" by the rule that ranks the proposals (routing.audit.safety_order):
+    # more adverse hours, else more IMO events, else a max Hs higher by more than 0.1 m. A
+    # deviation with fewer adverse hours is safer whatever its max Hs (the proposal says so too).
     from pipelines.deviate import not_safer_note
 
-    lane = {"adverse_h": 2.99, "max_hs_m": 5.10}
-    assert not_safer_note(lane, {"adverse_h": 2.99, "max_hs_m": 5.10}) is None
-    assert not_safer_note(lane, {"adverse_h": 3.03, "max_hs_m": 5.14}) is None  # within 0.05
-    assert not_safer_note(lane, {"adverse_h": 3.61, "max_hs_m": 5.10}) == (
+    lane = {"adverse_h": 2.99, "max_hs_m": 5.10, "n_safety_events": 1}
+    assert not_safer_note(lane, {"adverse_h": 2.99, "max_hs_m": 5.10, "n_safety_events": 1}) is None
+    assert not_safer_note(lane, {"adverse_h": 2.99, "max_hs_m": 5.19, "n_safety_events": 1}) is None  # within 0.1 m
+    assert not_safer_note(lane, {"adverse_h": 3.61, "max_hs_m": 5.10, "n_safety_events": 1}) == (
         "the deviation meets more hours over the limits or in IMO situations than the lane (3.6 h against 3.0 h; "
         "max Hs 5.10 against 5.10 m): Algorithm 1 looks one step ahead at a time; compare the safe time-optimal route "
         "(`stormlane route --safety hard`)")
-    note = not_safer_note(lane, {"adverse_h": 1.0, "max_hs_m": 5.50})
-    assert note.startswith("the deviation meets a higher max Hs than the lane (1.0 h against 3.0 h; max Hs 5.50 against 5.10 m)")
+    assert not_safer_note(lane, {"adverse_h": 2.99, "max_hs_m": 5.10, "n_safety_events": 2}).startswith(
+        "the deviation meets more IMO events than the lane")
+    note = not_safer_note(lane, {"adverse_h": 2.99, "max_hs_m": 5.25, "n_safety_events": 1})
+    assert note.startswith("the deviation meets a higher max Hs than the lane (3.0 h against 3.0 h; max Hs 5.25 against 5.10 m)")
+    assert not_safer_note(lane, {"adverse_h": 1.0, "max_hs_m": 5.50, "n_safety_events": 1}) is None  # safer: fewer hours
     assert not_safer_note({"adverse_h": 0.0, "max_hs_m": None}, {"adverse_h": 0.0, "max_hs_m": 3.0}) is None
