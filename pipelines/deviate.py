@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipelines.audit import AuditError, weather_from_workspace
+from pipelines.audit_inputs import AuditError, weather_from_workspace
 from pipelines.times import utc_or_none
 from thresholds.errors import StormlaneError
 from pipelines.vessels import DEFAULT_VESSEL, workspace_lane_profiles

@@ -304,7 +304,7 @@ def test_demo_audit_step_finds_the_storm_voyage(workspace, tmp_path):
 
 def test_a_window_holding_several_voyages_is_refused(monkeypatch):
     import pipelines.storage.lanes as lanes_store
-    from pipelines.audit import AuditError, _refuse_several_voyages
+    from pipelines.audit_inputs import AuditError, _refuse_several_voyages
 
     t = pd.Timestamp("2025-01-14T00:00Z")
     h = pd.Timedelta(hours=1)

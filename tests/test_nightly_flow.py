@@ -349,7 +349,8 @@ def test_like_for_like_and_the_time_optimal_route_is_never_slower(world, night):
 def demo_audit(world):
     """The demo's audit: the voyage at sea nearest storm A's centre at its peak (Barcelona -> Palma),
     in the demo's weather around it, its lane's deviation, as ``stormlane demo`` runs it."""
-    from pipelines.audit import AuditInputs, _lane_for_voyage, audit_voyage
+    from pipelines.audit import audit_voyage
+    from pipelines.audit_inputs import AuditInputs, _lane_for_voyage
     from pipelines.config import load_operator_profile, load_vessel
     from pipelines.storage import open_workspace
     from pipelines.storage.lanes import read_voyages

@@ -123,7 +123,7 @@ def read_weather_source(source: str, files, db, start: pd.Timestamp, end: pd.Tim
         meta["source"] = "downloaded (copernicusmarine + cdsapi, cached)" if source == "fetch" else "local files"
         meta.setdefault("files", [str(f) for f in files])
         return ds, meta
-    from pipelines.audit import AuditError, weather_from_workspace
+    from pipelines.audit_inputs import AuditError, weather_from_workspace
     from pipelines.storage import open_workspace
 
     with open_workspace(db) as ws:
