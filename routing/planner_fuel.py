@@ -22,7 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pandas as pd
 
-from routing.astar import evaluate_path, search
+from routing.astar import ShipModel, WeatherArrays, evaluate_path, search, smooth
 from routing.fuel import (ARRIVAL_TOL_H, FuelProblem, FuelSpec, InfeasibleArrivalError, corridor_edges, earliest_arrival_h, fuel_summary, least_fuel,
                           fuel_rates_t_per_h, max_power_speed_kn, retime_constant, same_arrival_reference, saving_pct)
 from routing.planner_parts import make_route
@@ -110,7 +110,7 @@ def _candidates(st, routes: dict, opt_nodes, md_nodes, spec: FuelSpec, deadline_
                 out.append((f"the smoothed time-optimal route at a constant {s:g} kn", lat, lon, t, setting,
                             route_fuel(t, setting, spec.engine)))
     return out + _deadline_candidates(st, spec, deadline_h, [("the smoothed time-optimal route", sm_polyline),
-                                                             ("the minimum-distance route", st.polyline(md_nodes))])
+                                                             ("the minimum-distance route", min_distance_polyline(st, md_nodes))])
 
 
 def _deadline_candidates(st, spec: FuelSpec, deadline_h: float, polylines) -> list:
@@ -222,10 +222,28 @@ def _setting_paths(st, prob) -> list:
         return list(pool.map(path, ships))
 
 
+def min_distance_polyline(st, md_nodes):
+    """The minimum-distance mesh path made any-angle, as the reference of a saving is sailed: greedy smoothing in calm
+    water (:func:`routing.astar.smooth`: a direct great-circle leg over sea cells replaces grid steps when it is no
+    longer), as :func:`routing.seapath.sea_path` does. The least-fuel route may be a smoothed polyline, so a reference
+    left on the mesh's zig-zag credited it with the mesh's detour: in a calm sea (Fiji -> Samoa, 0.1 deg mesh) least
+    fuel 'saved' 1.52 % against a path 0.57 % longer. Remembered per stage (the plan's stage)."""
+    memo = st.__dict__.setdefault("_md_smoothed", {})
+    key = tuple(int(n) for n in md_nodes)
+    if key not in memo:
+        lat, lon = st.polyline(md_nodes)
+        wx = WeatherArrays.build(st.mesh, None)
+        calm = ShipModel(10.0, "none")
+        times, _ = evaluate_path(st.mesh, wx, calm, lat, lon)
+        keep = smooth(st.mesh, wx, calm, lat, lon, times)
+        memo[key] = (np.asarray(lat)[keep], np.asarray(lon)[keep])
+    return memo[key]
+
+
 def _reference(st, routes, md_nodes, arrive_h, fuel_t, engine, props, lo_kn: float) -> dict:
     """The same-arrival reference route (into ``routes``) and the saving against it: the minimum-distance route at the
     one constant setting from the slowest offered one (``lo_kn``) to the maximum-power speed that arrives together."""
-    md_lat, md_lon = st.polyline(md_nodes)
+    md_lat, md_lon = min_distance_polyline(st, md_nodes)
     ref = same_arrival_reference(st.mesh, st.wx, st.req.ship, md_lat, md_lon, st.t0_h, arrive_h, engine, lo_kn=lo_kn)
     if ref is None:
         early_h = arrive_h - retime_constant(st.mesh, st.wx, st.req.ship, md_lat, md_lon, st.t0_h, lo_kn)[-1]
