@@ -212,19 +212,20 @@ def propose(evaluations: dict, reference: str = AS_SAILED_MODELLED) -> str | Non
         s = evaluations[role].summary
         if not_proposable({**s, **{k: v for k, v in evaluations[role].route.properties.items() if k == "not_proposed"}}, r):
             continue
-        order = safety_order(s, r)
-        if order < 0 or (order == 0 and s["time_h"] < r["time_h"] - 1e-6):
+        if improves_on(s, r):
             qualified.append(role)
     best = None
     for role in qualified:  # in preference order: the first of equals stays
-        s = evaluations[role].summary
-        if best is None:
-            best = role
-            continue
-        order = safety_order(s, evaluations[best].summary)
-        if order < 0 or (order == 0 and s["time_h"] < evaluations[best].summary["time_h"] - 1e-6):
+        if best is None or improves_on(evaluations[role].summary, evaluations[best].summary):
             best = role
     return best
+
+
+def improves_on(s: dict, r: dict) -> bool:
+    """Whether the route summarised by ``s`` is safer than ``r`` (:func:`safety_order`), or as safe
+    and faster."""
+    order = safety_order(s, r)
+    return order < 0 or (order == 0 and s["time_h"] < r["time_h"] - 1e-6)
 
 
 #: Maximum Hs within this of each other is the same for "safer": wave heights measured by

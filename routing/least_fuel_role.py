@@ -23,7 +23,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from routing.audit import not_proposable, safety_order
+from routing.audit import improves_on, not_proposable, safety_order
 from routing.emissions import Engine
 from routing.errors import NoRouteError
 from routing.fuel import REFERENCE_MIN_KN, FuelSpec, fuel_summary, legs_fuel, max_power_speed_kn, same_arrival_reference
@@ -132,14 +132,13 @@ def proposal_words(evaluations: dict, role: str, proposed: str | None, reference
         return (f"{x['adverse_h']:.1f} h over the limits or in IMO situations, {x['n_safety_events']} IMO events, "
                 f"max Hs {x['max_hs_m']:.2f} m")
 
-    order = safety_order(s, r)
-    safer, same = order < 0, order <= 0
+    safer = safety_order(s, r) < 0
     if role == proposed:
         return f"proposed: {'safer than' if safer else 'as safe as and faster than'} {reference} ({risk(s)} against {risk(r)})"
     why = not_proposable({**s, **{k: v for k, v in evaluations[role].route.properties.items() if k == "not_proposed"}}, r)
     if why:
         return f"not proposed: {why}"
-    if not (safer or (same and s["time_h"] < r["time_h"] - 1e-6)):
+    if not improves_on(s, r):
         return f"not proposed: neither safer than {reference} nor as safe and faster ({risk(s)} against {risk(r)})"
     p = evaluations[proposed].summary
     return (f"not proposed: {proposed} ranks first (safety first, then time): {proposed} {risk(p)}, {p['time_h']:.2f} h; "

@@ -56,6 +56,17 @@ def auto_spacing(bbox, base_deg: float) -> float:
     return base_deg * math.sqrt(area_nodes / DEFAULT_MAX_AUTO_NODES)
 
 
+def mesh_weather_at(mesh: Mesh, mw: MeshWeather | None, wx):
+    """``weather_at(times, lat, lon)`` (as :func:`routing.safety.limits_exposure` reads weather): the
+    plan's weather on the mesh (:func:`sample_weather`) at UTC times; ``wx`` gives the weather's slice 0."""
+
+    def weather_at(times, lat, lon):
+        t_h = (pd.DatetimeIndex(times).asi8 - (wx.time0_ns or 0)) / NS_PER_HOUR
+        return sample_weather(mesh, mw, lat, lon, t_h)
+
+    return weather_at
+
+
 def sample_weather(mesh: Mesh, mw: MeshWeather | None, lat_deg, lon_deg, t_h) -> dict:
     """Weather at points and times (hours after the weather's slice 0), bilinear over sea nodes.
 

@@ -10,12 +10,9 @@ import logging
 import math
 import time as _time
 
-import pandas as pd
-
 from routing.astar import evaluate_path, path_exposure, search, smooth
 from routing.errors import NoRouteError
-from routing.field import NS_PER_HOUR
-from routing.planner_parts import make_route, sample_weather
+from routing.planner_parts import make_route, mesh_weather_at
 from routing.safety import SafetySpec, build_flags, limits_exposure
 
 log = logging.getLogger("routing.planner")
@@ -78,12 +75,7 @@ def fuel_routes_exposure(spec: SafetySpec, st, routes: dict, names) -> None:
     """The least-fuel route and its reference judged like every route of a safety plan: hours over the limits at their
     own ETAs (:func:`routing.safety.limits_exposure`, the same weather on the mesh). The least-fuel search does not avoid
     the limits, so a table beside the safe routes must show what it meets (before: an empty column)."""
-    mesh, mw, wx = st.mesh, st.mw, st.wx
-
-    def weather_at(times, lat, lon):
-        t_h = (pd.DatetimeIndex(times).asi8 - (wx.time0_ns or 0)) / NS_PER_HOUR
-        return sample_weather(mesh, mw, lat, lon, t_h)
-
+    weather_at = mesh_weather_at(st.mesh, st.mw, st.wx)
     for name in names:
         if name in routes:
             routes[name].properties.update(limits_exposure(routes[name], weather_at, spec))
@@ -106,10 +98,7 @@ def safe_routes(spec: SafetySpec, req, mesh, mw, wx, routes: dict, timings: dict
     routes.update(_safe_pair(flags, res, polyline, props, extra))
 
     # every route: hours over the limits at its own ETAs (threshold functions) and in unsafe cells
-    def weather_at(times, lat, lon):
-        t_h = (pd.DatetimeIndex(times).asi8 - (wx.time0_ns or 0)) / NS_PER_HOUR
-        return sample_weather(mesh, mw, lat, lon, t_h)
-
+    weather_at = mesh_weather_at(mesh, mw, wx)
     for name in ("optimal", "optimal_smoothed", "min_distance", "safe_optimal", "safe_optimal_smoothed"):
         r = routes[name]
         r.properties.update(limits_exposure(r, weather_at, spec))

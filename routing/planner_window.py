@@ -27,11 +27,10 @@ import pandas as pd
 
 from routing.astar import evaluate_path, search
 from routing.errors import NoRouteError
-from routing.field import NS_PER_HOUR
 from routing.fuel import FuelSpec
 from routing.planner import RouteRequest, _Stage, _props_maker, place_ends, plain_routes, prepare_mesh
 from routing.planner_fuel import fuel_routes
-from routing.planner_parts import sample_weather
+from routing.planner_parts import mesh_weather_at
 from routing.mesh import global_land_mask_window
 
 
@@ -118,10 +117,5 @@ def _exposure(vessel, limits, st):
     from routing.safety import SafetySpec, limits_exposure
 
     spec = SafetySpec("soft", vessel, limits)
-    mesh, mw, wx = st.mesh, st.mw, st.wx
-
-    def weather_at(times, lat, lon):
-        t_h = (pd.DatetimeIndex(times).asi8 - (wx.time0_ns or 0)) / NS_PER_HOUR
-        return sample_weather(mesh, mw, lat, lon, t_h)
-
+    weather_at = mesh_weather_at(st.mesh, st.mw, st.wx)
     return lambda route: limits_exposure(route, weather_at, spec)
