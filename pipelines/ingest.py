@@ -238,17 +238,19 @@ _NMEA_TIME_HINT = (": NMEA needs a tag block with a c: time (\\c:1736899200*hh\\
 def _time_layout_hint(fmt: str | None) -> str:
     """What a CSV or Parquet file's times must look like: its rows "have no time" said alone read
     as if the column were empty when it held times in another layout (``...T00:00:00Z``, month-first)."""
-    if fmt == "parquet":
-        return " readable as a timestamp or ISO 8601 text within 1990-2099"
     from datetime import datetime
 
+    from ais.clean import TIME_MAX_UTC, TIME_MIN_UTC
     from ais.io.csv_formats import SPECS
 
+    years = f"within {TIME_MIN_UTC.year}-{TIME_MAX_UTC.year - 1}"  # the clean times' span [min, max)
+    if fmt == "parquet":
+        return f" readable as a timestamp or ISO 8601 text {years}"
     spec = SPECS.get(fmt)
     if spec is None or not spec.time_formats:
         return ""
     shown = " or ".join(f"'{datetime(2025, 1, 31, 23, 59, 0).strftime(f)}'" for f in spec.time_formats)
-    return f" readable in the {fmt} layout ({shown}, UTC) within 1990-2099"
+    return f" readable in the {fmt} layout ({shown}, UTC) {years}"
 
 
 def nothing_loaded_reason(counts: dict) -> str | None:

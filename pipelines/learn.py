@@ -223,8 +223,18 @@ def beside_operator_limits(voluntary: list[dict], profile: str | None = None, ve
                      "learned_interval_hs_m": [head["from_hs_m"], head["to_hs_m"]] if head and head["threshold_hs_m"] is not None else None,
                      "learned_sectors": found,
                      # a class the model never saw: nothing was looked for (not "none found", which reads as evidence)
-                     "why_none": f"the model holds no {cls} ships" if cls not in by_class else None if head is None else head.get("why")})
+                     "why_none": f"{_NOT_LEARNED}{cls} ships" if cls not in by_class else None if head is None else head.get("why")})
     return rows
+
+
+#: How :func:`beside_operator_limits` starts ``why_none`` for a class the model never saw.
+_NOT_LEARNED = "the model holds no "
+
+
+def class_not_learned(r: dict) -> bool:
+    """Whether a row of :func:`beside_operator_limits` is of a class the model never saw (nothing
+    was looked for), as opposed to one where no voluntary slow-down was found."""
+    return r["learned_hs_m"] is None and str(r.get("why_none") or "").startswith(_NOT_LEARNED)
 
 
 def learned_limits(db, name: str | None = None, *, profile: str | None = None, vessels=None) -> dict | None:
@@ -248,7 +258,7 @@ def learned_limits(db, name: str | None = None, *, profile: str | None = None, v
 def limit_line(r: dict) -> str:
     """One row of :func:`beside_operator_limits` in words."""
     op = "none" if r["operator_hs_max_m"] is None else f"Hs {r['operator_hs_max_m']:.2f} m"
-    if r["learned_hs_m"] is None and str(r.get("why_none") or "").startswith("the model holds no "):
+    if class_not_learned(r):
         got = f"not learned: {r['why_none']}"
     elif r["learned_hs_m"] is None:
         got = "no voluntary slow-down found in head-to-bow seas" + (f" ({r['why_none']})" if r.get("why_none") else "")

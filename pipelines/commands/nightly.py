@@ -196,15 +196,11 @@ def _num(x, spec: str, unit: str = "") -> str:
 def warn_beyond_weather(summary: dict) -> None:
     """One ``warning:`` line when lane-departures sail on after the weather's last time (the
     report's overview says the same): their centroids after it were not screened."""
-    n = int(summary.get("beyond_weather") or 0)
-    if n:
-        from dashboards.nightly_page import beyond_weather_text
+    from pipelines.nightly.store import beyond_weather_line
 
-        from datetime import datetime
-
-        end = (summary.get("weather") or {}).get("end_utc")
-        end = datetime.fromisoformat(end).strftime("%Y-%m-%dT%H:%MZ") if end else "?"
-        warning(beyond_weather_text(n, int(summary.get("beyond_weather_ok") or 0), end))
+    line = beyond_weather_line(summary)
+    if line is not None:
+        warning(line)
 
 
 def print_summary(summary: dict) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from pipelines.nightly.flow import _flow
+from pipelines.nightly.store import beyond_weather_line
 
 #: Cases drawn with maps and plots in the demo night's report (the size targets of issue 22 are
 #: met with it: report.html <= 2 MB, report.json <= 3 MB).
@@ -36,12 +37,9 @@ def demo_step(ctx) -> dict:
     for row in out["top"][:5]:
         ctx.echo(f"  {row['rank']:>3}. lane {row['lane']:<8} {row['depart_utc'][:16]}Z  {row['rules']} -> {row['proposed']} "
                  f"({row['risk_avoided_h'] or 0:.1f} h at risk avoided, {row['delta_time_h'] or 0:+.1f} h)")
-    if out.get("beyond_weather"):
-        from dashboards.nightly_page import beyond_weather_text
-
-        end = (out.get("weather") or {}).get("end_utc")
-        end = f"{pd.Timestamp(end):%Y-%m-%dT%H:%MZ}" if end else "?"
-        ctx.echo(f"  note: {beyond_weather_text(out['beyond_weather'], out.get('beyond_weather_ok') or 0, end)}")
+    beyond = beyond_weather_line(out)
+    if beyond is not None:
+        ctx.echo(f"  note: {beyond}")
     t = out["timings_s"]
     ctx.echo("  stages: " + ", ".join(f"{k[:-2]} {v:.1f} s" for k, v in t.items()))
     return out

@@ -92,6 +92,8 @@ def _vessels(night: Night) -> list[dict]:
     lanes: dict = {}
     for p in night.paths:
         lanes[p.vessel_profile] = lanes.get(p.vessel_profile, 0) + 1
+    from pipelines.learn import class_not_learned
+
     beside = night.learned_limits or {}
     learned = {r["vessel_profile"]: r for r in beside.get("rows", [])}
     out = []
@@ -102,7 +104,7 @@ def _vessels(night: Night) -> list[dict]:
         if name in learned:  # beside the configured limits: evidence, not a limit
             r = learned[name]
             shown[f"AIS voluntary slow-down ({beside['model']}, {r['ship_class']})"] = (
-                f"not learned: {r['why_none']}" if str(r.get("why_none") or "").startswith("the model holds no ")
+                f"not learned: {r['why_none']}" if class_not_learned(r)
                 else "none found" if r["learned_hs_m"] is None else f"above Hs {r['learned_hs_m']:.2f} m, head-to-bow seas")
         out.append({"name": name, "lanes": lanes.get(name, 0),
                     "thresholds_profile": f"{getattr(night.limits, 'name', '')}: {getattr(limits, 'name', '')}".strip(": "),

@@ -77,3 +77,17 @@ def _last_time(ds) -> str | None:
     if ds is None or "time_utc" not in ds.coords or ds.sizes.get("time_utc", 0) == 0:
         return None
     return pd.Timestamp(ds["time_utc"].values[-1]).tz_localize("UTC").isoformat()
+
+
+def beyond_weather_line(summary: dict) -> str | None:
+    """What the night says (terminal warning, the demo's note) when lane-departures of ``summary``
+    (:func:`summary_of`) sail on after the weather's last time, or None: the report's words
+    (:func:`dashboards.nightly_page.beyond_weather_text`)."""
+    n = int(summary.get("beyond_weather") or 0)
+    if not n:
+        return None
+    from dashboards.nightly_page import beyond_weather_text
+
+    end = (summary.get("weather") or {}).get("end_utc")
+    end = f"{pd.Timestamp(end):%Y-%m-%dT%H:%MZ}" if end else "?"
+    return beyond_weather_text(n, int(summary.get("beyond_weather_ok") or 0), end)
