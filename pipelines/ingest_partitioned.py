@@ -5,17 +5,21 @@ expensive half:
 
 1. :func:`stage_to_spool` (any process, e.g. a Dask worker): detect the format, hash the file,
    run the same reader as the sequential ingest (:func:`pipelines.ingest_stage.stage_file`) into a
-   private in-memory DuckDB and write the typed stage - every row with its line, raw text, kind
-   and parse error - to ``SPOOL/blake3-<hex>.parquet`` (named by its fingerprint).
-2. :func:`commit_spooled` (the process that owns the workspace, always one writer): load that
-   stage back (:func:`pipelines.storage.ais.stage_frame`) and apply the cross-row and
-   cross-file rules (duplicates, speed jumps against the stored tracks) with the same
-   :func:`pipelines.storage.ais.classify_and_commit`, one transaction per file.
+   private in-memory DuckDB and write the stage to the spool folder, named by the fingerprint:
+   a file the compiled scan staged (every large DMA/NOAA CSV file) as the scan's own tables, line
+   offsets and plain copy (``SPOOL/blake3-<hex>.scan/``, :mod:`pipelines.storage.ais.spool`),
+   any other as its typed rows with every line's text (``SPOOL/blake3-<hex>.parquet``).
+2. :func:`commit_spooled` (the process that owns the workspace, always one writer): install that
+   stage as the workspace's ``ais_stage`` and apply the cross-row and cross-file rules
+   (duplicates, speed jumps against the stored tracks) with the same
+   :func:`pipelines.storage.ais.classify_and_commit`, one transaction per file: a scanned file's
+   commit is the sequential ingest's, on the same arrays.
 
 Files are committed in the sequential ingest's order, so the workspace ends identical to a
 sequential run (tested). :func:`plan_files` skips files already loaded before anything is
 staged (quick key, then the full fingerprint only when the quick key is known). The spool needs
-room for one Parquet copy of each staged file (removed once committed); with a remote Dask
+room for the files staged ahead of the commit (``pipelines.ingest.STAGE_AHEAD_FILES``, each
+removed once committed: about 370 bytes per row of a scanned file); with a remote Dask
 scheduler the input files and the spool folder must be visible to the workers at the same path.
 """
 
@@ -53,41 +57,53 @@ def plan_files(ws, files: list, fmt: str | None = None) -> tuple[list[str], dict
 
 
 def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
-    """Stage one file into ``spool_dir`` (no workspace needed); returns what the commit needs."""
+    """Stage one file into ``spool_dir`` (no workspace needed); returns what the commit needs.
+
+    A file the compiled scan stages is spooled as the scan's own tables and line offsets
+    (:mod:`pipelines.storage.ais.spool`, ``spool_kind`` "scan"); any other (NMEA, Parquet,
+    small or non-canonical CSV) as its typed stage with every line's text in one Parquet file
+    (``spool_kind`` "parquet")."""
     import duckdb
     import pyarrow.parquet as pq
 
     from ais.io.files import fingerprint, identity_suffix, inspect, quick_key
     from pipelines.storage import ais as store
+    from pipelines.storage.ais import spool
 
     f = inspect(path, fmt, with_fingerprint=False)
     suffix = identity_suffix(f.path, fmt)
-    plain = None
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        if wants_plain_copy(f):  # as the sequential ingest: inflated once (hashed on the way), then scanned
-            plain, fp = plain_copy(f)
-            full = done_future(fp + suffix)
-        else:  # the hash releases the GIL: it overlaps the staging
-            full = pool.submit(lambda: fingerprint(f.path) + suffix)
-        mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
-        try:
-            info = stage_file(mem, plain) if plain is not None else stage_or_gzip_error(mem, f, full)
+    folder = spool.new_folder(spool_dir)
+    try:
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            plain = None
+            if wants_plain_copy(f):  # as the sequential ingest: inflated once (hashed on the way), then scanned
+                plain, fp = plain_copy(f, folder)
+                full = done_future(fp + suffix)
+            else:  # the hash releases the GIL: it overlaps the staging
+                full = pool.submit(lambda: fingerprint(f.path) + suffix)
+            mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
+            info = {}
             try:
-                stage = store.read_stage(mem)
+                info = stage_file(mem, plain) if plain is not None else stage_or_gzip_error(mem, f, full)
+                name = full.result().replace(":", "-").replace("#", "-")
+                if info.get("staging") == "scan":
+                    if plain is not None:
+                        os.replace(plain.path, folder / spool.PLAIN_CSV)
+                    out, kind = spool.write_scan(mem.con, info, folder, name), "scan"
+                else:
+                    out, kind = Path(spool_dir) / f"{name}.parquet", "parquet"
+                    tmp = out.with_suffix(f".{os.getpid()}.part")
+                    pq.write_table(store.stage_table(store.read_stage(mem)), tmp, compression="zstd")
+                    tmp.replace(out)  # a retried or concurrent stage of the same bytes writes the same content
             finally:
                 if info.get("line_index") is not None:
                     info["line_index"].close()
-        finally:
-            mem.con.close()
-            if plain is not None:
-                plain.path.unlink(missing_ok=True)
-        fp = full.result()
-    out = Path(spool_dir) / f"{fp.replace(':', '-').replace('#', '-')}.parquet"
-    tmp = out.with_suffix(f".{os.getpid()}.part")
-    pq.write_table(store.stage_table(stage), tmp, compression="zstd")
-    tmp.replace(out)  # a retried or concurrent stage of the same bytes writes the same content
+                mem.con.close()
+            fp = full.result()
+    finally:
+        spool.remove(folder)  # renamed away when it holds a scan stage
     return {"path": str(f.path), "format": f.format, "fingerprint": fp, "quick_key": quick_key(f.path) + suffix,
-            "size_bytes": f.size_bytes, "ignored": int(info["ignored"]), "spool": str(out),
+            "size_bytes": f.size_bytes, "ignored": int(info["ignored"]), "spool": str(out), "spool_kind": kind,
             "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping")}
 
 
@@ -96,23 +112,40 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
     import pyarrow.parquet as pq
 
     from pipelines.storage import ais as store
+    from pipelines.storage.ais import spool
 
     done = store.file_record(ws, staged["fingerprint"])
     if done is not None:  # the same content twice in one batch: the first commit wins
-        Path(staged["spool"]).unlink(missing_ok=True)
+        _remove_spool(staged)
         return skipped_counts(staged["path"], staged["format"], done["file_id"])
+    got = {"line_index": None}
     try:
-        store.stage_arrow(ws, pq.read_table(staged["spool"]))
+        if staged.get("spool_kind") == "scan":
+            got = spool.install_scan(ws, staged["spool"])
+        else:
+            store.stage_arrow(ws, pq.read_table(staged["spool"]))
         meta = {k: staged[k] for k in ("fingerprint", "quick_key", "path", "format", "size_bytes", "ignored")}
-        counts = store.classify_and_commit(ws, {**meta, "line_index": None}, max_speed_kn=max_speed_kn)
+        counts = store.classify_and_commit(ws, {**meta, **got}, max_speed_kn=max_speed_kn)
     except BaseException:
         store.discard_stage(ws)
         raise
-    Path(staged["spool"]).unlink(missing_ok=True)
+    finally:
+        if got["line_index"] is not None:
+            got["line_index"].close()
+    _remove_spool(staged)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", staged["path"], staged["format"],
              counts["read"], counts["loaded"], counts["quarantined"], counts["duplicates"])
     return {"path": staged["path"], "format": staged["format"], **counts, "already_loaded": False,
             "staging": staged["staging"], "line_mapping": staged["line_mapping"]}
+
+
+def _remove_spool(staged: dict) -> None:
+    from pipelines.storage.ais import spool
+
+    if staged.get("spool_kind") == "scan":
+        spool.remove(staged["spool"])
+    else:
+        Path(staged["spool"]).unlink(missing_ok=True)
 
 
 def _stage_threads() -> int:

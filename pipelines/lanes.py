@@ -268,9 +268,9 @@ def _build_flow() -> dict:
 
 def flow_with_runner(task_runner: str | None = None):
     """The lanes flow with the chosen task runner (:func:`pipelines.runners.make_task_runner`)."""
-    from pipelines.runners import make_task_runner
+    from pipelines.runners import runner_flow
 
-    return _build_flow()["lanes_flow"].with_options(task_runner=make_task_runner(task_runner))
+    return runner_flow(_build_flow()["lanes_flow"], task_runner)
 
 
 def __getattr__(name: str):

@@ -48,6 +48,52 @@ def make_task_runner(spec: str | None):
     return DaskTaskRunner(cluster_kwargs={"n_workers": n, "threads_per_worker": 1, "processes": True, "dashboard_address": ":0"})
 
 
+def runner_flow(flow_obj, spec: str | None):
+    """``flow_obj`` with the task runner of ``spec`` (:func:`make_task_runner`). With Dask workers
+    on this machine (``dask``, or a scheduler at a loopback address) and no Prefect API
+    configured, a call of it first starts Prefect's temporary API server in this process and
+    hands its address to the tasks (Prefect sends the settings with each task): otherwise every
+    worker process starts a temporary server of its own at its first task (measured, issue 23:
+    4-8 s of a 2-core machine and about 200 MB per worker, and the workers' task runs recorded
+    there instead of beside the flow's). Workers on other machines cannot reach a server bound to
+    this machine's loopback: point every process at one Prefect server (``PREFECT_API_URL``)."""
+    kind, address = parse_task_runner(spec)
+    flow_obj = flow_obj.with_options(task_runner=make_task_runner(spec))
+    if kind != "dask" or (address and not _loopback(address)):
+        return flow_obj
+    return _SharedApiFlow(flow_obj)
+
+
+def _loopback(address: str) -> bool:
+    from urllib.parse import urlsplit
+
+    host = urlsplit(address if "://" in address else f"tcp://{address}").hostname or ""
+    return host in ("localhost", "::1") or host.startswith("127.")
+
+
+class _SharedApiFlow:
+    """A flow whose calls run with this process's Prefect API given to its tasks (see
+    :func:`runner_flow`); everything else is the flow's."""
+
+    def __init__(self, flow_obj):
+        self._flow = flow_obj
+
+    def __call__(self, *args, **kwargs):
+        from prefect.settings import PREFECT_API_URL, get_current_settings, temporary_settings
+
+        if get_current_settings().api.url:
+            return self._flow(*args, **kwargs)
+        from prefect.server.api.server import SubprocessASGIServer
+
+        server = SubprocessASGIServer()  # Prefect's own temporary server (stopped at exit)
+        server.start()
+        with temporary_settings({PREFECT_API_URL: server.api_url}):
+            return self._flow(*args, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self._flow, name)
+
+
 def retry_transient(task_, task_run, state) -> bool:
     """Retry transient failures (network, a workspace locked by another writer), never bad input
     or missing coverage (a :class:`StormlaneError` says what to change; retrying cannot fix it).

@@ -19,7 +19,7 @@ from pipelines.nightly.reroute import _collect, lane_jobs, reroute_lane
 from pipelines.nightly.screen import screen_departures
 from pipelines.nightly.store import run_row, store_night, summary_of
 from pipelines.nightly.weather import choose_weather_source, fetch_requests, fetch_weather, read_weather_source, weather_span_needed
-from pipelines.runners import make_task_runner
+from pipelines.runners import make_task_runner, runner_flow
 from pipelines.runners import retry_transient as _retry_transient
 from pipelines.storage import DEFAULT_DB
 from thresholds.errors import StormlaneError
@@ -137,5 +137,5 @@ def _flow():
 
 def flow_with_runner(task_runner: str | None = None):
     """The flow with the chosen task runner (:func:`make_task_runner`)."""
-    return _flow().with_options(task_runner=make_task_runner(task_runner))
+    return runner_flow(_flow(), task_runner)
 

@@ -231,22 +231,31 @@ def stage_csv_scan(ws, path: Path, spec: CsvSpec, index: dict[str, int], n_field
         ix.close()
         return _give_up(con, path, "sampled rows differ from their lines")
     times["spot_check"] = time.perf_counter() - t1
-    # The scanned rows stay in Arrow memory (no copy into DuckDB); the stage view reads them.
-    con.register("ais_scan_src", tbl)
-    del tbl
     _create_exact_stage(con, special, ix, spec, index, int(n_fields), header)
     times["exact_lines"] = time.perf_counter() - t1 - times["spot_check"]
+    install_scan_stage(con, tbl, path, {"header": header,
+                                        "index": {c: index[c[2:]] + 1 for c in _TEXT_STATIC if c[2:] in index}})
+    blank = ix.blank_lines[ix.blank_lines > 1]
+    times["total"] = time.perf_counter() - t0
+    log.info("%s: scan stage %s", path, {k: round(v, 2) for k, v in times.items()})
+    # ``scan_table``: the scanned rows, for a spool (pipelines.storage.ais.spool); a caller
+    # committing in place drops it (the stage holds it while registered).
+    return {"ignored": int(len(blank)), "python_fallback": False, "staging": "scan", "line_index": ix,
+            "exact_lines": int(len(special)), "line_mapping": "scan", "timings": times, "scan_fixes": fixes,
+            "scan_table": tbl}
+
+
+def install_scan_stage(con, tbl, path, extra: dict) -> None:
+    """``ais_stage`` of a scanned file: the scanned rows ``tbl`` (an Arrow table, registered as
+    ``ais_scan_src``: no copy into DuckDB) and the temp table ``ais_exact`` (the lines typed
+    from their text, created by the caller); ``path`` is the plain file the line numbers refer
+    to, ``extra`` the stage kind's ``header`` and static-field ``index``."""
+    con.register("ais_scan_src", tbl)
     con.execute(f"""CREATE OR REPLACE TEMP VIEW ais_stage AS
         SELECT * FROM ais_exact
         UNION ALL BY NAME SELECT line, CAST(NULL AS VARCHAR) AS raw, '{C.KIND_POSITION}' AS kind, * EXCLUDE (line)
         FROM ais_scan_src""")
-    _set_stage_kind(con, "csvfast", {"path": str(path), "header": header,
-                                     "index": {c: index[c[2:]] + 1 for c in _TEXT_STATIC if c[2:] in index}})
-    blank = ix.blank_lines[ix.blank_lines > 1]
-    times["total"] = time.perf_counter() - t0
-    log.info("%s: scan stage %s", path, {k: round(v, 2) for k, v in times.items()})
-    return {"ignored": int(len(blank)), "python_fallback": False, "staging": "scan", "line_index": ix,
-            "exact_lines": int(len(special)), "line_mapping": "scan", "timings": times, "scan_fixes": fixes}
+    _set_stage_kind(con, "csvfast", {**extra, "path": str(path)})
 
 
 #: Rows per record batch of the scan's Arrow table (DuckDB's row group size).
