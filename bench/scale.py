@@ -25,7 +25,8 @@ workers' peak memory is that stage's; Prefect's temporary API server is started 
 timed run too (a no-op flow), so neither start-up is counted in a stage's wall time. Every stage runs in a fresh process of the benchmark
 harness (:func:`bench._harness._child`: ``getrusage`` peak RSS, wall and CPU seconds, load
 average before and after). Printed per stage and runner: rows, wall seconds, rows/s, CPU
-seconds of the stage's process, peak RSS of that process, of its process pools (the
+seconds of the stage's process and of the Dask workers (``wrk cpu``: since the fresh cluster
+started, its imports included), peak RSS of that process, of its process pools (the
 generator's) and of the largest and all Dask workers, and the disk written (workspace file +
 Parquet dataset beside it, against the gzip input). The figures go to
 ``bench/results-scale.json`` (one entry per ``--rows``), kept apart from ``bench/results.json``
@@ -116,11 +117,15 @@ def _worker_peaks(st: dict) -> dict:
     def peak():
         import resource as r
 
-        return r.getrusage(r.RUSAGE_SELF).ru_maxrss * 1024 / 1e6
+        u = r.getrusage(r.RUSAGE_SELF)
+        return u.ru_maxrss * 1024 / 1e6, u.ru_utime + u.ru_stime
 
     with Client(st["address"]) as client:
         per = list(client.run(peak).values())
-    return {"peak_mb_worker_max": max(per), "peak_mb_workers_sum": sum(per)}
+    # The workers' CPU since they started (a fresh cluster per stage): not in the stage's own
+    # process CPU, which counts only the calling process.
+    return {"peak_mb_worker_max": max(p for p, _ in per), "peak_mb_workers_sum": sum(p for p, _ in per),
+            "cpu_s_workers": sum(c for _, c in per)}
 
 
 def _cli(argv: list[str], runner: str) -> dict:
@@ -226,12 +231,13 @@ def _fmt(v, spec="{:,.0f}") -> str:
 
 
 def print_table(rows: list[dict], gzip_bytes: int) -> None:
-    print(f"{'stage':<9}{'side':<12}{'work':>13}{'wall s':>9}{'work/s':>12}{'cpu s':>9}{'peak MB':>9}"
+    print(f"{'stage':<9}{'side':<12}{'work':>13}{'wall s':>9}{'work/s':>12}{'cpu s':>9}{'wrk cpu':>9}{'peak MB':>9}"
           f"{'pool MB':>9}{'wrk max':>9}{'wrk sum':>9}{'disk MB':>9}{'x gzip':>8}{'load':>6}")
     for r in rows:
         disk = (r.get("disk_db_bytes") or 0) + (r.get("disk_parquet_bytes") or 0)
         print(f"{r['stage']:<9}{r['side']:<12}{_fmt(r.get('work')):>13}{_fmt(r.get('wall_s'), '{:,.1f}'):>9}"
-              f"{_fmt(r.get('per_s')):>12}{_fmt(r.get('cpu_s'), '{:,.1f}'):>9}{_fmt(r.get('peak_mb_self')):>9}"
+              f"{_fmt(r.get('per_s')):>12}{_fmt(r.get('cpu_s'), '{:,.1f}'):>9}"
+              f"{_fmt(r.get('cpu_s_workers'), '{:,.1f}'):>9}{_fmt(r.get('peak_mb_self')):>9}"
               f"{_fmt(r.get('peak_mb_children')):>9}{_fmt(r.get('peak_mb_worker_max')):>9}"
               f"{_fmt(r.get('peak_mb_workers_sum')):>9}{_fmt(disk / 1e6 if disk else None):>9}"
               f"{_fmt(disk / gzip_bytes if disk and gzip_bytes else None, '{:.2f}'):>8}"

@@ -362,8 +362,9 @@ class NightlyReport:
         Forecast reference time (``--now``).
     window_start_utc, window_end_utc : Timestamp
         Departure window checked.
-    departure_step_h : float
-        Spacing of the departures in the window. [h]
+    departure_step_h : float or None
+        Spacing of the departures in the window [h]; None for planned voyages (each its own
+        departure, the window from the first to the last).
     lanes_checked : int
         Lanes (or planned voyages) checked.
     departures_checked : int
@@ -397,7 +398,7 @@ class NightlyReport:
     now_utc: pd.Timestamp
     window_start_utc: pd.Timestamp
     window_end_utc: pd.Timestamp
-    departure_step_h: float
+    departure_step_h: float | None
     lanes_checked: int
     departures_checked: int
     departures: list = field(default_factory=list)

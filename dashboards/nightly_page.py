@@ -238,7 +238,9 @@ def overview(model: NightlyReport) -> Markup:
     rows = _lane_rows(model)
     prov = model.provenance
     span = f"{fmt_time(prov.weather_start_utc)} \u2192 {fmt_time(prov.weather_end_utc)}" if prov.weather_start_utc is not None else DASH
-    line = el("p", f"Forecast from {fmt_time(model.now_utc)}; departures every {fmt(model.departure_step_h, 1)} h from "
+    spacing = ("planned departures" if model.departure_step_h is None
+               else f"departures every {fmt(model.departure_step_h, 1)} h")
+    line = el("p", f"Forecast from {fmt_time(model.now_utc)}; {spacing} from "
               f"{fmt_time(model.window_start_utc)} to {fmt_time(model.window_end_utc)}; weather: "
               f"{', '.join(map(str, prov.weather_products)) or DASH} ({span}).", class_="muted small")
     top = el("div", el("h3", "Top cases"), ranked_list(model), class_="toplist")

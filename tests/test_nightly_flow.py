@@ -727,7 +727,8 @@ def test_cli_planned_voyages_json_contract(world, night, tmp_path, capsys, monke
     plan.write_text(
         "voyage_id,vessel,origin,destination,depart_utc\n"
         f"P1,{top['vessel_profile']},{code[lane['origin_port_id']]},{code[lane['dest_port_id']].lower()},{top['depart_utc'].isoformat()}\n"
-        f"P2,ro-pax,{no_lane[0]},{no_lane[1]},{top['depart_utc'].isoformat()}\n", encoding="utf-8")
+        f"P2,ro-pax,{no_lane[0]},{no_lane[1]},{(top['depart_utc'] + pd.Timedelta(hours=2)).isoformat()}\n",
+        encoding="utf-8")
     rc, out, err = _cli(capsys, "nightly", "--db", str(world["db"]), "--weather", str(world["weather"]), "--now", NOW,
                         "--voyages", str(plan), "--out", str(tmp_path / "out"), "--max-detail", "0", "--json")
     assert rc == 0, err
@@ -739,6 +740,19 @@ def test_cli_planned_voyages_json_contract(world, night, tmp_path, capsys, monke
     assert by["P1"]["status"] == "adverse" and by["P1"]["rules"] == top["rules"]
     assert by["P2"]["status"] == "failed" and "no lane from" in by["P2"]["error"]
     assert (tmp_path / "out" / "report.html").is_file()
+    # the window is the planned departures', not the default 48 h every 3 h (nothing sailed on it)
+    t0 = top["depart_utc"]
+    assert res["window"] == {"start_utc": t0.isoformat(), "end_utc": (t0 + pd.Timedelta(hours=2)).isoformat(),
+                             "hours": 2.0, "step_h": None, "departures": 2, "planned": True}
+    with open_workspace(world["db"]) as ws:
+        row = ws.con.execute("SELECT step_h, n_departure_times, window_start_utc, window_end_utc FROM nightly_runs "
+                             "WHERE run_id = ?", [res["run_id"]]).fetchone()
+    assert row[0] is None and row[1] == 2 and pd.Timestamp(row[2]) == t0 and pd.Timestamp(row[3]) == t0 + pd.Timedelta(hours=2)
+    assert "planned departures from" in (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    from pipelines.commands.nightly import print_summary
+
+    print_summary(res)
+    assert f"2 planned departures from {t0.isoformat()} to" in capsys.readouterr().out
 
 
 def test_cli_window_outside_the_weather_fails_early_with_a_clear_message(world, capsys):

@@ -206,8 +206,10 @@ def warn_beyond_weather(summary: dict) -> None:
 def print_summary(summary: dict) -> None:
     """The terminal summary: the report overview's figures (the same dict, ``overview_of``)."""
     s = summary
-    typer.echo(f"night {s['run_id']} (now {s['now_utc']}, {s['window']['departures']} departures every "
-               f"{s['window']['step_h']:g} h): {s['lanes_checked']} lanes, {s['departures_checked']} lane-departures checked, "
+    w = s["window"]
+    spacing = (f"{w['departures']} planned departure{'s' if w['departures'] != 1 else ''} from {w['start_utc']} to {w['end_utc']}"
+               if w.get("step_h") is None else f"{w['departures']} departures every {w['step_h']:g} h")
+    typer.echo(f"night {s['run_id']} (now {s['now_utc']}, {spacing}): {s['lanes_checked']} lanes, {s['departures_checked']} lane-departures checked, "
                f"{s['adverse']} adverse on {s['lanes_at_risk']} lanes, {s['reroutes']} with a proposed reroute, {s['failed']} failed")
     if s["reroutes"]:
         typer.echo(f"proposed reroutes (against the lane as planned, same vessel model: {s.get('speed_loss_model', 'bowditch')}): "

@@ -173,6 +173,17 @@ class Night:
     def path_departures(self, p: NightPath) -> list:
         return list(p.departures) or list(self.departures)
 
+    def window(self) -> dict:
+        """The departures the night sailed, as its outputs state them: ``start_utc``,
+        ``end_utc``, ``step_h``, ``departures`` (distinct times), ``planned``. The forecast
+        window's departures every ``step_h``; or, when every path has departures of its own
+        (planned voyages, ``--voyages``), the first and last of those and no step."""
+        own = sorted({t for p in self.paths for t in p.departures})
+        if own and all(p.departures for p in self.paths):
+            return {"start_utc": own[0], "end_utc": own[-1], "step_h": None, "departures": len(own), "planned": True}
+        return {"start_utc": self.departures[0], "end_utc": self.departures[0] + pd.Timedelta(hours=self.params.window_h),
+                "step_h": self.params.step_h, "departures": len(self.departures), "planned": False}
+
 
 @dataclass
 class LaneJob:

@@ -246,10 +246,11 @@ def write_report(night: Night, result: NightResult, started_utc: pd.Timestamp) -
     archive = _write_exports(night, result, out)
     detailed = {id(c) for c in [c for c in result.cases if c["outcome"] is not None][: night.params.max_detail]}
     departures = [_case_model(night, case, id(case) in detailed, archive) for case in result.cases]
+    window = night.window()
     model = NightlyReport(
         run_id=night.run_id, started_utc=started_utc, finished_utc=pd.Timestamp.now(tz="UTC"), now_utc=night.now_utc,
-        window_start_utc=night.departures[0], window_end_utc=night.departures[0] + pd.Timedelta(hours=night.params.window_h),
-        departure_step_h=night.params.step_h, lanes_checked=result.counts["lanes_checked"],
+        window_start_utc=window["start_utc"], window_end_utc=window["end_utc"],
+        departure_step_h=window["step_h"], lanes_checked=result.counts["lanes_checked"],
         departures_checked=result.counts["departures_checked"], departures=departures, provenance=_provenance(night),
         speed_loss=_curve(night), max_detail=night.params.max_detail,
         lanes=_lane_lines(night), grid=_grid(result), summary=overview_of(result),

@@ -9,6 +9,15 @@ import pandas as pd
 
 from pipelines.nightly.night import Night, NightResult
 
+
+def _window_json(w: dict) -> dict:
+    """The night's window in the summary (``--json``): ``start_utc``, ``end_utc``, ``hours``
+    (start to end), ``step_h`` (None for planned voyages), ``departures``, ``planned``."""
+    return {"start_utc": w["start_utc"].isoformat(), "end_utc": w["end_utc"].isoformat(),
+            "hours": round((w["end_utc"] - w["start_utc"]).total_seconds() / 3600.0, 6), "step_h": w["step_h"],
+            "departures": w["departures"], "planned": w["planned"]}
+
+
 def run_row(night: Night, result: NightResult, started_utc, finished_utc, report: dict | None, timings: dict) -> dict:
     """The ``nightly_runs`` row of a night."""
     ds = night.weather_ds
@@ -16,10 +25,11 @@ def run_row(night: Night, result: NightResult, started_utc, finished_utc, report
     files = night.weather_meta.get("files") or night.weather_meta.get("source_files") or []
     params = night.params.model_dump()
     summary = {**result.counts, "run_id": night.run_id, "timings_s": timings, "report": (report or {}).get("report")}
+    w = night.window()
     return {
-        "run_id": night.run_id, "now_utc": night.now_utc, "window_start_utc": night.departures[0],
-        "window_end_utc": night.departures[0] + pd.Timedelta(hours=night.params.window_h), "step_h": night.params.step_h,
-        "n_departure_times": len(night.departures), "lanes_checked": result.counts["lanes_checked"],
+        "run_id": night.run_id, "now_utc": night.now_utc, "window_start_utc": w["start_utc"],
+        "window_end_utc": w["end_utc"], "step_h": w["step_h"],
+        "n_departure_times": w["departures"], "lanes_checked": result.counts["lanes_checked"],
         "departures_checked": result.counts["departures_checked"], "n_adverse": result.counts["adverse"],
         "n_failed": result.counts["failed"], "n_reroutes": result.counts["reroutes"], "weather_source": night.weather_source,
         "weather_product": str(night.weather_meta.get("product") or ds.attrs.get("product", "")),
@@ -54,8 +64,7 @@ def summary_of(night: Night, result: NightResult, report: dict | None, timings: 
     return {
         "run_id": night.run_id,
         "now_utc": night.now_utc.isoformat(),
-        "window": {"start_utc": night.departures[0].isoformat(), "hours": night.params.window_h, "step_h": night.params.step_h,
-                   "departures": len(night.departures)},
+        "window": _window_json(night.window()),
         **overview_of(result, top=top),
         "weather": {"source": night.weather_source, "product": str(night.weather_meta.get("product", "")),
                     "digest": night.weather_digest[:16], "end_utc": _last_time(night.weather_ds)},

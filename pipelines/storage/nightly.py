@@ -115,6 +115,8 @@ MIGRATIONS = [
             max_margin  DOUBLE
         )""",
     ],
+    # Planned voyages (--voyages) have departures of their own, no step (issue 23 review).
+    ["ALTER TABLE nightly_runs ALTER COLUMN step_h DROP NOT NULL"],
 ]
 
 TABLES = ("nightly_events", "nightly_routes", "nightly_departures", "nightly_runs")
