@@ -94,7 +94,7 @@ BUCKET_ROWS = 4_000_000
 #: DuckDB's memory limit on the workspace while the positions are read. Under its default (80 %
 #: of RAM) DuckDB keeps every block it has read cached: about 15 bytes per stored position for the
 #: five columns the chain reads (131 MB after the buckets of 8.57 M rows), the lanes' memory that
-#: grew with the rows (docs/scale.md, fourth pass). Under this limit the cache is evicted (the
+#: grew with the rows (docs/scale-history.md, fourth pass). Under this limit the cache is evicted (the
 #: blocks are on disk) and a bucket's ORDER BY still fits (4 M rows sorted under 256 MB: the same
 #: CPU time as without a limit).
 READ_MEMORY_LIMIT_MB = 256
