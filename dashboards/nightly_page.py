@@ -84,7 +84,7 @@ def _cards(model: NightlyReport) -> Markup:
         "div",
         _card(fmt(s.get("lanes_checked")), "lanes checked"),
         _card(fmt(s.get("departures_checked")), "lane-departures checked"),
-        _card(fmt(s.get("adverse")), f"adverse, on {fmt(s.get('lanes_at_risk'))} lanes"),
+        _card(fmt(s.get("adverse")), f"adverse, on {fmt(s.get('lanes_at_risk'))} lane{'' if s.get('lanes_at_risk') == 1 else 's'}"),
         _card(fmt(s.get("reroutes")), "proposed reroutes"),
         _card(fmt(s.get("failed")), "failed"),
         _card(DASH if s.get("risk_avoided_h") is None else f"{fmt(float(s['risk_avoided_h']), 1)} h", "at risk avoided (sum)"),

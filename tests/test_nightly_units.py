@@ -240,3 +240,19 @@ def test_a_tiny_negative_delta_is_zero_not_minus_zero():
     assert _num(-7.3e-10, "+.1f", " h") == "+0.0 h" and _num(-0.04, ".1f") == "0.0" and _num(-0.06, "+.1f") == "-0.1"
     assert json_num(-7.3e-10) == 0.0 and math.copysign(1.0, json_num(-7.3e-10)) == 1.0 and json_num(-2.5) == -2.5
 
+
+
+def test_the_terminal_summary_counts_in_the_singular_and_names_planned_departures(capsys):
+    from pipelines.commands.nightly import print_summary
+
+    base = {"run_id": "r", "now_utc": "2025-01-31T00:00:00+00:00", "adverse": 1, "reroutes": 0, "failed": 0, "top": []}
+    print_summary({**base, "window": {"departures": 16, "step_h": 3.0}, "lanes_checked": 1, "departures_checked": 16,
+                   "lanes_at_risk": 1})
+    line = capsys.readouterr().out.splitlines()[0]
+    assert "16 departures every 3 h): 1 lane, 16 lane-departures checked, 1 adverse on 1 lane, 0 with" in line
+    print_summary({**base, "window": {"departures": 1, "step_h": None, "start_utc": "2025-01-31T06:00:00+00:00",
+                                      "end_utc": "2025-01-31T06:00:00+00:00"},
+                   "lanes_checked": 2, "departures_checked": 1, "lanes_at_risk": 0})
+    line = capsys.readouterr().out.splitlines()[0]
+    assert "1 planned departure from 2025-01-31T06:00:00+00:00 to 2025-01-31T06:00:00+00:00): 2 lanes, " \
+           "1 lane-departure checked, 1 adverse on 0 lanes" in line

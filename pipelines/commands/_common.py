@@ -165,6 +165,11 @@ def emit_json(obj) -> None:
     typer.echo(json.dumps(_clean(obj), sort_keys=False))
 
 
+def count(n: int, noun: str) -> str:
+    """``n`` and the noun, plural unless ``n`` is 1 ("1 lane", "3 lanes")."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def note(text: str) -> None:
     """One ``note:`` line on stderr (something the user should know; not an error)."""
     typer.echo(f"note: {text}", err=True)

@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption, TaskRunnerOption,
-                                        check_output_dir, emit_json, paths_text, progress, vessel_option, weather_option,
+                                        check_output_dir, count, emit_json, paths_text, progress, vessel_option, weather_option,
                                         warning, xarray_without_dask_arrays)
 
 #: Deployment name used by `stormlane schedule` (the flow is ``nightly-reroute``).
@@ -207,10 +207,11 @@ def print_summary(summary: dict) -> None:
     """The terminal summary: the report overview's figures (the same dict, ``overview_of``)."""
     s = summary
     w = s["window"]
-    spacing = (f"{w['departures']} planned departure{'s' if w['departures'] != 1 else ''} from {w['start_utc']} to {w['end_utc']}"
-               if w.get("step_h") is None else f"{w['departures']} departures every {w['step_h']:g} h")
-    typer.echo(f"night {s['run_id']} (now {s['now_utc']}, {spacing}): {s['lanes_checked']} lanes, {s['departures_checked']} lane-departures checked, "
-               f"{s['adverse']} adverse on {s['lanes_at_risk']} lanes, {s['reroutes']} with a proposed reroute, {s['failed']} failed")
+    spacing = (f"{count(w['departures'], 'planned departure')} from {w['start_utc']} to {w['end_utc']}"
+               if w.get("step_h") is None else f"{count(w['departures'], 'departure')} every {w['step_h']:g} h")
+    typer.echo(f"night {s['run_id']} (now {s['now_utc']}, {spacing}): {count(s['lanes_checked'], 'lane')}, "
+               f"{count(s['departures_checked'], 'lane-departure')} checked, {s['adverse']} adverse on "
+               f"{count(s['lanes_at_risk'], 'lane')}, {s['reroutes']} with a proposed reroute, {s['failed']} failed")
     if s["reroutes"]:
         typer.echo(f"proposed reroutes (against the lane as planned, same vessel model: {s.get('speed_loss_model', 'bowditch')}): "
                    f"{_num(s['risk_avoided_h'], '.1f', ' h')} "
