@@ -1,9 +1,10 @@
 """The partitioned ingest's hand-over between processes (issue 23): a scanned file's spool, the
 spool's bound, and the Dask workers' Prefect API.
 
-* A large file staged by the compiled scan in ANOTHER process is spooled as the scan's own
-  tables (``spool_kind`` "scan": no line text retyped) and committed here: the workspace equals
-  the sequential ingest's, row for row, and the spool is empty afterwards.
+* A large file staged by the compiled scan in ANOTHER process (a fresh interpreter; a worker of
+  the real cluster of separate processes) is spooled as the scan's own tables (``spool_kind``
+  "scan": no line text retyped) and committed here: the workspace equals the sequential
+  ingest's, row for row, and the spool is empty afterwards.
 * The partitioned flow stages at most ``STAGE_AHEAD_FILES`` files ahead of its commit.
 * A flow on Dask workers of this machine gives its tasks this process's Prefect API (no worker
   starts a temporary server of its own).
@@ -78,6 +79,43 @@ def test_a_scan_staged_in_another_process_commits_as_the_sequential_ingest(tmp_p
     assert [{k: f[k] for k in keys} for f in per_file] == [{k: f[k] for k in keys} for f in seq["per_file"]]
     # day 3 (checked against day 2's stored tracks) has the one jump more that day 2 has not
     assert per_file[1]["reasons"]["speed_jump"] == per_file[0]["reasons"]["speed_jump"] + 1
+    assert list(spool.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_scanned_files_staged_on_cluster_workers_commit_as_the_sequential_ingest(tmp_path, monkeypatch, dask_address):
+    """The same on the real cluster of separate processes: the stage tasks run on its workers
+    (the fast paths forced there for the call, then restored: the workers serve other tests)."""
+    from distributed import Client
+
+    from pipelines import ingest_stage
+
+    files = [_day(tmp_path, f"d{d}", d, gz=True) for d in (2, 3)]
+    monkeypatch.setattr(ingest_stage, "FAST_CSV_MIN_BYTES", 0)
+    monkeypatch.setattr(ingest_stage, "GZIP_PLAIN_MIN_BYTES", 0)
+    seq = ingest_paths(files, tmp_path / "seq.duckdb")
+
+    def stage_forced(path: str, spool_dir: str) -> dict:
+        import os
+
+        from pipelines import ingest_stage as m
+        from pipelines.ingest_partitioned import stage_to_spool
+
+        old = m.FAST_CSV_MIN_BYTES, m.GZIP_PLAIN_MIN_BYTES
+        m.FAST_CSV_MIN_BYTES = m.GZIP_PLAIN_MIN_BYTES = 0
+        try:
+            return {**stage_to_spool(path, None, spool_dir), "pid": os.getpid()}
+        finally:
+            m.FAST_CSV_MIN_BYTES, m.GZIP_PLAIN_MIN_BYTES = old
+
+    (spool := tmp_path / "spool").mkdir()
+    with Client(dask_address) as client:
+        staged = client.gather([client.submit(stage_forced, p, str(spool), pure=False) for p in files])
+    assert [s["spool_kind"] for s in staged] == ["scan", "scan"] and os.getpid() not in {s["pid"] for s in staged}
+    with open_workspace(tmp_path / "part.duckdb") as ws:
+        per_file = [commit_spooled(ws, s) for s in staged]
+    _assert_same_workspace(tmp_path / "part.duckdb", tmp_path / "seq.duckdb")
+    assert [f["reasons"] for f in per_file] == [f["reasons"] for f in seq["per_file"]]
     assert list(spool.iterdir()) == []
 
 
