@@ -30,7 +30,10 @@ started, its imports included), peak RSS of that process, of its process pools (
 generator's) and of the largest and all Dask workers, and the disk written (workspace file +
 Parquet dataset beside it, against the gzip input). The figures go to
 ``bench/results-scale.json`` (one entry per ``--rows``), kept apart from ``bench/results.json``
-(``make bench`` does not run this script: one 100 M-row run takes hours on 2 cores).
+(``make bench`` does not run this script: one 100 M-row run takes hours on 2 cores). After the
+cluster side of a stage with a workspace of its own, the stage's tables are compared with the
+sequential side's (:func:`tables_differ`: row counts and sums of row hashes) and the verdict is
+printed and recorded (``tables_as_sequential``).
 """
 
 from __future__ import annotations
@@ -213,6 +216,36 @@ def nightly(st: dict) -> dict:
             **_peaks_mb(), **_worker_peaks(st)}
 
 
+#: The tables each stage writes, compared between the sides (count and sum of row hashes).
+STAGE_TABLES = {"ingest": ("ais_positions", "ais_quarantine", "vessels", "ais_files", "ais_file_keys"),
+                "lanes": ("ports", "voyages", "lane_voyages", "lanes", "lane_centroids"),
+                "nightly": ("nightly_departures", "nightly_routes", "nightly_events")}
+#: Columns that say when or in which run a row was written, not what it holds.
+_WHEN_COLUMNS = {"loaded_at", "run_id", "started_utc", "finished_utc", "created_utc", "built_utc"}
+
+
+def table_digests(db, tables) -> dict:
+    """``{table: (rows, sum of the row hashes)}`` of ``db`` (read-only), when-columns left out."""
+    import duckdb
+
+    con = duckdb.connect(str(db), read_only=True)
+    try:
+        con.execute("SET enable_progress_bar = false")
+        out = {}
+        for t in tables:
+            cols = [r[0] for r in con.execute(f"DESCRIBE {t}").fetchall() if r[0] not in _WHEN_COLUMNS]
+            out[t] = con.execute(f"SELECT count(*), sum(hash({', '.join(cols)})::HUGEINT) FROM {t}").fetchone()
+        return out
+    finally:
+        con.close()
+
+
+def tables_differ(db, reference, tables) -> list[str]:
+    """The tables whose rows differ between two workspaces (order aside)."""
+    a, b = table_digests(db, tables), table_digests(reference, tables)
+    return [t for t in tables if a[t] != b[t]]
+
+
 # ------------------------------------------------------------------ driver
 def _row(stage: str, side: str, rec: dict) -> dict:
     run = (rec.get("runs") or [{}])[0]
@@ -288,6 +321,12 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
             rec = _child(cfg, tmp, "bench.scale:stage_setup", run, kw, 1, {})
             table.append({**_row(stage, side, rec), "date_utc": time.strftime("%Y-%m-%dT%H:%MZ", time.gmtime())})
             print_table(table[-1:], gzip_bytes)
+            if side != "sequential" and side != "raw read" and db != workdir / "sequential" / "ws.duckdb" \
+                    and (workdir / "sequential" / "ws.duckdb").exists() and not rec.get("failed"):
+                diff = tables_differ(db, workdir / "sequential" / "ws.duckdb", STAGE_TABLES[stage])
+                table[-1]["tables_as_sequential"] = "identical" if not diff else f"DIFFER: {', '.join(diff)}"
+                print(f"{stage} {side}: tables {table[-1]['tables_as_sequential']} to the sequential side's "
+                      f"({', '.join(STAGE_TABLES[stage])})", flush=True)
     out = {"rows_target": rows, "rows": n_rows, "vessels": vessels, "days": days, "workers": workers,
            "gzip_bytes": gzip_bytes, "cores": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%dT%H:%MZ", time.gmtime()),
            "stages": table}

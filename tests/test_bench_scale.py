@@ -41,3 +41,23 @@ def test_warm_inputs_reads_every_gzip_file_once(tmp_path):
     (tmp_path / "scenario.json").write_bytes(b"{}" * 100)
     n_bytes, seconds = warm_inputs(tmp_path)
     assert n_bytes == sum(sizes.values()) and seconds >= 0
+
+
+def test_tables_differ_compares_rows_not_their_order_or_when_they_were_written(tmp_path):
+    import duckdb
+
+    from bench.scale import tables_differ
+
+    def make(path, rows, loaded_at):
+        con = duckdb.connect(str(path))
+        con.execute("CREATE TABLE ais_files (file_id INTEGER, path VARCHAR, loaded_at TIMESTAMP)")
+        con.executemany("INSERT INTO ais_files VALUES (?, ?, ?)", [(*r, loaded_at) for r in rows])
+        con.close()
+
+    make(tmp_path / "a.duckdb", [(1, "x"), (2, "y")], "2025-01-01")
+    make(tmp_path / "b.duckdb", [(2, "y"), (1, "x")], "2026-01-01")  # other order, other load time
+    make(tmp_path / "c.duckdb", [(1, "x"), (2, "z")], "2025-01-01")
+    make(tmp_path / "d.duckdb", [(1, "x")], "2025-01-01")
+    assert tables_differ(tmp_path / "a.duckdb", tmp_path / "b.duckdb", ["ais_files"]) == []
+    assert tables_differ(tmp_path / "a.duckdb", tmp_path / "c.duckdb", ["ais_files"]) == ["ais_files"]
+    assert tables_differ(tmp_path / "a.duckdb", tmp_path / "d.duckdb", ["ais_files"]) == ["ais_files"]
