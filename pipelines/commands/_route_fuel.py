@@ -94,6 +94,12 @@ def slack_note(plan) -> str | None:
             f"({lowest:g} kn): lower --speeds or --speed-range {'could' if waits else 'would'} use that time")
 
 
+def fuel_notes(plan) -> list[str]:
+    """The least-fuel route's notes (:func:`slack_note`, :func:`limits_note`): the table's ``note:`` lines and
+    ``--json``'s ``notes`` alike."""
+    return [n for n in (slack_note(plan), limits_note(plan)) if n is not None]
+
+
 def limits_note(plan) -> str | None:
     """Beside the safe routes (``--safety``), that the least-fuel route does not avoid the limits (its hours over them
     are in the table, judged like every route's)."""
@@ -108,9 +114,8 @@ def echo_fuel(plan) -> None:
     first, second = ("co2_t", "fuel_t") if f["objective"] == "co2" else ("fuel_t", "co2_t")
     typer.echo(f"least {first[:-2]}: {f[first]:.3f} t ({second[:-2]} {f[second]:.3f} t), arriving by {f['deadline_utc']} "
                f"({f['deadline_source']}); settings {', '.join(f'{s:g}' for s in f['speeds_kn'])} kn; from {f['least_fuel_from']}")
-    for extra in (slack_note(plan), limits_note(plan)):
-        if extra is not None:
-            typer.echo(f"note: {extra}")
+    for extra in fuel_notes(plan):
+        typer.echo(f"note: {extra}")
     if f.get("lower_bound_fuel_t") is not None:
         gap = f"gap {f['gap_pct']:.2f} %" if f.get("gap_pct") is not None else f"no gap: {f['bound_note']}"
         typer.echo(f"search: {f['graph']}; lower bound {f['lower_bound_fuel_t']:.3f} t fuel over mesh routes at the offered "

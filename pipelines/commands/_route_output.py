@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import emit_json
-from pipelines.commands._route_fuel import echo_fuel, limits_note, slack_note
+from pipelines.commands._route_fuel import echo_fuel, fuel_notes
 
 
 def show_plan(plan, vessel, ship, *, safety: str, fuel: bool, learned: bool, out: Path | None, json_out: bool) -> None:
@@ -17,10 +17,8 @@ def show_plan(plan, vessel, ship, *, safety: str, fuel: bool, learned: bool, out
     names = ROUTE_NAMES + (SAFE_ROUTE_NAMES if safety != "none" else ()) + tuple(n for n in FUEL_ROUTE_NAMES if n in plan.routes)
     notes = list(plan.notes)  # the model and what it rests on, said in every output
     notes += _snap_notes(plan)
-    if fuel and (slack := slack_note(plan)) is not None:
-        notes.append(slack)
-    if fuel and (limits := limits_note(plan)) is not None:
-        notes.append(limits)
+    if fuel:
+        notes += fuel_notes(plan)
     held = {name: h for name in names if (h := plan.routes[name].properties.get("weather_held_after_h"))}
     if held:
         notes.append("the weather ends before arrival; its last field was held for the last "

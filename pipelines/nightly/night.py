@@ -214,6 +214,6 @@ class NightResult:
     cases: list  # dicts (adverse/failed lane-departures) in rank order
     counts: dict
     windows: list = field(default_factory=list)  # per lane: its departures ranked (rank_departures)
-    #: (path_id, depart_utc) -> {"n_points", "n_beyond", "status"}: the lane-departures (not failed)
+    #: (path_id, depart_utc) -> {"n_beyond", "status"}: the lane-departures (not failed)
     #: with centroids timed outside the weather's span, which the screen could not check
     beyond_weather: dict = field(default_factory=dict)

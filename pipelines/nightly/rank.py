@@ -62,7 +62,7 @@ def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightR
         dep_rows.append(row)
         n_beyond = int(r.get("n_points_beyond_weather") or 0)
         if n_beyond and status != "failed":
-            beyond[key] = {"n_points": int(r["n_points"]), "n_beyond": n_beyond, "status": status}
+            beyond[key] = {"n_beyond": n_beyond, "status": status}
         if status in ("adverse", "failed"):
             cases.append({"row": row, "reasons": r["reasons"], "outcome": o if status == "adverse" else None})
 

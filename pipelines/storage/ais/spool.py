@@ -110,15 +110,12 @@ def install_scan(ws, folder) -> dict:
             con.unregister("ais_exact_df")
         extra.pop("path")
         install_scan_stage(con, _read_ipc(folder / SCAN_ARROW), plain, extra)
-        fixes = {name: col.to_numpy(zero_copy_only=False) for name, col in zip(*_columns(_read_ipc(folder / FIXES_ARROW)))}
+        fix = _read_ipc(folder / FIXES_ARROW)
+        fixes = {name: fix.column(name).to_numpy() for name in fix.column_names}
     except BaseException:
         ix.close()
         raise
     return {"line_index": ix, "scan_fixes": fixes}
-
-
-def _columns(tbl) -> tuple[list, list]:
-    return tbl.column_names, [c.combine_chunks() if c.num_chunks != 1 else c.chunk(0) for c in tbl.columns]
 
 
 def remove(folder) -> None:
