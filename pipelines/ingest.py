@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import time
+import uuid
 from pathlib import Path
 from typing import Callable, Iterable, Optional
 
@@ -387,6 +388,34 @@ def _build_flow() -> dict:
                        retry_condition_fn=retry_transient, cache_policy=NO_CACHE)
     summarise_task = task(_summarise, name="summarise-ingest")
 
+    def _stage_and_commit(files: list[str], db: str, fmt, max_speed_kn: float, spool_dir: str) -> list[dict]:
+        """Stage the files on the task runner at most :data:`STAGE_AHEAD_FILES` ahead and commit
+        them here in order. Then the run's temporary spool names are removed: a stage killed
+        mid-write (a worker lost) leaves its folder, and a failed run's stages still running are
+        awaited first (their complete stages stay in the spool for the rerun)."""
+        from pipelines.storage.ais.spool import remove_run_leftovers
+
+        run_tag = uuid.uuid4().hex[:12]
+        todo, skipped = plan_task(db, files, fmt)
+        staged: dict = {}
+        per_file = []
+        try:
+            for p in files:
+                while todo and len(staged) < STAGE_AHEAD_FILES:  # the spool holds this many at most
+                    staged[todo[0]] = stage_task.submit(todo[0], fmt, spool_dir, run_tag)
+                    todo = todo[1:]
+                # the stage's own exception, raised here (a failed future handed to a task is not run)
+                counts = skipped[p] if p in skipped else commit_task(db, staged.pop(p).result(), max_speed_kn)
+                per_file.append(_file_done(counts))
+        finally:
+            for future in staged.values():
+                future.wait()
+            left = remove_run_leftovers(spool_dir, run_tag)
+            if left:
+                log.warning("removed %d unfinished stage(s) from %s: %s", len(left), spool_dir,
+                            ", ".join(p.name for p in left))
+        return per_file
+
     @flow(name="ingest-ais", task_runner=make_task_runner("sequential"))
     def ingest_flow(paths: list[str], db: str, fmt: Optional[str] = None,
                     max_speed_kn: float = DEFAULT_MAX_SPEED_KN, spool_dir: Optional[str] = None) -> dict:
@@ -402,15 +431,7 @@ def _build_flow() -> dict:
             if spool_dir is None:
                 per_file = [ingest_file_task(db, p, fmt, max_speed_kn) for p in files]
             else:
-                todo, skipped = plan_task(db, files, fmt)
-                staged: dict = {}
-                per_file = []
-                for p in files:
-                    while todo and len(staged) < STAGE_AHEAD_FILES:  # the spool holds this many at most
-                        staged[todo[0]] = stage_task.submit(todo[0], fmt, spool_dir)
-                        todo = todo[1:]
-                    counts = skipped[p] if p in skipped else commit_task(db, staged.pop(p), max_speed_kn)
-                    per_file.append(_file_done(counts))
+                per_file = _stage_and_commit(files, db, fmt, max_speed_kn, spool_dir)
         finally:
             _close_flow_workspace(db)
         return summarise_task(per_file)

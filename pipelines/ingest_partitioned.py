@@ -56,8 +56,9 @@ def plan_files(ws, files: list, fmt: str | None = None) -> tuple[list[str], dict
     return todo, skipped
 
 
-def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
+def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = "") -> dict:
     """Stage one file into ``spool_dir`` (no workspace needed); returns what the commit needs.
+    ``run_tag`` names the run in the temporary names (:func:`spool.remove_run_leftovers`).
 
     A file the compiled scan stages is spooled as the scan's own tables and line offsets
     (:mod:`pipelines.storage.ais.spool`, ``spool_kind`` "scan"); any other (NMEA, Parquet,
@@ -72,7 +73,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
 
     f = inspect(path, fmt, with_fingerprint=False)
     suffix = identity_suffix(f.path, fmt)
-    folder = spool.new_folder(spool_dir)
+    folder = spool.new_folder(spool_dir, run_tag)
     try:
         with ThreadPoolExecutor(max_workers=1) as pool:
             plain = None
@@ -92,7 +93,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str) -> dict:
                     out, kind = spool.write_scan(mem.con, info, folder, name), "scan"
                 else:
                     out, kind = Path(spool_dir) / f"{name}.parquet", "parquet"
-                    tmp = out.with_suffix(f".{os.getpid()}.part")
+                    tmp = spool.part_file(out, run_tag)
                     pq.write_table(store.stage_table(store.read_stage(mem)), tmp, compression="zstd")
                     tmp.replace(out)  # a retried or concurrent stage of the same bytes writes the same content
             finally:

@@ -5,7 +5,8 @@ spool's bound, and the Dask workers' Prefect API.
   the real cluster of separate processes) is spooled as the scan's own tables (``spool_kind``
   "scan": no line text retyped) and committed here: the workspace equals the sequential
   ingest's, row for row, and the spool is empty afterwards.
-* The partitioned flow stages at most ``STAGE_AHEAD_FILES`` files ahead of its commit.
+* The partitioned flow stages at most ``STAGE_AHEAD_FILES`` files ahead of its commit, and removes
+  what its stages killed mid-write left in the spool.
 * A flow on Dask workers of this machine gives its tasks this process's Prefect API (no worker
   starts a temporary server of its own).
 """
@@ -18,6 +19,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -150,6 +152,48 @@ def test_the_partitioned_flow_stages_a_bounded_number_of_files_ahead(tmp_path, m
     out = ingest.flow_with_runner("sequential")(paths=files, db=str(tmp_path / "w.duckdb"), spool_dir=str(spool))
     assert out["files"] == 5 and out["loaded"] > 0 and len(seen) == 5
     assert max(seen) == 2, seen  # never more than 2 staged and not yet committed
+
+
+def test_the_partitioned_flow_removes_what_its_killed_stages_left(tmp_path, monkeypatch, prefect_harness):
+    """A stage whose process dies mid-write (a lost worker) never runs its own clean-up: its
+    temporary folder is removed when the flow ends, another run's is kept (a shared spool)."""
+    import pipelines.ingest as ingest
+    from pipelines.storage.ais import spool as spool_mod
+
+    files = [_day(tmp_path, f"d{d}", d, gz=False) for d in (2, 3)]
+    (spool := tmp_path / "spool").mkdir()
+    other = spool_mod.new_folder(spool, "otherrun")  # a concurrent run's stage in progress
+    new_folder = spool_mod.new_folder
+
+    def killed_then_retried(spool_dir, run_tag=""):
+        new_folder(spool_dir, run_tag)  # the first attempt, killed before its clean-up
+        (spool_mod.part_file(Path(spool_dir) / "x.parquet", run_tag)).write_bytes(b"partial")
+        return new_folder(spool_dir, run_tag)
+
+    monkeypatch.setattr(spool_mod, "new_folder", killed_then_retried)
+    out = ingest.flow_with_runner("sequential")(paths=files, db=str(tmp_path / "w.duckdb"), spool_dir=str(spool))
+    assert out["files"] == 2 and out["loaded"] > 0
+    assert sorted(spool.iterdir()) == [other]
+
+
+def test_a_failed_stage_raises_its_own_error_from_the_flow(tmp_path, monkeypatch, prefect_harness):
+    import pipelines.ingest as ingest
+    from pipelines.storage.ais import spool as spool_mod
+
+    files = [_day(tmp_path, f"d{d}", d, gz=False) for d in (2, 3)]
+    (spool := tmp_path / "spool").mkdir()
+
+    new_folder, calls = spool_mod.new_folder, []
+
+    def full_disk(spool_dir, run_tag=""):  # the second file's stage, and its retries
+        calls.append(run_tag)
+        if len(calls) > 1:
+            raise OSError(28, "No space left on device")
+        return new_folder(spool_dir, run_tag)
+
+    monkeypatch.setattr(spool_mod, "new_folder", full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        ingest.flow_with_runner("sequential")(paths=files, db=str(tmp_path / "w.duckdb"), spool_dir=str(spool))
 
 
 def test_loopback_addresses():

@@ -25,6 +25,7 @@ complete, so a folder under its final name is whole; the committing process remo
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import uuid
 from pathlib import Path
@@ -36,11 +37,31 @@ SCAN_ARROW, EXACT_ARROW, FIXES_ARROW, LINES_NPZ, PLAIN_CSV, META_JSON = (
     "scan.arrow", "exact.arrow", "fixes.arrow", "lines.npz", "lines.csv", "stage.json")
 
 
-def new_folder(spool_dir) -> Path:
-    """A fresh temporary folder in ``spool_dir`` for one stage (renamed by :func:`write_scan`)."""
-    d = Path(spool_dir) / f".stage-{uuid.uuid4().hex}.part"
+def new_folder(spool_dir, run_tag: str = "") -> Path:
+    """A fresh temporary folder in ``spool_dir`` for one stage of the run ``run_tag`` (renamed by
+    :func:`write_scan`)."""
+    d = Path(spool_dir) / f".stage-{run_tag}-{uuid.uuid4().hex}.part"
     d.mkdir(parents=True)
     return d
+
+
+def part_file(out: Path, run_tag: str = "") -> Path:
+    """The temporary name of a spooled Parquet stage ``out`` while one process writes it."""
+    return out.with_suffix(f".{run_tag}-{os.getpid()}.part")
+
+
+def remove_run_leftovers(spool_dir, run_tag: str) -> list[Path]:
+    """Remove the temporary folders and files the run ``run_tag`` left in ``spool_dir``: a stage
+    whose process was killed mid-write never reached its own clean-up. Other runs' (a spool
+    shared by several workspaces) are kept. Returns what was removed."""
+    spool = Path(spool_dir)
+    gone = sorted([*spool.glob(f".stage-{run_tag}-*.part"), *spool.glob(f"*.{run_tag}-*.part")])
+    for p in gone:
+        if p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
+    return gone
 
 
 def _write_ipc(tbl, path: Path) -> None:
