@@ -99,47 +99,94 @@ def prepare_chain(positions: pd.DataFrame, known_ports: pd.DataFrame | None = No
     return prepare_chain_in_buckets(lambda k: positions, 1, known_ports, params)
 
 
+def bucket_stops(read_bucket: Callable[[int], pd.DataFrame], k: int, params: ChainParams, keep: bool = False) -> dict:
+    """Pass 1 of bucket ``k`` (see :func:`prepare_chain_in_buckets`): its positions read, step 1
+    (jumps dropped) and step 2 (stops). Returns ``stops``, ``n_positions``, ``n_jumps``, the step
+    ``timings`` and, with ``keep``, the ``cleaned`` points; with a picklable ``read_bucket`` it
+    runs in any process."""
+    positions = read_bucket(k)
+    t0 = time.perf_counter()
+    pts, jumps = _clean_track_points(positions, params)
+    t1 = time.perf_counter()
+    stops = detect_stops(pts, params.stops, id_col=params.id_col)
+    return {"stops": stops, "n_positions": int(len(positions)), "n_jumps": int(jumps),
+            "timings": {"clean_s": t1 - t0, "stops_s": time.perf_counter() - t1}, "cleaned": pts if keep else None}
+
+
+def bucket_voyages(read_bucket: Callable[[int], pd.DataFrame] | None, k: int, params: ChainParams, stops: pd.DataFrame,
+                   stop_port_id: np.ndarray, places: pd.DataFrame | None, ports: pd.DataFrame | None,
+                   points_sink: Callable[[int, pd.DataFrame], None] | None = None, cleaned: pd.DataFrame | None = None) -> dict:
+    """Pass 2 of bucket ``k``: its positions read and cleaned again (or ``cleaned``, pass 1's),
+    step 4 (voyages, from the bucket's ``stops`` and their ``stop_port_id``) and step 5
+    (resampling). Returns ``voyages``, ``points`` (``None`` when they went to ``points_sink``),
+    ``n_points`` and the step ``timings``."""
+    timings = {}
+    if cleaned is None:
+        t = time.perf_counter()
+        cleaned = _clean_track_points(read_bucket(k), params)[0]
+        timings["clean_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    voyages = segment_voyages(cleaned, stops, stop_port_id, places, params.voyages, id_col=params.id_col, ports=ports)
+    timings["voyages_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    points = resample_voyages(cleaned, voyages, params.resample)
+    timings["resample_s"] = time.perf_counter() - t
+    del cleaned
+    n_points = int(len(points))
+    if points_sink is not None:
+        t = time.perf_counter()
+        points_sink(k, points)
+        timings["points_sink_s"] = time.perf_counter() - t
+        points = None
+    return {"voyages": voyages, "points": points, "n_points": n_points, "timings": timings}
+
+
+def _in_turn(fn: Callable, calls: list[tuple]) -> list:
+    """The default ``map_buckets``: each call in this process, in order."""
+    return [fn(*args) for args in calls]
+
+
+def _add_timings(timings: dict, parts: list[dict]) -> None:
+    for part in parts:
+        for name, s in part["timings"].items():
+            timings[name] = timings.get(name, 0.0) + s
+
+
 def prepare_chain_in_buckets(read_bucket: Callable[[int], pd.DataFrame], n_buckets: int,
                              known_ports: pd.DataFrame | None = None, params: ChainParams | None = None,
-                             points_sink: Callable[[int, pd.DataFrame], None] | None = None) -> PreparedChain:
+                             points_sink: Callable[[int, pd.DataFrame], None] | None = None,
+                             map_buckets: Callable[[Callable, list[tuple]], list] | None = None) -> PreparedChain:
     """Steps 1-5 over the tracks in ``n_buckets`` buckets, in two passes, holding one bucket's
     positions at a time.
 
     ``read_bucket(k)`` returns the canonical positions of bucket ``k``: whole tracks, the
     buckets' track ids in ascending, disjoint ranges (e.g. MMSI ranges). Every step but the
-    ports works track by track, so pass 1 (clean, stops) and pass 2 (clean again, voyages,
-    resampling) run bucket by bucket; the ports are detected once, from every bucket's stops
-    (few: one row per stop episode). The result equals :func:`prepare_chain` of all positions
-    (stops, ports, voyages and points in the same order; tested), except that the voyages'
-    and stops' ``first_row``/``last_row`` index their own bucket's points. Memory: one bucket's
-    positions plus the stops, voyages and resampled points of all (the resampled points grow
-    with the fleet's time at sea divided by the step, not with the AIS cadence).
+    ports works track by track, so pass 1 (:func:`bucket_stops`: clean, stops) and pass 2
+    (:func:`bucket_voyages`: clean again, voyages, resampling) run bucket by bucket; the ports are
+    detected once, here, from every bucket's stops (few: one row per stop episode). The result
+    equals :func:`prepare_chain` of all positions (stops, ports, voyages and points in the same
+    order; tested), except that the voyages' and stops' ``first_row``/``last_row`` index their own
+    bucket's points. Memory: one bucket's positions plus the stops, voyages and resampled points of
+    all (the resampled points grow with the fleet's time at sea divided by the step, not with the
+    AIS cadence).
 
     ``points_sink(k, points)``, when given, receives each bucket's resampled points in pass 2
     instead (e.g. to write them to disk partition by partition); the result's ``points`` is then
     ``None`` and ``n_points`` their count, so nothing held grows with the resampled points.
+
+    ``map_buckets(fn, calls)`` runs ``fn(*args)`` for every ``args`` of ``calls`` and returns the
+    results in order: by default one after the other here; a task runner may run them on other
+    processes (``read_bucket`` and ``points_sink`` must then be picklable and the buckets' data
+    visible there). The passes are the same functions either way, so the result is the same.
     """
     params = params or ChainParams()
     timings = {k: 0.0 for k in ("clean_s", "stops_s", "ports_s", "voyages_s", "resample_s")}
-    n_positions = n_jumps = 0
-    stops_per_bucket, kept = [], None
-
-    def clean(k: int) -> tuple[pd.DataFrame, int, int]:
-        positions = read_bucket(k)
-        t = time.perf_counter()
-        pts, jumps = _clean_track_points(positions, params)
-        timings["clean_s"] += time.perf_counter() - t
-        return pts, int(jumps), int(len(positions))
-
-    for k in range(n_buckets):  # pass 1: stops
-        pts, jumps, n = clean(k)
-        n_positions += n
-        n_jumps += jumps
-        t = time.perf_counter()
-        stops_per_bucket.append(detect_stops(pts, params.stops, id_col=params.id_col))
-        timings["stops_s"] += time.perf_counter() - t
-        kept = pts if n_buckets == 1 else None  # one bucket: pass 2 needs no second read
-        del pts
+    one_here = map_buckets is None and n_buckets == 1  # one bucket here: pass 2 reuses pass 1's points
+    map_buckets = map_buckets or _in_turn
+    firsts = map_buckets(bucket_stops, [(read_bucket, k, params, one_here) for k in range(n_buckets)])
+    kept = firsts[0].pop("cleaned")
+    _add_timings(timings, firsts)
+    stops_per_bucket = [f["stops"] for f in firsts]
 
     t = time.perf_counter()
     offsets = np.cumsum([0] + [len(s) for s in stops_per_bucket])
@@ -153,31 +200,20 @@ def prepare_chain_in_buckets(read_bucket: Callable[[int], pd.DataFrame], n_bucke
     places_df = pd.concat(places, ignore_index=True).astype(float) if places else None
     timings["ports_s"] += time.perf_counter() - t
 
-    voyages, points, n_points = [], [], 0
-    for k in range(n_buckets):  # pass 2: voyages and resampling
-        pts = kept if kept is not None else clean(k)[0]
-        kept = None
-        t = time.perf_counter()
-        ids = stop_port_id[offsets[k]:offsets[k + 1]]
-        v = segment_voyages(pts, stops_per_bucket[k], ids, places_df, params.voyages, id_col=params.id_col,
-                            ports=ports if len(ports) else None)
-        timings["voyages_s"] += time.perf_counter() - t
-        t = time.perf_counter()
-        resampled = resample_voyages(pts, v, params.resample)
-        voyages.append(v)
-        timings["resample_s"] += time.perf_counter() - t
-        del pts
-        n_points += len(resampled)
-        if points_sink is None:
-            points.append(resampled)
-        else:
-            t = time.perf_counter()
-            points_sink(k, resampled)
-            timings["points_sink_s"] = timings.get("points_sink_s", 0.0) + time.perf_counter() - t
-        del resampled
-    voyages_df = voyages[0] if n_buckets == 1 else pd.concat(voyages, ignore_index=True)
-    points_df = None if points_sink is not None else points[0] if n_buckets == 1 else pd.concat(points, ignore_index=True)
-    return PreparedChain(ports, stops, voyages_df, points_df, n_positions, n_jumps, timings, n_points)
+    port_rows = ports if len(ports) else None
+    calls = [(read_bucket, k, params, stops_per_bucket[k], stop_port_id[offsets[k]:offsets[k + 1]], places_df,
+              port_rows, points_sink) for k in range(n_buckets)]
+    if one_here:
+        seconds = [bucket_voyages(*calls[0], cleaned=kept)]
+    else:
+        seconds = map_buckets(bucket_voyages, calls)
+    del kept
+    _add_timings(timings, seconds)
+    voyages_df = seconds[0]["voyages"] if n_buckets == 1 else pd.concat([s["voyages"] for s in seconds], ignore_index=True)
+    points_df = None if points_sink is not None else seconds[0]["points"] if n_buckets == 1 else pd.concat(
+        [s["points"] for s in seconds], ignore_index=True)
+    return PreparedChain(ports, stops, voyages_df, points_df, sum(f["n_positions"] for f in firsts),
+                         sum(f["n_jumps"] for f in firsts), timings, sum(s["n_points"] for s in seconds))
 
 
 def finish_chain(prep: PreparedChain, lanes: LaneResult, lanes_s: float,
@@ -254,5 +290,5 @@ def voyages_as_table(voyages: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-__all__ = ["ChainParams", "ChainResult", "PreparedChain", "build_lanes", "finish_chain", "prepare_chain",
-           "prepare_chain_in_buckets", "voyages_as_table"]
+__all__ = ["ChainParams", "ChainResult", "PreparedChain", "bucket_stops", "bucket_voyages", "build_lanes", "finish_chain",
+           "prepare_chain", "prepare_chain_in_buckets", "voyages_as_table"]

@@ -1,8 +1,11 @@
 """Prefect flow: traffic lanes from the ingested AIS positions (after ``ingest``).
 
-port lists -> :func:`prepare_from_workspace` (:func:`lanes.chain.prepare_chain_in_buckets`: jump
-filter, stops, ports, voyages, resampling; serial, reading ``ais_positions`` one bucket of whole
-tracks at a time, :data:`BUCKET_ROWS`) -> one task per origin-destination partition
+port lists -> steps 1-5 (:func:`lanes.chain.prepare_chain_in_buckets`: jump filter, stops, ports,
+voyages, resampling, over MMSI buckets of whole tracks, :data:`BUCKET_ROWS`): in the flow, with
+more than one bucket, each bucket's two passes are tasks on the flow's task runner reading the
+positions dataset (:class:`ParquetBuckets`) and only the ports are detected in the flow; with one
+bucket, and in ``run_lanes``, :func:`prepare_from_workspace` reads ``ais_positions`` one bucket at
+a time in this process -> one task per origin-destination partition
 (:func:`lanes.extract.extract_lanes_for_pair`, submitted to the flow's task runner) ->
 :func:`lanes.extract.merge_lane_results` -> :func:`lanes.chain.finish_chain` -> writer task (tables
 ``ports``, ``voyages``, ``lanes``, ``lane_centroids``, ``lane_voyages``).
@@ -11,16 +14,17 @@ tracks at a time, :data:`BUCKET_ROWS`) -> one task per origin-destination partit
 (:func:`lanes.extract.extract_lanes` is the same partitions and the same merge): what ``stormlane
 lanes`` calls by default, so a one-off command does not start a Prefect API. ``lanes_flow`` is
 the flow the demo runs; :func:`flow_with_runner` gives it a task runner (``--task-runner
-dask[:ADDRESS]``: the partitions run on a Dask cluster). Pass 2 writes each partition's
+dask[:ADDRESS]``: the buckets and the partitions run on a Dask cluster). Pass 2 writes each partition's
 resampled points to its own Parquet files in a folder next to the workspace
 (:mod:`pipelines.lanes_partitions`) and each partition task reads only its own, so no process
-holds the points of all partitions (on a cluster the workers read the files: the workspace's
-folder must be shared). Both paths give identical tables (tested on a 2-worker cluster of
+holds the points of all partitions (on a cluster the workers read and write the files and read the
+positions dataset: the workspace's folder must be shared). Both paths give identical tables (tested on a 2-worker cluster of
 separate ``dask scheduler``/``dask worker`` processes). Prefect is imported only when the flow is first used.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
@@ -157,6 +161,36 @@ def prepare_from_workspace(db: str | Path, known: pd.DataFrame, params: ChainPar
                                         len(buckets), known, params, points_sink=sink)
 
 
+@dataclass(frozen=True)
+class ParquetBuckets:
+    """``read_bucket`` of :func:`lanes.chain.prepare_chain_in_buckets` for any process: bucket
+    ``k``'s positions (MMSI range ``buckets[k]``) from the workspace's positions dataset
+    (:func:`pipelines.storage.ais.read_positions_parquet`), not from the workspace file."""
+
+    glob: str
+    buckets: tuple
+    columns: tuple = ("mmsi", *POSITION_COLUMNS)
+
+    def __call__(self, k: int) -> pd.DataFrame:
+        from pipelines.storage.ais import read_positions_parquet
+
+        return read_positions_parquet(self.glob, self.buckets[k], self.columns, READ_MEMORY_LIMIT_MB)
+
+
+def plan_buckets(db: str | Path, bucket_rows: int | None = None) -> ParquetBuckets:
+    """The MMSI buckets of the workspace's positions (:func:`mmsi_buckets`, default
+    :data:`BUCKET_ROWS` each) and the reader of their positions dataset, first made what the
+    workspace records (after a crash)."""
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import positions_per_mmsi, positions_root, sync_positions_parquet
+    from pipelines.storage.ais.parquet import parquet_glob
+
+    with open_workspace(db) as ws:
+        sync_positions_parquet(ws)
+        buckets = mmsi_buckets(positions_per_mmsi(ws), bucket_rows or BUCKET_ROWS)
+    return ParquetBuckets(parquet_glob(positions_root(db)), tuple(buckets))
+
+
 def store_result(db: str | Path, result: ChainResult, settings: LanesSettings) -> dict:
     """Write the result tables (one transaction); return the CLI summary."""
     from pipelines.storage import open_workspace
@@ -215,7 +249,8 @@ def export_geojson(db: str | Path, out: str | Path) -> Path:
 
 
 _FLOW_OBJECTS: dict = {}
-_TASKS = ("lanes_flow", "read_task", "prepare_task", "partition_task", "store_task")
+_TASKS = ("lanes_flow", "read_task", "plan_task", "prepare_task", "stops_task", "voyages_task", "partition_task",
+          "store_task")
 
 
 def _build_flow() -> dict:
@@ -227,8 +262,23 @@ def _build_flow() -> dict:
     from prefect import flow, task
     from prefect.cache_policies import NO_CACHE
 
-    from pipelines.lanes_partitions import finish_from_partitions, partition_lanes, points_folder, remove_folder, stored_keys
+    from lanes.chain import bucket_stops, bucket_voyages
+    from pipelines.lanes_partitions import (PartitionStore, finish_from_partitions, partition_lanes, points_folder,
+                                            remove_folder, stored_keys)
     from pipelines.runners import make_task_runner, retry_transient
+
+    io = {"retries": 2, "retry_delay_seconds": [2, 5], "cache_policy": NO_CACHE, "retry_condition_fn": retry_transient}
+    plan_task = task(plan_buckets, name="MMSI buckets", **io)
+    # a retried pass 2 writes the same partition files under the same names
+    stops_task = task(bucket_stops, name="clean, stops (one MMSI bucket)", task_run_name="stops-{k}", **io)
+    voyages_task = task(bucket_voyages, name="clean, voyages, resampling (one MMSI bucket)",
+                        task_run_name="voyages-{k}", **io)
+    on_runner = {bucket_stops: stops_task, bucket_voyages: voyages_task}
+
+    def map_buckets(fn, calls: list[tuple]) -> list:
+        """Each bucket's pass as a task on the flow's task runner (all submitted, results in order)."""
+        futures = [on_runner[fn].submit(*args) for args in calls]
+        return [f.result() for f in futures]
 
     read_task = task(load_port_lists, name="read port lists", retries=3, retry_delay_seconds=[2, 5, 15],
                      cache_policy=NO_CACHE, retry_condition_fn=retry_transient)
@@ -240,17 +290,23 @@ def _build_flow() -> dict:
     store_task = task(store_result, name="store lanes", retries=3, retry_delay_seconds=[2, 5, 15],
                       cache_policy=NO_CACHE, retry_condition_fn=retry_transient)
 
-    # Default runner: one partition at a time, like ``run_lanes`` (bounded memory: one DBSCAN at
-    # a time); ``flow_with_runner("dask[:ADDRESS]")`` fans the partitions out.
+    # Default runner: one task at a time, like ``run_lanes`` (bounded memory: one bucket or one
+    # DBSCAN at a time); ``flow_with_runner("dask[:ADDRESS]")`` fans the buckets and partitions out.
     @flow(name="lanes", task_runner=make_task_runner("sequential"))
     def lanes_flow(db: str, ports_csv: Optional[list[str]] = None, settings: LanesSettings = LanesSettings()) -> dict:
-        """Ports, voyages and traffic lanes from the workspace's AIS positions, one task per O-D pair."""
+        """Ports, voyages and traffic lanes from the workspace's AIS positions: two tasks per MMSI
+        bucket (when there are several), one per O-D pair."""
         params = settings.chain_params()
         known = read_task(db, ports_csv)
         # each partition's points go to its own files next to the workspace; each task reads its own
         folder = str(points_folder(db))
         try:
-            prep = prepare_task(db, known, params, points_folder=folder)
+            reader = plan_task(db)
+            if len(reader.buckets) > 1:  # the buckets' passes as tasks, reading the positions dataset
+                prep = prepare_chain_in_buckets(reader, len(reader.buckets), known, params, map_buckets=map_buckets,
+                                                points_sink=PartitionStore(folder, params.lanes.include_loops).add)
+            else:  # one bucket: one task reads it once for both passes
+                prep = prepare_task(db, known, params, points_folder=folder)
             t = time.perf_counter()
             keys = stored_keys(folder)
             futures = [partition_task.submit(folder, params.lanes, key) for key in keys]
@@ -261,8 +317,9 @@ def _build_flow() -> dict:
         out = store_task(db, result, settings)
         return {**out, "details": {**result.summary, "partition_tasks": len(keys)}}
 
-    _FLOW_OBJECTS.update(lanes_flow=lanes_flow, read_task=read_task, prepare_task=prepare_task,
-                         partition_task=partition_task, store_task=store_task)
+    _FLOW_OBJECTS.update(lanes_flow=lanes_flow, read_task=read_task, plan_task=plan_task, prepare_task=prepare_task,
+                         stops_task=stops_task, voyages_task=voyages_task, partition_task=partition_task,
+                         store_task=store_task)
     return _FLOW_OBJECTS
 
 

@@ -96,6 +96,72 @@ def test_lanes_on_a_two_worker_dask_cluster_equal_the_sequential_run(demo_worksp
     assert len(workers) == 2, workers
 
 
+@pytest.mark.slow
+def test_lanes_buckets_spread_over_the_cluster_equal_the_sequential_run(demo_workspace, prefect_harness, dask_address,
+                                                                        monkeypatch):
+    """Issue 23: with more than one MMSI bucket the flow runs each bucket's two passes (clean +
+    stops; clean + voyages + resampling) as tasks on the workers, which read the positions
+    dataset; only the ports are detected in the calling process. The tables are the sequential
+    run's."""
+    from distributed import Client, get_task_stream
+
+    import pipelines.lanes as lanes_mod
+    from pipelines.lanes import LanesSettings, flow_with_runner, plan_buckets, run_lanes
+
+    db = demo_workspace
+    seq = run_lanes(db)
+    expected = _tables(db)
+    rows = expected["counts"]["n_positions"] // 5
+    monkeypatch.setattr(lanes_mod, "BUCKET_ROWS", rows)
+    n_buckets = len(plan_buckets(db).buckets)
+    assert n_buckets >= 5
+    with Client(dask_address) as client, get_task_stream(client) as stream:
+        out = flow_with_runner(f"dask:{dask_address}")(db=str(db), settings=LanesSettings())
+    got = _tables(db)
+    for name in TABLES:
+        pd.testing.assert_frame_equal(got[name], expected[name], check_exact=True, obj=name)
+    assert got["counts"] == expected["counts"]
+    drop = ("timings", "partition_tasks")
+    assert {k: v for k, v in out["details"].items() if k not in drop} == {k: v for k, v in seq["details"].items() if k != "timings"}
+    assert len(stream.data) == out["details"]["partition_tasks"] + 2 * n_buckets  # both passes of every bucket
+    assert len({t["worker"] for t in stream.data}) == 2
+
+
+def test_a_bucket_read_from_the_positions_dataset_equals_the_workspace_read(demo_workspace):
+    from lanes.chain import POSITION_COLUMNS
+    from pipelines.lanes import mmsi_buckets, plan_buckets
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import positions_per_mmsi, read_positions
+
+    with open_workspace(demo_workspace) as ws:
+        per = positions_per_mmsi(ws)
+        buckets = mmsi_buckets(per, int(per["n"].sum()) // 4)
+        reader = plan_buckets(demo_workspace, int(per["n"].sum()) // 4)
+        assert list(reader.buckets) == buckets and len(buckets) >= 4
+        for k, rng in enumerate(buckets):
+            want = read_positions(ws, mmsi_range=rng, columns=["mmsi", *POSITION_COLUMNS])
+            got = reader(k)
+            assert len(got) > 1000
+            pd.testing.assert_frame_equal(got, want, check_exact=True)
+
+
+def test_a_bucket_read_that_spills_keeps_its_spill_files_to_itself(demo_workspace, tmp_path, monkeypatch):
+    """A sort beyond the memory limit spills to a folder of the call's own, not to ``.tmp`` in
+    the working directory (shared by every worker process started there: at 108 M rows two
+    workers overwrote each other's spill files)."""
+    from lanes.chain import POSITION_COLUMNS
+    from pipelines.lanes import plan_buckets
+    from pipelines.storage.ais import read_positions_parquet
+
+    reader = plan_buckets(demo_workspace)
+    whole = reader(0)
+    assert len(whole) > 500_000  # its sort needs more than the 32 MB below
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / ".tmp").write_text("not a folder: a spill here fails")
+    spilled = read_positions_parquet(reader.glob, reader.buckets[0], ("mmsi", *POSITION_COLUMNS), memory_limit_mb=32)
+    pd.testing.assert_frame_equal(spilled, whole, check_exact=True)
+
+
 def test_merge_is_independent_of_partition_completion_order():
     """Partitions merged in any order (as tasks finish on a cluster) give extract_lanes' result."""
     from lanes.extract import LaneParams, extract_lanes, extract_lanes_for_pair, merge_lane_results, partition_rows

@@ -58,13 +58,48 @@ def read_positions(ws, mmsi=None, start=None, end=None, mmsi_range=None, columns
     if where:
         sql += " WHERE " + " AND ".join(where)
     sql += " ORDER BY mmsi, time_utc"
-    df = ws.con.execute(sql, params).fetchdf()
+    return _canonical(ws.con.execute(sql, params).fetchdf())
+
+
+def _canonical(df: pd.DataFrame) -> pd.DataFrame:
+    """The canonical dtypes of a positions frame (what :func:`read_positions` returns)."""
     if "mmsi" in df.columns:
         df["mmsi"] = df["mmsi"].astype("int64")
     for c in C.POSITION_COLUMNS[2:]:
         if c in df.columns:
             df[c] = df[c].astype("float64")
     return _utc(df)
+
+
+#: A position column of the GeoParquet dataset (``pipelines.storage.ais.parquet``): the point's
+#: coordinates are its ``geometry`` (x = longitude, y = latitude), the other columns their own.
+_PARQUET_COLUMN = {"lat_deg": "geometry.y", "lon_deg": "geometry.x"}
+
+
+def read_positions_parquet(glob: str, mmsi_range: tuple[int, int], columns, memory_limit_mb: int = 256) -> pd.DataFrame:
+    """Canonical positions with ``lo <= mmsi <= hi`` from the positions dataset's parts
+    (``glob``), sorted by ``mmsi``, ``time_utc``: the same frame as :func:`read_positions` of the
+    workspace the dataset belongs to (kept consistent with it by every ingest; tested), read
+    without the workspace (any process that sees the files, e.g. a Dask worker). The parts are
+    sorted by MMSI within each day, so DuckDB skips the row groups outside the range.
+
+    The sort spills beyond ``memory_limit_mb`` to a temporary folder of this call's own (an
+    in-memory DuckDB spills to ``.tmp`` in the working directory, where two worker processes
+    started in the same folder overwrote each other's spill files: seen at 108 M rows)."""
+    import tempfile
+
+    cols = [c for c in C.POSITION_COLUMNS if c in columns]
+    select = ", ".join(f"{_PARQUET_COLUMN[c]} AS {c}" if c in _PARQUET_COLUMN else c for c in cols)
+    with tempfile.TemporaryDirectory(prefix="stormlane-read-") as spill:
+        con = duckdb.connect(config={"memory_limit": f"{int(memory_limit_mb)}MB", "temp_directory": spill})
+        try:
+            con.execute("SET TimeZone = 'UTC'")
+            df = con.execute(f"SELECT {select} FROM read_parquet(?, hive_partitioning = false) "
+                             "WHERE mmsi BETWEEN ? AND ? ORDER BY mmsi, time_utc",
+                             [glob, int(mmsi_range[0]), int(mmsi_range[1])]).fetchdf()
+        finally:
+            con.close()
+    return _canonical(df)
 
 
 def read_vessels(ws) -> pd.DataFrame:
