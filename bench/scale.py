@@ -44,6 +44,7 @@ if __name__ == "__main__":  # run as a file: import `bench` from the repository 
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import contextlib
 import json
 import os
 import resource
@@ -190,9 +191,29 @@ def ingest_raw(st: dict) -> dict:
 
 
 def lanes(st: dict) -> dict:
-    out = _cli(["lanes", "--db", st["db"]], st["runner"])
+    with _task_times(st) as times:
+        out = _cli(["lanes", "--db", st["db"]], st["runner"])
     return {"work": int(st["rows"]), **{k: out[k] for k in ("ports", "voyages", "lanes", "noise_points")},
-            **_peaks_mb(), **_worker_peaks(st)}
+            **_peaks_mb(), **_worker_peaks(st), **times}
+
+
+@contextlib.contextmanager
+def _task_times(st: dict):
+    """On a cluster side: the scheduler's task stream while the stage runs, turned into the
+    projection for more workers (:mod:`bench._scale_projection`), added to the yielded dict."""
+    out: dict = {}
+    if "address" not in st:
+        yield out
+        return
+    from distributed import Client, get_task_stream
+
+    from bench._scale_projection import project
+
+    with Client(st["address"]) as client, get_task_stream(client) as stream:
+        t0 = time.perf_counter()
+        yield out
+        wall = time.perf_counter() - t0
+    out["projection"] = project(wall, stream.data)
 
 
 def nightly(st: dict) -> dict:
@@ -332,6 +353,12 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
            "stages": table}
     print("\nsummary")
     print_table(table, gzip_bytes)
+    for r in table:
+        if r.get("projection"):
+            p = r["projection"]
+            walls = ", ".join(f"{w} workers {v:,.0f} s" for w, v in p["projected_wall_s"].items())
+            print(f"{r['stage']} {r['side']}: from its task times, projected wall {walls} (calling process "
+                  f"{p['caller_s']:,.0f} s, warm-up {p['warmup_s']:.1f} s per worker; bench/_scale_projection.py)")
     raw = next((r for r in table if r["side"] == "raw read" and r.get("per_s")), None)
     for r in table:
         if raw is not None and r["stage"] == "ingest" and r["side"] != "raw read" and r.get("per_s"):

@@ -61,3 +61,32 @@ def test_tables_differ_compares_rows_not_their_order_or_when_they_were_written(t
     assert tables_differ(tmp_path / "a.duckdb", tmp_path / "b.duckdb", ["ais_files"]) == []
     assert tables_differ(tmp_path / "a.duckdb", tmp_path / "c.duckdb", ["ais_files"]) == ["ais_files"]
     assert tables_differ(tmp_path / "a.duckdb", tmp_path / "d.duckdb", ["ais_files"]) == ["ais_files"]
+
+
+def _task(key, worker, start, stop):
+    return {"key": key, "worker": worker, "startstops": [{"action": "compute", "start": start, "stop": stop}]}
+
+
+def test_list_scheduling_deals_tasks_in_order_to_the_first_free_worker():
+    from bench._scale_projection import list_schedule
+
+    # 2 workers: [4] [3] -> 3 goes after 3 (free at 3): [4] [3, 2] -> 1 after 4: [4, 1] [3, 2] = 5
+    assert list_schedule([4, 3, 2, 1], 2) == 5
+    assert list_schedule([4, 3, 2, 1], 4) == 4 and list_schedule([4, 3, 2, 1], 1) == 10
+    assert list_schedule([4, 3, 2, 1], 4, warmup_s=0.5) == 4.5
+
+
+def test_a_projection_from_two_workers_gives_back_the_measured_wall_time():
+    """Hand-made stream: 2 workers, phase a (4 tasks) then phase b (2 tasks); each worker's first
+    task 1 s longer (its imports); the stage took 11 s, 4 s of them the calling process's own."""
+    from bench._scale_projection import project
+
+    stream = [_task("a-1", "w1", 0, 3), _task("a-2", "w2", 0, 3), _task("a-3", "w1", 3, 5), _task("a-4", "w2", 3, 5),
+              _task("b-1", "w1", 6, 8), _task("b-2", "w2", 6, 8)]
+    got = project(11.0, stream, workers=(1, 2, 4))
+    assert got["warmup_s"] == 1.0 and got["caller_s"] == 4.0  # 11 - the spans 5 and 2
+    assert got["phases"]["a"] == {"tasks": 4, "sum_s": 8.0, "max_s": 2.0, "span_s": 5.0}
+    assert got["projected_wall_s"][2] == 11.0  # the measured wall time again
+    # 4 workers: phase a = warm-up 1 + one task of 2 each; phase b = 2 (warm by then); + 4
+    assert got["projected_wall_s"][4] == 3.0 + 2.0 + 4.0
+    assert got["projected_wall_s"][1] == (1 + 8) + 4 + 4.0
