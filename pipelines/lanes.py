@@ -170,6 +170,16 @@ class ParquetBuckets:
     glob: str
     buckets: tuple
     columns: tuple = ("mmsi", *POSITION_COLUMNS)
+    n_rows: int = -1  # the workspace's positions when planned (-1: not known)
+
+    def check_read(self, n_read: int) -> None:
+        """Refuse a read that did not see every position of the workspace (a part of the dataset
+        removed or unreadable since the plan): lanes from part of the traffic would look whole."""
+        if self.n_rows >= 0 and int(n_read) != self.n_rows:
+            raise LanesInputError(
+                f"the positions dataset ({self.glob}) gave {int(n_read):,} positions where the workspace holds "
+                f"{self.n_rows:,}: a part was removed or changed during the run; run the command again "
+                "(it rewrites the missing parts from the workspace)")
 
     def __call__(self, k: int) -> pd.DataFrame:
         from pipelines.storage.ais import read_positions_parquet
@@ -187,8 +197,9 @@ def plan_buckets(db: str | Path, bucket_rows: int | None = None) -> ParquetBucke
 
     with open_workspace(db) as ws:
         sync_positions_parquet(ws)
-        buckets = mmsi_buckets(positions_per_mmsi(ws), bucket_rows or BUCKET_ROWS)
-    return ParquetBuckets(parquet_glob(positions_root(db)), tuple(buckets))
+        per_mmsi = positions_per_mmsi(ws)
+    buckets = mmsi_buckets(per_mmsi, bucket_rows or BUCKET_ROWS)
+    return ParquetBuckets(parquet_glob(positions_root(db)), tuple(buckets), n_rows=int(per_mmsi["n"].sum()))
 
 
 def store_result(db: str | Path, result: ChainResult, settings: LanesSettings) -> dict:
@@ -305,6 +316,7 @@ def _build_flow() -> dict:
             if len(reader.buckets) > 1:  # the buckets' passes as tasks, reading the positions dataset
                 prep = prepare_chain_in_buckets(reader, len(reader.buckets), known, params, map_buckets=map_buckets,
                                                 points_sink=PartitionStore(folder, params.lanes.include_loops).add)
+                reader.check_read(prep.n_positions)
             else:  # one bucket: one task reads it once for both passes
                 prep = prepare_task(db, known, params, points_folder=folder)
             t = time.perf_counter()

@@ -145,6 +145,52 @@ def test_a_bucket_read_from_the_positions_dataset_equals_the_workspace_read(demo
             pd.testing.assert_frame_equal(got, want, check_exact=True)
 
 
+def test_a_positions_dataset_missing_a_part_is_refused_not_read_as_less_traffic(demo_workspace, tmp_path):
+    """A part of the dataset removed after the plan: the buckets read fewer positions than the
+    workspace holds, and the flow's check names both counts instead of building lanes from them."""
+    import shutil
+
+    from lanes.chain import prepare_chain_in_buckets
+    from pipelines.lanes import LanesInputError, LanesSettings, load_port_lists, plan_buckets
+    from pipelines.storage.ais import positions_root
+
+    params = LanesSettings().chain_params()
+    reader = plan_buckets(demo_workspace)
+    whole = prepare_chain_in_buckets(reader, len(reader.buckets), load_port_lists(demo_workspace), params)
+    reader.check_read(whole.n_positions)  # all read: no error
+    assert whole.n_positions == reader.n_rows > 100_000
+    copy = tmp_path / "positions"
+    shutil.copytree(positions_root(demo_workspace), copy)
+    parts = sorted(copy.glob("day=*/file-*.parquet"))
+    parts[len(parts) // 2].unlink()
+    partial = type(reader)(str(copy / "day=*" / "file-*.parquet"), reader.buckets, n_rows=reader.n_rows)
+    less = prepare_chain_in_buckets(partial, len(partial.buckets), load_port_lists(demo_workspace), params)
+    with pytest.raises(LanesInputError, match=f"gave {less.n_positions:,} positions where the workspace holds "
+                                              f"{reader.n_rows:,}"):
+        partial.check_read(less.n_positions)
+
+
+def test_the_lanes_flow_refuses_a_dataset_that_lost_a_part(demo_workspace, prefect_harness, monkeypatch):
+    import pipelines.lanes as lanes_mod
+    import pipelines.storage.ais as ais_store
+    from pipelines.lanes import LanesInputError, flow_with_runner
+    from pipelines.storage import open_workspace
+    from pipelines.storage.ais import positions_root
+
+    sync = ais_store.sync_positions_parquet
+    monkeypatch.setattr(lanes_mod, "BUCKET_ROWS", 200_000)  # several buckets: their passes are tasks
+    monkeypatch.setattr(ais_store, "sync_positions_parquet", lambda ws: {})  # as if the part went after the plan
+    part = sorted(positions_root(demo_workspace).glob("day=*/file-*.parquet"))[3]
+    part.unlink()
+    try:
+        with pytest.raises(LanesInputError, match="positions where the workspace holds"):
+            flow_with_runner("sequential")(db=str(demo_workspace))
+    finally:
+        with open_workspace(demo_workspace) as ws:
+            sync(ws)  # the part written again from the workspace, for the other tests
+    assert part.exists()
+
+
 def test_a_bucket_read_that_spills_keeps_its_spill_files_to_itself(demo_workspace, tmp_path, monkeypatch):
     """A sort beyond the memory limit spills to a folder of the call's own, not to ``.tmp`` in
     the working directory (shared by every worker process started there: at 108 M rows two
