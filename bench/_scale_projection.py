@@ -60,11 +60,11 @@ def _first_tasks(phases: dict[str, list[dict]]) -> dict:
     return first
 
 
-def warmup_s(phases: dict[str, list[dict]]) -> float:
-    """The median, over the workers, of a worker's first task minus the median of its phase's
-    other tasks (at least 0)."""
+def warmup_s(phases: dict[str, list[dict]], firsts) -> float:
+    """The median, over the workers, of a worker's first task (``firsts``: :func:`_first_tasks`'s
+    values) minus the median of its phase's other tasks (at least 0)."""
     excess = []
-    for name, i in _first_tasks(phases).values():
+    for name, i in firsts:
         t = phases[name][i]
         others = [u["stop"] - u["start"] for j, u in enumerate(phases[name]) if j != i]
         if others:
@@ -76,8 +76,8 @@ def project(wall_s: float, stream: list[dict], workers: tuple = (2, 4, 16, 64)) 
     """The stage's wall time projected for each number of ``workers`` (the measured number among
     them checks the model against the measured wall time), and what the projection rests on."""
     phases = phase_tasks(stream)
-    warm = warmup_s(phases)
     firsts = set(_first_tasks(phases).values())
+    warm = warmup_s(phases, firsts)
     durations = {name: [max(0.0, t["stop"] - t["start"] - (warm if (name, i) in firsts else 0.0))
                         for i, t in enumerate(ts)] for name, ts in phases.items()}
     spans = {name: max(t["stop"] for t in ts) - min(t["start"] for t in ts) for name, ts in phases.items()}

@@ -76,7 +76,7 @@ def _canonical(df: pd.DataFrame) -> pd.DataFrame:
 _PARQUET_COLUMN = {"lat_deg": "geometry.y", "lon_deg": "geometry.x"}
 
 
-def read_positions_parquet(glob: str, mmsi_range: tuple[int, int], columns, memory_limit_mb: int = 256) -> pd.DataFrame:
+def read_positions_parquet(glob: str, mmsi_range: tuple[int, int], columns, memory_limit_mb: int) -> pd.DataFrame:
     """Canonical positions with ``lo <= mmsi <= hi`` from the positions dataset's parts
     (``glob``), sorted by ``mmsi``, ``time_utc``: the same frame as :func:`read_positions` of the
     workspace the dataset belongs to (kept consistent with it by every ingest; tested), read
