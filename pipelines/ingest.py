@@ -102,12 +102,12 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     info = None
     t_stage = time.perf_counter()
     try:
-        if full is None and wants_plain_copy(f):
-            # A large gzip CSV file: decompressed once into a plain copy beside the workspace
-            # (hashed on the way: its fingerprint), which the fast stage reads.
+        if plain is None and wants_plain_copy(f):
+            # A large gzip CSV file, or a zip archive's file: decompressed once into a plain copy
+            # beside the workspace (hashed on the way: its fingerprint), which the stage reads.
             plain, fp = plain_copy(f, _scratch_folder(ws))
             full = done_future(fp + suffix)
-        elif full is None and f.gzip:
+        elif full is None and f.compressed:
             # A gzip file's fingerprint reads the whole stream, which proves it complete: started
             # at once, beside the staging (whose gzip reading is single-threaded).
             full = pool.submit(content_fingerprint)

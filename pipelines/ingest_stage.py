@@ -40,9 +40,10 @@ GZIP_PLAIN_MIN_BYTES = 4 << 20
 
 
 def wants_plain_copy(f: AisFile) -> bool:
-    """Whether :func:`plain_copy` is the way to stage ``f`` (a large gzip DMA/NOAA CSV file)."""
-    return bool(f.gzip and f.format in ("dma", "noaa") and f.size_bytes >= GZIP_PLAIN_MIN_BYTES
-                and FAST_CSV_ENGINES)
+    """Whether :func:`plain_copy` is the way to stage ``f``: a large gzip DMA/NOAA CSV file, and
+    every zip archive's file (the readers take plain files and gzip streams, not zip)."""
+    return bool(f.zip or (f.gzip and f.format in ("dma", "noaa") and f.size_bytes >= GZIP_PLAIN_MIN_BYTES
+                          and FAST_CSV_ENGINES))
 
 
 def done_future(value):
@@ -56,18 +57,18 @@ def done_future(value):
 
 
 def plain_copy(f: AisFile, folder=None) -> tuple[AisFile, str]:
-    """Decompress the gzip file ``f`` into a temporary plain file in ``folder`` (default: the
+    """Decompress the gzip or zip file ``f`` into a temporary plain file in ``folder`` (default: the
     temporary folder) and hash the content on the way: returns the plain file (its
     :class:`AisFile`; the caller removes it) and the content's fingerprint, the same
     ``"blake3:<hex>"`` as :func:`ais.io.files.fingerprint` of ``f`` (BLAKE3 of the decompressed
     bytes), so that the file is decompressed once. A truncated or corrupt stream raises
-    :class:`ais.errors.AisInputError` naming ``f`` (:func:`ais.io.files.gunzip_into`)."""
+    :class:`ais.errors.AisInputError` naming ``f`` (:func:`ais.io.files.inflate_into`)."""
     import tempfile
     from dataclasses import replace
 
     import blake3
 
-    from ais.io.files import gunzip_into
+    from ais.io.files import inflate_into
 
     fd, tmp = tempfile.mkstemp(prefix=".stormlane-gunzip-", suffix=".csv", dir=folder)
     h = blake3.blake3(max_threads=1)
@@ -78,11 +79,11 @@ def plain_copy(f: AisFile, folder=None) -> tuple[AisFile, str]:
                 h.update(block)
                 out.write(block)
 
-            size = gunzip_into(f.path, sink)
+            size = inflate_into(f.path, sink)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return replace(f, path=Path(tmp), gzip=False, size_bytes=int(size)), "blake3:" + h.hexdigest()
+    return replace(f, path=Path(tmp), gzip=False, zip=False, size_bytes=int(size)), "blake3:" + h.hexdigest()
 
 
 class PlainCopiesAhead:
@@ -183,7 +184,7 @@ def check_inputs(files: list, fmt: str | None = None) -> None:
             f = inspect(p, fmt, with_fingerprint=False)
             if f.format in ("dma", "noaa"):
                 csv_layout(f)
-            elif f.format == "parquet" and not f.gzip:
+            elif f.format == "parquet" and not f.compressed:
                 if con is None:
                     con = duckdb.connect()
                 cols = store.parquet_columns(_Scratch(con), f.path)
@@ -194,9 +195,13 @@ def check_inputs(files: list, fmt: str | None = None) -> None:
 
 
 def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) -> dict:
-    """Reader step: put one file's typed rows into the workspace's temporary stage."""
+    """Reader step: put one file's typed rows into the workspace's temporary stage. A zip
+    archive's file is staged from its plain copy (:func:`plain_copy`, which the caller keeps
+    while the stage is committed: the scan's stage reads quarantined lines from it)."""
     from pipelines.storage import ais as store
 
+    if f.zip:
+        raise ValueError(f"{f.path}: a zip archive's file is staged from its plain copy (plain_copy)")
     if f.format in ("dma", "noaa"):
         spec, first, header, index = csv_layout(f)
         info = None
@@ -245,19 +250,19 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
 
 @contextlib.contextmanager
 def _plain_file(f: AisFile):
-    """The path of ``f``'s content as a plain file: itself, or (gzip) a temporary decompressed
+    """The path of ``f``'s content as a plain file: itself, or (gzip, zip) a temporary decompressed
     copy, removed on exit (the stage is a table by then)."""
-    if not f.gzip:
+    if not f.compressed:
         yield f.path
         return
     import tempfile
 
-    from ais.io.files import gunzip_into
+    from ais.io.files import inflate_into
 
     fd, tmp = tempfile.mkstemp(prefix="stormlane-", suffix=".parquet")
     try:
         with os.fdopen(fd, "wb") as out:
-            gunzip_into(f.path, out.write)
+            inflate_into(f.path, out.write)
         yield Path(tmp)
     finally:
         Path(tmp).unlink(missing_ok=True)
@@ -272,7 +277,7 @@ def stage_or_gzip_error(ws, f: AisFile, full, progress: Callable[[int], None] | 
     try:
         return stage_file(ws, f, progress)
     except Exception as err:
-        if full is not None and f.gzip and isinstance(full.exception(), AisInputError):
+        if full is not None and f.compressed and isinstance(full.exception(), AisInputError):
             raise full.exception() from err
         raise
 

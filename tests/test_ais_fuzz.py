@@ -69,7 +69,8 @@ class _Reused:
     def __enter__(self):
         if _Reused.ws is None:
             _Reused.ws = Workspace(":memory:")
-        for t in ("ais_positions", "ais_quarantine", "vessels", "ais_files"):
+        for t in ("ais_positions", "ais_quarantine", "vessels", "ais_files", "ais_file_keys", "ais_track_ends",
+                  "ais_parquet_parts"):
             _Reused.ws.con.execute(f"DELETE FROM {t}")
         return _Reused.ws
 

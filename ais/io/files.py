@@ -1,9 +1,10 @@
-"""Opening AIS files: gzip by content, fingerprints, format detection by content.
+"""Opening AIS files: gzip and zip by content, fingerprints, format detection by content.
 
 Formats: ``dma`` (Danish Maritime Authority CSV), ``noaa`` (NOAA MarineCadastre CSV), ``nmea``
 (raw ``!AIVDM``/``!AIVDO`` sentences with optional tag blocks and ``$PGHP`` lines) and
 ``parquet`` (canonical column names, or the mapped aliases in :mod:`ais.io.parquet`).
-Gzip is recognised by its magic bytes, whatever the file is called.
+Gzip and zip (an archive holding one file, :mod:`ais.io.archives`) are recognised by their magic
+bytes, whatever the file is called; their content is what is read and fingerprinted.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ais.errors import AisFormatError, AisInputError
+from ais.io.archives import is_zip, open_member, unzip_into
 
 log = logging.getLogger(__name__)
 
@@ -24,6 +26,8 @@ GZIP_MAGIC = b"\x1f\x8b"
 PARQUET_MAGIC = b"PAR1"
 #: File names a directory scan picks up (content decides the format; case-insensitive).
 AIS_SUFFIXES = (".csv", ".txt", ".nmea", ".nm4", ".ais", ".log", ".parquet", ".pq")
+#: Archives a directory scan picks up whatever the name before (DMA's ``aisdk-2025-01-01.zip``).
+ARCHIVE_SUFFIXES = (".zip",)
 
 
 @dataclass(frozen=True)
@@ -34,7 +38,13 @@ class AisFile:
     format: str
     gzip: bool
     size_bytes: int
-    fingerprint: str  # "blake3:<hex>" of the content (decompressed when gzip)
+    fingerprint: str  # "blake3:<hex>" of the content (decompressed when gzip or zip)
+    zip: bool = False  # a zip archive holding the file (:mod:`ais.io.archives`)
+
+    @property
+    def compressed(self) -> bool:
+        """Whether the content must be decompressed (gzip, or a zip archive's member)."""
+        return self.gzip or self.zip
 
 
 def is_gzip(path: str | Path) -> bool:
@@ -42,26 +52,39 @@ def is_gzip(path: str | Path) -> bool:
         return fh.read(2) == GZIP_MAGIC
 
 
+def is_compressed(path: str | Path) -> bool:
+    """Whether the file's content must be decompressed to be read (gzip, or a zip archive)."""
+    return is_gzip(path) or is_zip(path)
+
+
 def open_binary(path: str | Path):
-    """Open for binary reading, decompressing gzip transparently."""
-    return gzip.open(path, "rb") if is_gzip(path) else open(path, "rb")
+    """Open for binary reading, decompressing gzip and a zip archive's one file transparently."""
+    if is_gzip(path):
+        return gzip.open(path, "rb")
+    return open_member(path) if is_zip(path) else open(path, "rb")
+
+
+def inflate_into(path: str | Path, sink, chunk: int = 1 << 22) -> int:
+    """Decompress a gzip file (:func:`gunzip_into`) or a zip archive's one file
+    (:func:`ais.io.archives.unzip_into`) into ``sink``; returns the content's size."""
+    return unzip_into(path, sink, chunk) if is_zip(path) else gunzip_into(path, sink, chunk)
 
 
 def read_content(path: str | Path) -> bytes:
-    """The whole content of a file, decompressed when gzip; a truncated or corrupt gzip file is
-    an :class:`AisInputError` naming it (see :func:`gunzip_into`)."""
-    if not is_gzip(path):
+    """The whole content of a file, decompressed when gzip or zip; a truncated or corrupt one is
+    an :class:`AisInputError` naming it (see :func:`inflate_into`)."""
+    if not is_compressed(path):
         return Path(path).read_bytes()
     parts: list[bytes] = []
-    gunzip_into(path, parts.append)
+    inflate_into(path, parts.append)
     return b"".join(parts)
 
 
 def content_has(path: str | Path, byte: bytes) -> bool:
-    """Whether the content (decompressed when gzip) holds ``byte`` (a single byte)."""
-    if is_gzip(path):
+    """Whether the content (decompressed when gzip or zip) holds ``byte`` (a single byte)."""
+    if is_compressed(path):
         found = []
-        gunzip_into(path, lambda block: found or (byte in block and found.append(True)))
+        inflate_into(path, lambda block: found or (byte in block and found.append(True)))
         return bool(found)
     if Path(path).stat().st_size == 0:
         return False
@@ -78,15 +101,16 @@ FINGERPRINT_ALGOS = ("blake3", "sha256")
 def fingerprint(path: str | Path, algo: str = FINGERPRINT_ALGOS[0], chunk: int = 1 << 22) -> str:
     """Cryptographic hash of the file's content: ``"blake3:<hex>"`` (BLAKE3 [1], one thread:
     0.19 s for an 846 MB file here, against 0.48 s for SHA-256, and it runs beside DuckDB's
-    two-threaded insert) of the bytes, decompressed when the file is gzip (so that ``x.csv``
-    and ``x.csv.gz`` are the same input; reading the whole stream also proves it complete), or
+    two-threaded insert) of the bytes, decompressed when the file is gzip or zip (so that
+    ``x.csv``, ``x.csv.gz`` and ``x.zip`` are the same input; reading the whole stream also
+    proves it complete), or
     ``"sha256:<hex>"`` of the bytes as stored, the fingerprint of files loaded by earlier
     versions.
 
     Raises
     ------
     AisInputError
-        For ``blake3`` of a gzip file that is truncated or corrupt (its message says which).
+        For ``blake3`` of a gzip or zip file that is truncated or corrupt (its message says which).
 
     .. [1] J. O'Connor, J.-P. Aumasson, S. Neves, Z. Wilcox-O'Hearn, "BLAKE3: one function,
        fast everywhere," 2020, https://github.com/BLAKE3-team/BLAKE3-specs.
@@ -95,8 +119,8 @@ def fingerprint(path: str | Path, algo: str = FINGERPRINT_ALGOS[0], chunk: int =
         import blake3
 
         h = blake3.blake3(max_threads=1)
-        if is_gzip(path):
-            gunzip_into(path, h.update, chunk)
+        if is_compressed(path):
+            inflate_into(path, h.update, chunk)
         else:
             h.update_mmap(str(path))  # releases the GIL
         return "blake3:" + h.hexdigest()
@@ -269,7 +293,8 @@ def identity_suffix(path: str | Path, fmt: str | None) -> str:
 
 def expand_paths(paths) -> list[Path]:
     """Files named by ``paths``: a directory means every AIS-looking file inside it (recursive,
-    sorted; names ending in one of :data:`AIS_SUFFIXES`, optionally followed by ``.gz``).
+    sorted; names ending in one of :data:`AIS_SUFFIXES`, optionally followed by ``.gz``, or in one
+    of :data:`ARCHIVE_SUFFIXES`).
 
     Inside a directory, hidden entries (``.name``: editor and system files), empty files and
     links to nothing are skipped, each with a warning; named on their own, an empty file is an
@@ -294,7 +319,7 @@ def expand_paths(paths) -> list[Path]:
                 for f in sorted(files):
                     name = f.lower()
                     base = name[:-3] if name.endswith(".gz") else name
-                    if not base.endswith(AIS_SUFFIXES):
+                    if not base.endswith(AIS_SUFFIXES) and not name.endswith(ARCHIVE_SUFFIXES):
                         continue
                     path = Path(root) / f
                     if f.startswith("."):
@@ -309,7 +334,7 @@ def expand_paths(paths) -> list[Path]:
                     found.append(path)
             if not found:
                 raise AisInputError(p, f"directory contains no AIS file (looked for {', '.join(AIS_SUFFIXES)}, "
-                                       "optionally .gz; hidden files are skipped)")
+                                       f"optionally .gz, and {', '.join(ARCHIVE_SUFFIXES)}; hidden files are skipped)")
             out.extend(found)
         elif p.is_file():
             out.append(p)
@@ -339,4 +364,5 @@ def inspect(path: str | Path, fmt: str | None = None, with_fingerprint: bool = T
         gzip=is_gzip(path),
         size_bytes=path.stat().st_size,
         fingerprint=fingerprint(path) if with_fingerprint else "",
+        zip=is_zip(path),
     )

@@ -384,6 +384,19 @@ def _update_track_ends(con, file_id: int) -> None:
            WHERE excluded.time_utc > ais_track_ends.time_utc""", [int(file_id)])
 
 
+def _next_file_id(con) -> int:
+    """The file's id: one more than the largest stored, taken inside its transaction (one writer).
+    A file rolled back (the same content under another name or compression, known only by its
+    fingerprint at the end: :class:`AlreadyLoaded`) then uses no id, so the sequential ingest
+    and the partitioned one (which skips such a file before its transaction) number the files
+    alike. DuckDB's sequences are not transactional: ``nextval`` counted the rolled-back file
+    too (the schema's ``ais_file_id_seq`` is no longer drawn from). The tables keyed by file id
+    are all asked, so that a file row removed by hand never hands its id to another file."""
+    return int(con.execute(
+        "SELECT greatest((SELECT max(file_id) FROM ais_files), (SELECT max(file_id) FROM ais_file_keys), "
+        "(SELECT max(file_id) FROM ais_parquet_parts), 0) + 1").fetchone()[0])
+
+
 def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
@@ -412,7 +425,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     pending = None
     con.execute("BEGIN TRANSACTION")
     try:
-        file_id = int(con.execute("SELECT nextval('ais_file_id_seq')").fetchone()[0])
+        file_id = _next_file_id(con)
         _rules_7_8(con, meta, max_speed_kn)
         lap("rules_7_8")
         # The file's rows once, in a temporary table: inserted, then read again for the track
