@@ -13,6 +13,11 @@ class NoRouteError(RoutingError):
     """No sea path joins start and goal on this mesh (land, mesh bounds or resolution)."""
 
 
+class DisconnectedSeaError(NoRouteError):
+    """Start and goal lie in sea areas the mesh does not connect (a passage narrower than its step,
+    or the bbox cutting the way round)."""
+
+
 class LandPointError(RoutingError):
     """A start or goal lies on land farther than the snapping limit from any sea node."""
 

@@ -41,7 +41,7 @@ import numpy as np
 import pandas as pd
 
 from routing.astar import ShipModel, WeatherArrays, evaluate_path, reachable, search, smooth
-from routing.errors import LandPointError, NoRouteError, WeatherCoverageError
+from routing.errors import DisconnectedSeaError, LandPointError, NoRouteError, WeatherCoverageError
 from routing.field import NS_PER_HOUR, MeshWeather, WeatherField
 from routing.mesh import Mesh, MeshGrid, build_mesh, global_land_mask_window
 from routing.planner_parts import (  # noqa: F401 (re-exported: the planner's public helpers)
@@ -243,14 +243,15 @@ def mesh_box(req: RouteRequest, weather: WeatherField | None, start, goal) -> tu
     return bbox
 
 
-def prepare_mesh(req: RouteRequest, weather: WeatherField | None, land_mask_fn, st: _Stage) -> None:
-    """Box, spacing, land mask, weather on the mesh, the mesh and its weather arrays (into ``st``)."""
+def prepare_mesh(req: RouteRequest, weather: WeatherField | None, land_mask_fn, st: _Stage, spacing_deg: float | None = None) -> None:
+    """Box, spacing, land mask, weather on the mesh, the mesh and its weather arrays (into ``st``).
+    ``spacing_deg`` overrides the request's (a refined automatic mesh, :func:`mesh_and_ends`)."""
     start = (float(req.start[0]), float(req.start[1]))
     goal_lon = float(req.goal[1])
     goal_lon += 360.0 * round((start[1] - goal_lon) / 360.0)  # the goal in the start's frame (unchanged unless across 180)
     st.start, st.goal = start, (float(req.goal[0]), goal_lon)
     bbox = mesh_box(req, weather, start, st.goal)
-    spacing = req.spacing_deg
+    spacing = req.spacing_deg if spacing_deg is None else spacing_deg
     if spacing is None:
         base = DEFAULT_SPACING_DEG
         if weather is not None:
@@ -289,7 +290,7 @@ def place_ends(st: _Stage) -> None:
         try:
             st.goal_node, st.goal_snap = mesh.snap(goal[0], goal[1], req.snap_limit_nmi, within=area, what="goal")
         except LandPointError:
-            raise NoRouteError(
+            raise DisconnectedSeaError(
                 f"no sea route: start ({req.start[0]:.4f}, {req.start[1]:.4f}) and goal ({req.goal[0]:.4f}, {req.goal[1]:.4f}) lie in "
                 f"sea areas that do not connect within the mesh (bbox {tuple(round(x, 4) for x in grid.bbox)}, "
                 f"{grid.dlat_deg * 60:.3g} nmi, {mesh.edges} edges); widen the bbox or refine the mesh"
@@ -306,6 +307,41 @@ def place_ends(st: _Stage) -> None:
     st.t_node_h = st.t0_h
     if st.lead:
         st.t_node_h = float(evaluate_path(mesh, wx, req.ship, [start[0], s_lat], [start[1], s_lon], t_start_h=st.t0_h)[0][-1])
+
+
+#: Halvings of an automatic mesh step tried when start and goal lie in sea areas the mesh does
+#: not connect: a fjord, skerries or a harbour behind a passage narrower than the step (Bergen to
+#: Alesund does not connect on the default 1.5 nmi mesh, does on 0.75 nmi). Each halving
+#: quadruples the nodes, so it is taken only while the mesh stays within the automatic mesh's
+#: bound (:data:`routing.planner_parts.DEFAULT_MAX_AUTO_NODES`).
+MAX_MESH_REFINEMENTS = 3
+
+
+def mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn) -> _Stage:
+    """:func:`prepare_mesh` and :func:`place_ends`. With an automatic step (no spacing in the
+    request), a mesh on which start and goal do not connect is refined by halving its step (at
+    most :data:`MAX_MESH_REFINEMENTS` times, within the node bound), and a note says so: the
+    route is planned on the finer mesh. A spacing the user chose is kept (the error stands)."""
+    tried: list[float] = []
+    while True:
+        st = _Stage(req, {})
+        prepare_mesh(req, weather, land_mask_fn, st, spacing_deg=tried[-1] / 2 if tried else None)
+        try:
+            place_ends(st)
+            break
+        except DisconnectedSeaError as err:
+            step = st.grid.dlat_deg
+            can = (req.spacing_deg is None and len(tried) < MAX_MESH_REFINEMENTS
+                   and st.grid.ny * st.grid.nx * 4 <= DEFAULT_MAX_AUTO_NODES)
+            tried.append(step)
+            if not can:
+                if len(tried) > 1:
+                    raise DisconnectedSeaError(f"{err} (the automatic mesh refined from {tried[0] * 60:.3g} nmi)") from None
+                raise
+    if tried:
+        st.notes.append(f"start and goal do not connect through the sea on the automatic {tried[0] * 60:.3g} nmi mesh "
+                        f"(a passage narrower than its step): planned on a {st.grid.dlat_deg * 60:.3g} nmi mesh")
+    return st
 
 
 def plain_routes(st: _Stage, results: dict) -> dict:
@@ -430,10 +466,8 @@ def plan_routes(
         :class:`routing.fuel.InfeasibleArrivalError` (a NoRouteError) when no route meets ``fuel.arrive_by``.
     """
     spec = safety if isinstance(safety, SafetySpec) else SafetySpec(str(safety), vessel, limits, penalty_per_h, sectors)
-    st = _Stage(req, {})
     t_all, c_all = _time.perf_counter(), _time.process_time()
-    prepare_mesh(req, weather, land_mask_fn, st)
-    place_ends(st)
+    st = mesh_and_ends(req, weather, land_mask_fn)
     results = {}
     with _Clock(st.timings, "search_time"):
         results["time"] = search(st.mesh, st.wx, req.ship, st.start_node, st.goal_node, t_start_h=st.t_node_h, cost="time")

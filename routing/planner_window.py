@@ -28,7 +28,7 @@ import pandas as pd
 from routing.astar import evaluate_path, search
 from routing.errors import NoRouteError
 from routing.fuel import FuelSpec
-from routing.planner import RouteRequest, _Stage, _props_maker, place_ends, plain_routes, prepare_mesh
+from routing.planner import RouteRequest, _props_maker, mesh_and_ends, plain_routes
 from routing.planner_fuel import fuel_routes
 from routing.planner_parts import mesh_weather_at
 from routing.mesh import global_land_mask_window
@@ -53,9 +53,7 @@ def plan_window(req: RouteRequest, weather, times: list, *, objective: str = "ti
     """Route every departure of ``times`` (see the module docstring); returns ``{"rows": [...], "best": i, "seconds": s}``."""
     t_all = _time.perf_counter()
     first = dataclasses.replace(req, depart_utc=min(times))
-    base = _Stage(first, {})
-    prepare_mesh(first, weather, land_mask_fn, base)
-    place_ends(base)
+    base = mesh_and_ends(first, weather, land_mask_fn)
     md = search(base.mesh, base.wx, req.ship, base.start_node, base.goal_node, cost="distance")
     exposure = _exposure(vessel, limits, base) if vessel is not None else None
     end_ns = None if base.mw is None or base.wx.time0_ns is None else int(base.mw.end_ns)

@@ -1,0 +1,102 @@
+"""An automatic mesh too coarse for a narrow passage is refined, and says so.
+
+A lake behind a channel narrower than the mesh step (as a fjord or a harbour behind skerries):
+with the automatic step the planner halves the step until start and goal connect, plans on the
+coarsest step that connects, and notes it; every leg stays at sea on the mask; a step the user
+chose is kept and the error stands; a basin that no refinement opens is the same error, saying
+how far the mesh was refined.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from routing import planner
+from routing.astar import ShipModel
+from routing.errors import DisconnectedSeaError
+from routing.mesh import LandMask
+from routing.planner import RouteRequest, plan_routes
+from routing.planner_window import plan_window
+from thresholds.geodesy import intermediate_point
+
+T0 = pd.Timestamp("2025-01-01T00:00Z")
+STEP = 1.5 / 60  # the automatic step without weather [deg]
+
+
+def channel_lake(center_lat: float | None, width_deg: float, calls: list | None = None):
+    """A ring of land round a lake at (40.5 N, 3.0 E), cut by a channel due west of ``width_deg``
+    centred on ``center_lat`` (None: no channel)."""
+
+    def mask(grid):
+        if calls is not None:
+            calls.append(grid.dlat_deg)
+        ppd = 120
+        r0 = int((90.0 - (grid.lat_deg[-1] + 1.5 * grid.dlat_deg)) * ppd)
+        c0 = int((grid.lon_deg[0] - 1.5 * grid.dlon_deg + 180.0) * ppd)
+        rows = int((grid.ny + 3) * grid.dlat_deg * ppd) + 2
+        cols = int((grid.nx + 3) * grid.dlon_deg * ppd) + 2
+        la, lo = np.meshgrid(90.0 - (r0 + np.arange(rows) + 0.5) / ppd, -180.0 + (c0 + np.arange(cols) + 0.5) / ppd,
+                             indexing="ij")
+        r = np.hypot(la - 40.5, lo - 3.0)
+        land = (r > 0.3) & (r < 0.45)
+        if center_lat is not None:
+            land &= ~((np.abs(la - center_lat) < width_deg / 2) & (lo < 3.0))
+        return LandMask(~land, r0, c0, ppd)
+
+    return mask
+
+
+def _req(spacing=None):
+    return RouteRequest((40.5, 2.0), (40.5, 3.0), T0, ShipModel(12.0, "none"), spacing_deg=spacing)
+
+
+def _legs_on_mask_at_sea(route, mask_fn, grid) -> bool:
+    """Every leg, a great circle sampled every 1/200 of its length, on the mask's sea."""
+    mask = mask_fn(grid)
+    lat, lon = np.asarray(route.lat_deg, float), np.asarray(route.lon_deg, float)
+    f = np.linspace(0.0, 1.0, 200)[:, None]
+    return bool(mask.is_ocean(*intermediate_point(lat[:-1], lon[:-1], lat[1:], lon[1:], f)).all())
+
+
+@pytest.mark.parametrize("center, width, halvings", [(40.5 + STEP / 2, 0.02, 1), (40.5 + STEP / 4, 0.008, 2)],
+                         ids=["one-halving", "two-halvings"])
+def test_a_channel_narrower_than_the_step_is_planned_on_the_coarsest_step_that_connects(center, width, halvings):
+    mask = channel_lake(center, width)
+    plan = plan_routes(_req(), None, land_mask_fn=mask)
+    step = STEP / 2**halvings
+    assert plan.mesh.grid.dlat_deg == pytest.approx(step)
+    assert (f"start and goal do not connect through the sea on the automatic 1.5 nmi mesh (a passage narrower than its step): "
+            f"planned on a {step * 60:.3g} nmi mesh") in plan.notes
+    for name in ("optimal", "optimal_smoothed", "min_distance"):
+        assert _legs_on_mask_at_sea(plan.routes[name], mask, plan.mesh.grid), name
+    # the coarsest that connects: the step before it does not, and the step given by hand plans the same route
+    with pytest.raises(DisconnectedSeaError):
+        plan_routes(_req(2 * step), None, land_mask_fn=mask)
+    same = plan_routes(_req(step), None, land_mask_fn=mask)
+    assert same.routes["optimal"].time_h == plan.routes["optimal"].time_h
+    assert not any("automatic" in n for n in same.notes)
+
+
+def test_a_wide_channel_keeps_the_automatic_step_and_says_nothing():
+    plan = plan_routes(_req(), None, land_mask_fn=channel_lake(40.5, 0.1))
+    assert plan.mesh.grid.dlat_deg == pytest.approx(STEP) and not any("automatic" in n for n in plan.notes)
+
+
+def test_a_step_the_user_chose_is_kept():
+    with pytest.raises(DisconnectedSeaError, match=r"do not connect within the mesh .*1\.5 nmi.*refine the mesh$"):
+        plan_routes(_req(STEP), None, land_mask_fn=channel_lake(40.5 + STEP / 2, 0.02))
+
+
+def test_a_closed_basin_is_refused_after_the_refinements():
+    calls = []
+    with pytest.raises(DisconnectedSeaError, match=r"\(the automatic mesh refined from 1\.5 nmi\)$"):
+        plan_routes(_req(), None, land_mask_fn=channel_lake(None, 0.0, calls))
+    assert calls == pytest.approx([STEP / 2**k for k in range(planner.MAX_MESH_REFINEMENTS + 1)])
+
+
+def test_a_departure_window_refines_the_same_way():
+    res = plan_window(_req(), None, [T0, T0 + pd.Timedelta(hours=6)], land_mask_fn=channel_lake(40.5 + STEP / 2, 0.02))
+    assert [r.get("error") for r in res["rows"]] == [None, None]
+    assert all(r["route"] is not None for r in res["rows"])
