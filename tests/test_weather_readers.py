@@ -4,6 +4,8 @@ ecCodes for GRIB), plus land = NaN and the direction conventions."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -229,6 +231,26 @@ def test_era5_zarr_speed_direction(shared_data):
     diff = np.abs((got - twd[strong] + 180.0) % 360.0 - 180.0)
     assert diff.max() < 1e-2
     assert meta["shape"] == [20, 161, 281]
+
+
+def test_era5_zarr_through_the_cli(shared_data):
+    """The CLI tells xarray its process holds no dask arrays (a faster start); the zarr store must
+    then open numpy-backed, or ``weather info`` and ``route --weather`` died with a traceback
+    ("Could not find a Chunk Manager which recognises type dask.array.core.Array"). A fresh
+    process, as a user's command."""
+    import subprocess
+    import sys
+
+    path = str(shared_file(shared_data, ZARR))
+    cmd = [sys.executable, "-m", "pipelines.cli"]
+    info = subprocess.run([*cmd, "weather", "info", path], capture_output=True, text=True, timeout=300)
+    assert info.returncode == 0 and "Traceback" not in info.stderr, info.stderr
+    assert "2022-01-01T00:00Z -> 2022-01-10T12:00Z  (20 steps)" in info.stdout and "wind_u_ms" in info.stdout
+    route = subprocess.run([*cmd, "route", "--from", "-34.0,18.0", "--to", "-23.0,-43.0", "--depart", "2022-01-02T00:00Z",
+                            "--weather", path, "--speed-loss", "kwon", "--json"], capture_output=True, text=True, timeout=300)
+    assert route.returncode == 0, route.stderr
+    out = json.loads(route.stdout)
+    assert out["optimal"]["time_h"] > out["min_distance_calm"]["time_h"]  # the wind slows the ship
 
 
 # ------------------------------------------------------------------ files that are not weather, bad files

@@ -34,7 +34,8 @@ def read_wind_zarr(path: str | Path, speed_units: str = "knots") -> tuple[xr.Dat
     if not path.is_dir():
         raise WeatherFileError(f"{path}: no such zarr directory")
     try:
-        raw = xr.open_zarr(path, consolidated=None)
+        # numpy-backed (chunks=None): the CLI tells xarray its process holds no dask arrays
+        raw = xr.open_zarr(path, consolidated=None, chunks=None)
     except Exception as err:
         raise WeatherFileError(f"{path}: not a readable zarr store ({type(err).__name__}: {err})") from None
     if not {"tws", "twd"} <= set(raw.data_vars):
