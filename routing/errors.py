@@ -21,6 +21,10 @@ class DisconnectedSeaError(NoRouteError):
 class LandPointError(RoutingError):
     """A start or goal lies on land farther than the snapping limit from any sea node."""
 
+    def __init__(self, message: str, what: str = "point", limit_nmi: float = 0.0):
+        super().__init__(message)
+        self.what, self.limit_nmi = what, limit_nmi  # "start" or "goal"; the snapping limit
+
 
 class OutsideMeshError(RoutingError):
     """A start or goal lies outside the mesh bounding box."""

@@ -380,7 +380,7 @@ class Mesh:
         extra = " reachable from the start" if within is not None else ""
         raise LandPointError(
             f"{what} ({lat:.4f}, {lon:.4f}) is on land or in a closed basin at this mesh resolution "
-            f"({g.dlat_deg * 60:.3g} nmi): no sea node{extra} within {limit_nmi:g} nmi"
+            f"({g.dlat_deg * 60:.3g} nmi): no sea node{extra} within {limit_nmi:g} nmi", what, float(limit_nmi)
         )
 
 

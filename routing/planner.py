@@ -311,37 +311,53 @@ def place_ends(st: _Stage) -> None:
 
 #: Halvings of an automatic mesh step tried when start and goal lie in sea areas the mesh does
 #: not connect: a fjord, skerries or a harbour behind a passage narrower than the step (Bergen to
-#: Alesund does not connect on the default 1.5 nmi mesh, does on 0.75 nmi). Each halving
-#: quadruples the nodes, so it is taken only while the mesh stays within the automatic mesh's
-#: bound (:data:`routing.planner_parts.DEFAULT_MAX_AUTO_NODES`).
+#: Alesund does not connect on the default 1.5 nmi mesh, does on 0.75 nmi), or when a port has
+#: no sea node within the snapping limit (the mesh takes the weather's step: Lisbon has none
+#: within 10 nmi on GFS's 0.5 deg, 30 nmi). Each halving quadruples the nodes, so it is taken
+#: only while the mesh stays within the automatic mesh's bound
+#: (:data:`routing.planner_parts.DEFAULT_MAX_AUTO_NODES`).
 MAX_MESH_REFINEMENTS = 3
 
 
 def mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn) -> _Stage:
     """:func:`prepare_mesh` and :func:`place_ends`. With an automatic step (no spacing in the
-    request), a mesh on which start and goal do not connect is refined by halving its step (at
-    most :data:`MAX_MESH_REFINEMENTS` times, within the node bound), and a note says so: the
-    route is planned on the finer mesh. A spacing the user chose is kept (the error stands)."""
+    request), a mesh on which start and goal do not connect, or on which one of them has no sea
+    node within the snapping limit while the step is longer than that limit, is refined by
+    halving its step (at most
+    :data:`MAX_MESH_REFINEMENTS` times, within the node bound), and a note says so: the route is
+    planned on the finer mesh. A spacing the user chose is kept (the error stands)."""
     tried: list[float] = []
+    reasons: list[str] = []
     while True:
         st = _Stage(req, {})
         prepare_mesh(req, weather, land_mask_fn, st, spacing_deg=tried[-1] / 2 if tried else None)
         try:
             place_ends(st)
             break
-        except DisconnectedSeaError as err:
-            step = st.grid.dlat_deg
-            can = (req.spacing_deg is None and len(tried) < MAX_MESH_REFINEMENTS
+        except (DisconnectedSeaError, LandPointError) as err:
+            # a point with no sea node within the limit gains from a finer mesh only while the
+            # step is longer than the limit (else the sea is that far: an inland point stays refused at once)
+            helps = not isinstance(err, LandPointError) or st.grid.dlat_deg * 60.0 > err.limit_nmi
+            can = (req.spacing_deg is None and helps and len(tried) < MAX_MESH_REFINEMENTS
                    and st.grid.ny * st.grid.nx * 4 <= DEFAULT_MAX_AUTO_NODES)
-            tried.append(step)
+            tried.append(st.grid.dlat_deg)
             if not can:
                 if len(tried) > 1:
-                    raise DisconnectedSeaError(f"{err} (the automatic mesh refined from {tried[0] * 60:.3g} nmi)") from None
+                    err.args = (f"{err} (the automatic mesh refined from {tried[0] * 60:.3g} nmi)",)
                 raise
+            if not reasons:
+                reasons.append(_refine_reason(err))
     if tried:
-        st.notes.append(f"start and goal do not connect through the sea on the automatic {tried[0] * 60:.3g} nmi mesh "
-                        f"(a passage narrower than its step): planned on a {st.grid.dlat_deg * 60:.3g} nmi mesh")
+        st.notes.append(f"{reasons[0]} on the automatic {tried[0] * 60:.3g} nmi mesh: planned on a "
+                        f"{st.grid.dlat_deg * 60:.3g} nmi mesh")
     return st
+
+
+def _refine_reason(err: Exception) -> str:
+    """Why an automatic mesh was refined, for the plan's note."""
+    if isinstance(err, LandPointError):
+        return f"the {err.what} has no sea node within {err.limit_nmi:g} nmi"
+    return "start and goal do not connect through the sea"
 
 
 def plain_routes(st: _Stage, results: dict) -> dict:

@@ -1,13 +1,16 @@
-"""An automatic mesh too coarse for a narrow passage is refined, and says so.
+"""An automatic mesh too coarse for a narrow passage or a port is refined, and says so.
 
 A lake behind a channel narrower than the mesh step (as a fjord or a harbour behind skerries):
 with the automatic step the planner halves the step until start and goal connect, plans on the
 coarsest step that connects, and notes it; every leg stays at sea on the mask; a step the user
 chose is kept and the error stands; a basin that no refinement opens is the same error, saying
-how far the mesh was refined.
+how far the mesh was refined. A port with no sea node within the snapping limit (a coarse
+weather grid's step) is refined the same way, an inland point refused at once.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pandas as pd
@@ -15,7 +18,7 @@ import pytest
 
 from routing import planner
 from routing.astar import ShipModel
-from routing.errors import DisconnectedSeaError
+from routing.errors import DisconnectedSeaError, LandPointError
 from routing.mesh import LandMask
 from routing.planner import RouteRequest, plan_routes
 from routing.planner_window import plan_window
@@ -67,8 +70,8 @@ def test_a_channel_narrower_than_the_step_is_planned_on_the_coarsest_step_that_c
     plan = plan_routes(_req(), None, land_mask_fn=mask)
     step = STEP / 2**halvings
     assert plan.mesh.grid.dlat_deg == pytest.approx(step)
-    assert (f"start and goal do not connect through the sea on the automatic 1.5 nmi mesh (a passage narrower than its step): "
-            f"planned on a {step * 60:.3g} nmi mesh") in plan.notes
+    assert f"start and goal do not connect through the sea on the automatic 1.5 nmi mesh: planned on a {step * 60:.3g} nmi mesh" \
+        in plan.notes
     for name in ("optimal", "optimal_smoothed", "min_distance"):
         assert _legs_on_mask_at_sea(plan.routes[name], mask, plan.mesh.grid), name
     # the coarsest that connects: the step before it does not, and the step given by hand plans the same route
@@ -100,3 +103,41 @@ def test_a_departure_window_refines_the_same_way():
     res = plan_window(_req(), None, [T0, T0 + pd.Timedelta(hours=6)], land_mask_fn=channel_lake(40.5 + STEP / 2, 0.02))
     assert [r.get("error") for r in res["rows"]] == [None, None]
     assert all(r["route"] is not None for r in res["rows"])
+
+
+def coast_west_of(lon_deg: float, calls: list | None = None):
+    """Land west of ``lon_deg`` (pixel centres), sea east of it."""
+
+    def mask(grid):
+        if calls is not None:
+            calls.append(grid.dlat_deg)
+        ppd = 120
+        r0 = int((90.0 - (grid.lat_deg[-1] + 1.5 * grid.dlat_deg)) * ppd)
+        c0 = int((grid.lon_deg[0] - 1.5 * grid.dlon_deg + 180.0) * ppd)
+        rows = int((grid.ny + 3) * grid.dlat_deg * ppd) + 2
+        cols = int((grid.nx + 3) * grid.dlon_deg * ppd) + 2
+        lon = -180.0 + (c0 + np.arange(cols) + 0.5) / ppd
+        return LandMask(np.broadcast_to(lon >= lon_deg, (rows, cols)).copy(), r0, c0, ppd)
+
+    return mask
+
+
+def test_a_port_without_a_sea_node_within_the_limit_is_planned_on_a_finer_step():
+    """The start lies on the coast's last land pixel, 0.38 nmi from the sea: on the 1.5 nmi mesh
+    its nearest sea node is 1.14 nmi away (over a 1 nmi limit), on 0.75 nmi 0.57 nmi."""
+    req = dataclasses.replace(_req(), snap_limit_nmi=1.0)
+    plan = plan_routes(req, None, land_mask_fn=coast_west_of(2.005))
+    assert plan.mesh.grid.dlat_deg == pytest.approx(STEP / 2)
+    assert ("the start has no sea node within 1 nmi on the automatic 1.5 nmi mesh: planned on a 0.75 nmi mesh"
+            in plan.notes)
+    assert plan.routes["optimal"].properties["start_snap_nmi"] == pytest.approx(0.57, abs=0.01)
+    with pytest.raises(LandPointError, match=r"^start \(40\.5000, 2\.0000\) is on land .*\(1\.5 nmi\)"):
+        plan_routes(dataclasses.replace(req, spacing_deg=STEP), None, land_mask_fn=coast_west_of(2.005))
+
+
+def test_an_inland_point_is_refused_at_once():
+    """20 nmi from the sea: no mesh finer than the limit brings a sea node within it."""
+    calls = []
+    with pytest.raises(LandPointError, match=r"no sea node within 10 nmi$"):
+        plan_routes(_req(), None, land_mask_fn=coast_west_of(2.44, calls))
+    assert calls == [pytest.approx(STEP)]

@@ -54,7 +54,7 @@ def register(app: typer.Typer) -> None:
             help="Aertssen's Hs -> Beaufort convention: wmo (WMO probable maximum heights as class upper edges) or simroute "
                  "(SIMROUTE's code: the tabulated Hs as lower edges).",
         ),
-        mesh_nmi: float = typer.Option(None, "--mesh-nmi", min=0.01, metavar="NMI", help="Mesh step in nmi, taken as X/60 deg on both axes (SIMROUTE's convention). Default: the weather's grid step (1.5 nmi without weather), halved where start and goal do not connect through a narrow passage (a note says so)."),
+        mesh_nmi: float = typer.Option(None, "--mesh-nmi", min=0.01, metavar="NMI", help="Mesh step in nmi, taken as X/60 deg on both axes (SIMROUTE's convention). Default: the weather's grid step (1.5 nmi without weather), halved where start and goal do not connect through a narrow passage or a port has no sea node within --snap-nmi (a note says so)."),
         mesh_deg: float = typer.Option(None, "--mesh-deg", min=0.0001, metavar="DEG", help="Mesh step in degrees on both axes."),
         bbox: str = typer.Option(None, "--bbox", metavar="LONMIN,LATMIN,LONMAX,LATMAX", help="Mesh extent; default the great circle's box plus a margin."),
         edges: int = typer.Option(48, "--edges", metavar="8|16|24|48", help="Edges per node.", show_default=True),
