@@ -32,6 +32,20 @@ def channel_lake(center_lat: float | None, width_deg: float, calls: list | None 
     """A ring of land round a lake at (40.5 N, 3.0 E), cut by a channel due west of ``width_deg``
     centred on ``center_lat`` (None: no channel)."""
 
+    def land(la, lo):
+        r = np.hypot(la - 40.5, lo - 3.0)
+        ring = (r > 0.3) & (r < 0.45)
+        if center_lat is None:
+            return ring
+        return ring & ~((np.abs(la - center_lat) < width_deg / 2) & (lo < 3.0))
+
+    return _mask(land, calls)
+
+
+def _mask(land, calls: list | None):
+    """A land-mask function (as ``plan_routes`` takes): 30" pixels round the mesh, land where
+    ``land(lat, lon)`` of their centres; each mesh step asked is appended to ``calls``."""
+
     def mask(grid):
         if calls is not None:
             calls.append(grid.dlat_deg)
@@ -42,11 +56,7 @@ def channel_lake(center_lat: float | None, width_deg: float, calls: list | None 
         cols = int((grid.nx + 3) * grid.dlon_deg * ppd) + 2
         la, lo = np.meshgrid(90.0 - (r0 + np.arange(rows) + 0.5) / ppd, -180.0 + (c0 + np.arange(cols) + 0.5) / ppd,
                              indexing="ij")
-        r = np.hypot(la - 40.5, lo - 3.0)
-        land = (r > 0.3) & (r < 0.45)
-        if center_lat is not None:
-            land &= ~((np.abs(la - center_lat) < width_deg / 2) & (lo < 3.0))
-        return LandMask(~land, r0, c0, ppd)
+        return LandMask(~land(la, lo), r0, c0, ppd)
 
     return mask
 
@@ -107,19 +117,7 @@ def test_a_departure_window_refines_the_same_way():
 
 def coast_west_of(lon_deg: float, calls: list | None = None):
     """Land west of ``lon_deg`` (pixel centres), sea east of it."""
-
-    def mask(grid):
-        if calls is not None:
-            calls.append(grid.dlat_deg)
-        ppd = 120
-        r0 = int((90.0 - (grid.lat_deg[-1] + 1.5 * grid.dlat_deg)) * ppd)
-        c0 = int((grid.lon_deg[0] - 1.5 * grid.dlon_deg + 180.0) * ppd)
-        rows = int((grid.ny + 3) * grid.dlat_deg * ppd) + 2
-        cols = int((grid.nx + 3) * grid.dlon_deg * ppd) + 2
-        lon = -180.0 + (c0 + np.arange(cols) + 0.5) / ppd
-        return LandMask(np.broadcast_to(lon >= lon_deg, (rows, cols)).copy(), r0, c0, ppd)
-
-    return mask
+    return _mask(lambda la, lo: lo < lon_deg, calls)
 
 
 def test_a_port_without_a_sea_node_within_the_limit_is_planned_on_a_finer_step():
