@@ -369,7 +369,9 @@ def khokhlov_check(dwt_t: float, speed_kn: float, vessel_name: str = "") -> str 
     :data:`KHOKHLOV_DV_MAX`). Beyond it the factor falls toward 0 (at 7.4e5) and below (head seas
     speeding the ship up): refused. A ship outside the dwt or speed range whose D·v0 stays within
     it keeps a factor the formula was fitted on: allowed, and the returned note (said in every
-    output that used it) names the excursion.
+    output that used it) names the excursion. A ship below the range's smallest D·v0 (4 000 t x
+    9 kn) has a factor above 0.95, tending to 1 (at most 5 % more loss than the smallest fitted
+    ship): allowed, and the note says the factor lies above the fitted range and is extrapolated.
 
     Returns
     -------
@@ -389,6 +391,8 @@ def khokhlov_check(dwt_t: float, speed_kn: float, vessel_name: str = "") -> str 
     True
     >>> print(khokhlov_check(21000.0, 17.0))  # a feeder 5 % over the dwt range, D·v0 within it
     outside the published 4,000-20,000 dwt / 9-20 kn, D·v0 <= 4.00e+05 t·kn: factor 0.52 within its 0.46-0.95
+    >>> print(khokhlov_check(300.0, 10.0))  # a 30 m trawler: below the smallest D·v0
+    outside the published 4,000-20,000 dwt / 9-20 kn, D·v0 <= 4.00e+05 t·kn: factor 1.00 above its 0.46-0.95 (D·v0 = 3e+03 t·kn, below the range's 3.6e+04): the loss is extrapolated beyond the ships it was fitted on
     """
     dwt, v0 = float(dwt_t), float(speed_kn)
     lo_d, hi_d = KHOKHLOV_DWT_RANGE_T
@@ -408,8 +412,13 @@ def khokhlov_check(dwt_t: float, speed_kn: float, vessel_name: str = "") -> str 
         return None
     f_lo = 1.0 - KHOKHLOV_C * KHOKHLOV_DV_MAX
     f_hi = 1.0 - KHOKHLOV_C * lo_d * lo_v
-    return (f"outside the published {lo_d:,.0f}-{hi_d:,.0f} dwt / {lo_v:g}-{hi_v:g} kn, D·v0 <= {KHOKHLOV_DV_MAX:.2e} t·kn: "
-            f"factor {factor:.2f} within its {f_lo:.2f}-{f_hi:.2f}")
+    note = (f"outside the published {lo_d:,.0f}-{hi_d:,.0f} dwt / {lo_v:g}-{hi_v:g} kn, D·v0 <= {KHOKHLOV_DV_MAX:.2e} t·kn: "
+            f"factor {factor:.2f}")
+    if factor <= f_hi:
+        return f"{note} within its {f_lo:.2f}-{f_hi:.2f}"
+    # a small or slow ship: the factor tends to 1, a larger loss than for any ship it was fitted on
+    return (f"{note} above its {f_lo:.2f}-{f_hi:.2f} (D·v0 = {dv:.3g} t·kn, below the range's {lo_d * lo_v:.3g}): "
+            "the loss is extrapolated beyond the ships it was fitted on")
 
 
 def speed_loss_khokhlov(speed_kn, hs_m, encounter_deg, dwt_t):

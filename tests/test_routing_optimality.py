@@ -257,6 +257,11 @@ def test_khokhlov_outside_its_range_is_refused_naming_the_vessel_and_d_v0():
     # 21 000 dwt at 17 kn: outside the dwt range, D·v0 = 3.57e5 within: allowed and said
     ship = ShipModel(17.0, "khokhlov", dwt_t=21000.0, vessel_name="container-feeder")
     assert "outside the published 4,000-20,000 dwt / 9-20 kn" in ship.describe() and "factor 0.52 within its 0.46-0.95" in ship.describe()
+    # 300 dwt at 10 kn (a trawler): D·v0 = 3e3, below the range's 4 000 x 9 = 3.6e4: the factor 0.996
+    # lies above the fitted 0.46-0.95, said as such (it once read "factor 1.00 within its 0.46-0.95")
+    small = ShipModel(10.0, "khokhlov", dwt_t=300.0, vessel_name="trawler").describe()
+    assert "factor 1.00 above its 0.46-0.95 (D·v0 = 3e+03 t·kn, below the range's 3.6e+04)" in small
+    assert "extrapolated" in small and "within" not in small
 
 
 # ------------------------------------------------------------------ the speed models' bounds
