@@ -247,7 +247,7 @@ def overview(model: NightlyReport) -> Markup:
     figure = el("div", fleet_map(model, rows) if rows else Markup(""), class_="fleetbox") if rows else Markup("")
     sums = el("p", f"Sums over the proposed reroutes; \u0394 = proposed \u2212 {reference_text(model)} (negative time, fuel "
               "and CO2 are savings).", class_="muted small")
-    parts = [el("h2", "Overview", id="overview"), line, _cards(model), sums, *beyond_weather_note(model),
+    parts = [el("h2", "Overview", id="overview"), line, _cards(model), sums, *beyond_weather_note(model), *speed_capped_note(model),
              el("div", figure, top, class_="overview-row")]
     if rows:
         parts += [el("h3", "Lanes \u00d7 departures"), matrix(model, rows)]
@@ -260,6 +260,22 @@ def beyond_weather_text(n: int, n_ok: int, end: str) -> str:
     return (f"{n} lane-departure(s) sail on after the weather's last time ({end}): their centroids after it were not "
             f"screened (no rule can fire without weather), so {n_ok} of them shown as 'no rule fired' were screened on "
             "their part with weather only; time without weather is never counted as safe.")
+
+
+def speed_capped_text(caps: list) -> str | None:
+    """What the night says (page, terminal) when lanes were faster than their vessel can sail."""
+    if not caps:
+        return None
+    shown = "; ".join(f"{c['lane']} ({c['vessel']}): AIS {c['ais_kn']:.1f} kn, sailed at {c['sailed_kn']:.1f} kn" for c in caps[:5])
+    more = f"; and {len(caps) - 5} more" if len(caps) > 5 else ""
+    return (f"{len(caps)} rerouted lane(s) were sailed faster by their ships than the vessel profile can sail at its "
+            f"installed power: every route of these lanes, the lane as planned included, is sailed at the profile's "
+            f"maximum-power speed instead: {shown}{more}.")
+
+
+def speed_capped_note(model: NightlyReport) -> list:
+    text = speed_capped_text((model.summary or {}).get("speed_capped"))
+    return [el("p", text, class_="warn small")] if text else []
 
 
 def beyond_weather_note(model: NightlyReport) -> list:

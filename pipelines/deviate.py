@@ -146,7 +146,7 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     """
     from pipelines.config import load_operator_profile, load_vessel
     from pipelines.learn import resolve_speed_loss
-    from pipelines.nightly.reroute import lane_speed_vessel
+    from pipelines.nightly.reroute import lane_speed, lane_speed_vessel
     from pipelines.routing_weather import field_from_dataset
     from pipelines.storage import open_workspace
     from pipelines.storage.results import write_deviation
@@ -166,7 +166,8 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     limits = load_operator_profile(profile)
     field_ = field_from_dataset(ds)
     sampler = PointSampler.from_field(field_)
-    ves = lane_speed_vessel(load_vessel(vessel_name), lane)
+    profile_vessel = load_vessel(vessel_name)
+    ves = lane_speed_vessel(profile_vessel, lane)
     ev_lane, ev_dev, dev = _lane_and_deviation(lane, str(lane_id), t0, field_, sampler, ves, vessel_name, limits, label, choice)
     lane_summary = ev_lane.to_dict(waypoints=True)
     dev_summary = {**ev_dev.to_dict(waypoints=True), "n_deviated": dev.properties["n_deviated"],
@@ -180,6 +181,10 @@ def deviate_in_workspace(db, lane_id: str, depart, *, weather=(), vessel: str | 
     notes = [f"the deviation is not proposed: {why}" if why else None, not_safer_note(lane_summary, dev_summary)]
     if dev.time_utc[-1] > sampler.end_utc:
         notes.append(f"the deviation arrives {dev.time_utc[-1].isoformat()}, after the weather ends ({sampler.end_utc.isoformat()})")
+    sailed, typical = lane_speed(profile_vessel, lane)
+    if sailed is not None and sailed < typical:
+        notes.append(f"the lane's ships sailed {typical:.1f} kn, faster than {vessel_name} can at its installed power: "
+                     f"the lane and the deviation are sailed at its maximum-power speed, {sailed:.1f} kn")
     notes = [n for n in notes if n]
     return {
         "deviation_id": deviation_id,

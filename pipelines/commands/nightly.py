@@ -195,12 +195,14 @@ def _num(x, spec: str, unit: str = "") -> str:
 
 def warn_beyond_weather(summary: dict) -> None:
     """One ``warning:`` line when lane-departures sail on after the weather's last time (the
-    report's overview says the same): their centroids after it were not screened."""
+    report's overview says the same): their centroids after it were not screened; and one when
+    rerouted lanes were faster than their vessel can sail (sailed at its maximum-power speed)."""
+    from dashboards.nightly_page import speed_capped_text
     from pipelines.nightly.store import beyond_weather_line
 
-    line = beyond_weather_line(summary)
-    if line is not None:
-        warning(line)
+    for line in (beyond_weather_line(summary), speed_capped_text(summary.get("speed_capped"))):
+        if line is not None:
+            warning(line)
 
 
 def print_summary(summary: dict) -> None:

@@ -217,3 +217,6 @@ class NightResult:
     #: (path_id, depart_utc) -> {"n_beyond", "status"}: the lane-departures (not failed)
     #: with centroids timed outside the weather's span, which the screen could not check
     beyond_weather: dict = field(default_factory=dict)
+    #: the rerouted lanes whose typical AIS speed exceeds their vessel's maximum-power speed
+    #: (:func:`pipelines.nightly.reroute.speed_caps`): sailed by the model at that speed
+    speed_capped: list = field(default_factory=list)

@@ -101,8 +101,11 @@ def assemble(night: Night, screen: pd.DataFrame, outcomes: list[dict]) -> NightR
         "reroutes": int(((deps["status"] == "adverse") & deps["proposed"].notna()).sum()),
     }
     windows = sorted((o["lane_window"] for o in outcomes if o.get("lane_window")), key=lambda w: w["lane"])
+    from pipelines.nightly.reroute import speed_caps
+
+    caps = speed_caps(night, deps.loc[deps["status"] == "adverse", "path_id"])  # the lanes the vessel model sailed
     return NightResult(deps, pd.DataFrame(route_rows, columns=list(ROUTE_COLUMNS)),
-                       pd.DataFrame(event_rows, columns=list(EVENT_COLUMNS)), cases, counts, windows, beyond)
+                       pd.DataFrame(event_rows, columns=list(EVENT_COLUMNS)), cases, counts, windows, beyond, caps)
 
 
 def overview_of(result: NightResult, top: int = 10) -> dict:
@@ -126,6 +129,8 @@ def overview_of(result: NightResult, top: int = 10) -> dict:
         # can fire without weather), so an `ok` among these was screened on its part with weather only
         "beyond_weather": len(beyond),
         "beyond_weather_ok": sum(1 for b in beyond.values() if b["status"] == "ok"),
+        # lanes faster than their vessel can sail: the model sailed them at its maximum-power speed
+        "speed_capped": list(result.speed_capped or []),
         "lanes_at_risk": int(adverse["path_id"].nunique()),
         "lanes_with_reroute": int(re["path_id"].nunique()),
         "risk_avoided_h": total("risk_avoided_h"),

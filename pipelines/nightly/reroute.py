@@ -47,16 +47,46 @@ def _lane_table(night: Night, p):
 
 
 def lane_speed_vessel(vessel, centroids: pd.DataFrame):
-    """The vessel sailing at the lane's typical speed (median of the centroids' speeds), so the
-    A* routes and the evaluations compare like with like; the profile's speed when the lane has none."""
+    """The vessel sailing at the lane's typical speed (:func:`lane_speed`), so the A* routes and the
+    evaluations compare like with like; the profile's speed when the lane has none."""
+    sailed, _ = lane_speed(vessel, centroids)
+    return vessel if sailed is None else dataclasses.replace(vessel, speed_kn=sailed)
+
+
+def lane_speed(vessel, centroids: pd.DataFrame) -> tuple[float | None, float | None]:
+    """``(sailed, typical)``: the lane's typical AIS speed (median of the centroids' speeds) and the
+    calm-water speed the vessel model sails it at: the same, capped at the vessel's maximum-power
+    speed (:func:`routing.fuel.max_power_speed_kn`, STEAM2's cubic law at the installed power)
+    when the lane's ships sailed faster than this vessel can (an aframax profile on a ro-pax lane:
+    20.4 kn against 16.5). ``(None, None)`` when the lane has no speed above the vessel's minimum
+    (the profile's own speed is sailed). [kn]"""
+    from routing.emissions import Engine
+    from routing.fuel import max_power_speed_kn
+
     v = centroids["speed_kn"].to_numpy(dtype=float)
     v = v[np.isfinite(v) & (v > 0)]
-    if v.size == 0:
-        return vessel
-    s = float(np.median(v))
-    if not s > vessel.min_speed_kn:
-        return vessel
-    return dataclasses.replace(vessel, speed_kn=s)
+    if v.size == 0 or not float(np.median(v)) > vessel.min_speed_kn:
+        return None, None
+    typical = float(np.median(v))
+    try:
+        top = max_power_speed_kn(Engine.from_vessel(vessel))
+    except (TypeError, ValueError):  # a profile without engine data: no cap to apply
+        return typical, typical
+    return min(typical, top), typical
+
+
+def speed_caps(night: Night, path_ids) -> list[dict]:
+    """The lanes of ``path_ids`` whose typical AIS speed their vessel cannot make (:func:`lane_speed`):
+    ``lane``, ``vessel``, ``ais_kn`` and ``sailed_kn`` (the maximum-power speed), said by the night."""
+    out = []
+    paths = {p.path_id: p for p in night.paths}
+    for pid in sorted(set(path_ids)):
+        p = paths[pid]
+        vessel = night.vessels.get(p.vessel_profile)
+        sailed, typical = (None, None) if vessel is None else lane_speed(vessel, p.centroids.sort_values("seq"))
+        if sailed is not None and sailed < typical:
+            out.append({"lane": pid, "vessel": vessel.name, "ais_kn": round(typical, 2), "sailed_kn": round(sailed, 2)})
+    return out
 
 
 def _clean_route(route, name: str | None = None):

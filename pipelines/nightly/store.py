@@ -76,7 +76,7 @@ def summary_of(night: Night, result: NightResult, report: dict | None, timings: 
         "speed_loss_model": night.params.speed_loss,
         "learned_limits": night.learned_limits,
         "timings_s": timings,
-        "reference": "lane: the lane as planned, sailed by the same vessel model (the lane's typical AIS speed minus the speed "
+        "reference": "lane: the lane as planned, sailed by the same vessel model (the lane's typical AIS speed, at most the vessel's maximum-power speed, minus the speed "
                      "loss) from the same departure in the same weather; every delta is proposed minus it",
     }
 
