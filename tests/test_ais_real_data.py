@@ -176,6 +176,37 @@ def test_noaa_sample_sentinels_and_counts(shared_data, tmp_path):
     assert msc["length_m"] == 208.0 and msc["beam_m"] == 30.0 and msc["draught_m"] == 8.0
 
 
+#: NOAA's header until 2023 -> the snake_case names of its files from 2024 on
+NOAA_2024_NAMES = {"MMSI": "mmsi", "BaseDateTime": "base_date_time", "LAT": "latitude", "LON": "longitude", "SOG": "sog",
+                   "COG": "cog", "Heading": "heading", "VesselName": "vessel_name", "IMO": "imo", "CallSign": "call_sign",
+                   "VesselType": "vessel_type", "Status": "status", "Length": "length", "Width": "width", "Draft": "draft",
+                   "Cargo": "cargo", "TransceiverClass": "transceiver"}
+
+
+@pytest.mark.parametrize("fast", [False, True], ids=["lines", "scan"])
+def test_noaa_sample_under_the_2024_header_loads_the_same_rows(shared_data, tmp_path, monkeypatch, fast):
+    """The sample with NOAA's 2024 column names (and its times with a space): format detected as
+    NOAA, the same positions, quarantine and vessels as under the old header."""
+    from pipelines import ingest_stage
+
+    if fast:
+        monkeypatch.setattr(ingest_stage, "FAST_CSV_MIN_BYTES", 0)
+    path = shared_file(shared_data, NOAA_CSV)
+    head, body = path.read_text().split("\n", 1)
+    renamed = tmp_path / "ais-2023-01-11.csv"  # the 2024 files also write the time with a space
+    renamed.write_text(",".join(NOAA_2024_NAMES[h] for h in head.split(",")) + "\n" + body.replace("2023-01-11T", "2023-01-11 "))
+    tables = []
+    for src in (path, renamed):
+        db = tmp_path / f"{src.stem}.duckdb"
+        s = ingest_paths([src], db)
+        assert s["per_file"][0]["format"] == "noaa" and s["read"] == 1000 and s["reasons"] == {"bad_mmsi": 2}
+        with open_workspace(db) as ws:
+            q = read_quarantine(ws)[["line", "reason", "mmsi"]]
+            tables.append((read_positions(ws), q, read_vessels(ws)))
+    for a, b in zip(*tables):
+        pd.testing.assert_frame_equal(a, b, check_exact=True)
+
+
 def test_ny_harbour_parquet(shared_data, tmp_path):
     path = shared_file(shared_data, NY_PARQUET)
     s = ingest_paths([path], tmp_path / "ws.duckdb")

@@ -161,20 +161,24 @@ DMA_SPEC = CsvSpec(
     time_formats=("%d/%m/%Y %H:%M:%S",),
 )
 
+#: NOAA's header until 2023 (``MMSI,BaseDateTime,LAT,LON,...,VesselName,...,CallSign,VesselType``)
+#: and the snake_case names of its files from 2024 on (``mmsi,base_date_time,latitude,longitude,
+#: ...,vessel_name,...,call_sign,vessel_type``; NOAA OCM, "Nationwide Automatic Identification
+#: System 2024", https://github.com/ocm-marinecadastre/ais-vessel-traffic).
 NOAA_SPEC = CsvSpec(
     format="noaa",
     columns={
         "mmsi": ("mmsi",),
-        "time_utc": ("basedatetime",),
-        "lat_deg": ("lat",),
-        "lon_deg": ("lon",),
+        "time_utc": ("basedatetime", "base_date_time"),
+        "lat_deg": ("lat", "latitude"),
+        "lon_deg": ("lon", "longitude"),
         "sog_kn": ("sog",),
         "cog_deg": ("cog",),
         "heading_deg": ("heading",),
-        "name": ("vesselname",),
+        "name": ("vesselname", "vessel_name"),
         "imo": ("imo",),
-        "callsign": ("callsign",),
-        "ship_type": ("vesseltype",),
+        "callsign": ("callsign", "call_sign"),
+        "ship_type": ("vesseltype", "vessel_type"),
         "nav_status": ("status",),
         "length_m": ("length",),
         "beam_m": ("width",),

@@ -249,7 +249,7 @@ def detect_format(path: str | Path) -> str:
     if first[0] in "!$\\":
         return "nmea"
     names = {normalise_header_name(x) for x in first.split(",")}
-    if {"mmsi", "basedatetime"} <= names:
+    if "mmsi" in names and names & {"basedatetime", "base_date_time"}:  # NOAA's header until 2023, from 2024
         return "noaa"
     if {"timestamp", "mmsi", "latitude", "longitude"} <= names:
         return "dma"

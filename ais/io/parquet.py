@@ -27,7 +27,7 @@ from ais.io.csv_formats import type_static
 #: stage field -> accepted source names, canonical first.
 ALIASES = {
     "mmsi": ("mmsi",),
-    "time_utc": ("time_utc", "time", "timestamp", "basedatetime", "datetime"),
+    "time_utc": ("time_utc", "time", "timestamp", "basedatetime", "base_date_time", "datetime"),
     "lat_deg": ("lat_deg", "lat", "latitude"),
     "lon_deg": ("lon_deg", "lon", "longitude"),
     "sog_kn": ("sog_kn", "sog", "speed_kn"),
