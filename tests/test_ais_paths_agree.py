@@ -172,3 +172,98 @@ def test_same_time_twin_with_an_empty_field_conflicts(tmp_path, first_cog, secon
     counts = compare(pure, tmp_path / "ws.duckdb")
     assert counts["reasons"] == {reason: 1} == s["reasons"]
     assert dict(zip(pure.quarantine.line, pure.quarantine.reason)) == {3: reason}
+
+
+def _geoparquet(path, geometry, n: int = 8):
+    """A NOAA-2024-like GeoParquet file: snake_case columns, positions only in ``geometry``."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    pq.write_table(pa.table({
+        "mmsi": pa.array([219000001 + i % 2 for i in range(n)], pa.int64()),
+        "base_date_time": pa.array(pd.date_range("2024-01-01", periods=n, freq="min").to_numpy()),
+        "sog": pa.array([10.0] * n), "vessel_name": pa.array(["ALPHA", "BRAVO"] * (n // 2)), "geometry": geometry,
+    }), path)
+    return path
+
+
+def _wkb_points(n: int = 8) -> list:
+    """Points 1 min apart at ~3.6 kn, in every WKB form a writer uses, and the values that are no point."""
+    import struct
+
+    pts = [(8.0 + i * 1e-3, 54.0 + i * 2e-4) for i in range(n)]
+    vals = [struct.pack("<BIdd", 1, 1, *p) for p in pts]
+    vals[1] = struct.pack(">BIdd", 0, 1, *pts[1])  # big-endian
+    vals[2] = struct.pack("<BIIdd", 1, 0x20000001, 4326, *pts[2])  # EWKB with an SRID (PostGIS)
+    vals[3] = struct.pack("<BIddd", 1, 1001, *pts[3], 5.0)  # ISO point Z
+    vals[4] = struct.pack("<BII", 1, 3, 0)  # an empty polygon: no position
+    vals[5] = struct.pack("<BIdd", 1, 1, float("nan"), float("nan"))  # POINT EMPTY
+    vals[6] = None
+    return vals
+
+
+@pytest.mark.parametrize("encoding", ["wkb", "struct"])
+def test_geoparquet_positions_from_the_geometry_agree(tmp_path, encoding):
+    """A GeoParquet file without latitude and longitude columns (NOAA's daily files from 2024 on):
+    the positions from its point geometry, WKB or GeoArrow's native struct, the same in SQL and
+    pandas, with the points by hand and the values that are no point quarantined."""
+    import pyarrow as pa
+
+    wkb = _wkb_points()
+    if encoding == "wkb":
+        geometry = pa.array(wkb, pa.binary())
+    else:
+        from ais.io.parquet import wkb_point_xy
+
+        x, y = wkb_point_xy(geometry := pa.array(wkb, pa.binary()))
+        geometry = pa.StructArray.from_arrays([pa.array(x), pa.array(y)], ["x", "y"],
+                                              mask=pa.array([v is None for v in wkb]))
+    src = _geoparquet(tmp_path / "ais-2024-01-01.parquet", geometry)
+    s = ingest_paths([src], tmp_path / "ws.duckdb")
+    counts = compare(clean_positions(read_parquet_stage(src)[0]), tmp_path / "ws.duckdb")
+    assert counts == {k: s[k] for k in counts}
+    # rows 4 (a polygon) and 5 (POINT EMPTY) have a geometry but no position; row 6 none at all
+    assert s["read"] == 8 and s["loaded"] == 5 and s["reasons"] == {"bad_lat": 2, "no_position": 1}
+    with open_workspace(tmp_path / "ws.duckdb") as ws:
+        p = store.read_positions(ws).sort_values("time_utc")
+    assert p["lon_deg"].tolist() == [8.0, 8.001, 8.002, 8.003, 8.007]
+    assert p["lat_deg"].tolist() == [54.0, 54.0002, 54.0004, 54.0006, 54.0014]
+    # staged apart (a Dask worker's private DuckDB) and committed: the same workspace
+    from test_ingest_partitioned import _assert_same_workspace, _partitioned
+
+    (spool := tmp_path / "spool").mkdir()
+    _partitioned([str(src)], tmp_path / "part.duckdb", spool)
+    _assert_same_workspace(tmp_path / "part.duckdb", tmp_path / "ws.duckdb")
+
+
+def test_parquet_nan_values_are_missing_on_every_path(tmp_path):
+    """A Parquet file with real NaN values (pyarrow, polars or Spark write them; pandas writes
+    NULL): a NaN is a missing value on every path. The SQL path once kept it (a NaN read from
+    Parquet need not equal 'nan'::DOUBLE) and quarantined NaN positions as bad_lat / bad_lon
+    and stored NaN speeds, where the pure and the spooled paths said no_position and NULL."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    nan = np.nan
+    src = tmp_path / "nan.parquet"
+    pq.write_table(pa.table({
+        "mmsi": pa.array([219000001] * 6),
+        "time_utc": pa.array(pd.date_range("2025-01-01", periods=6, freq="min").to_numpy()),
+        "lat_deg": pa.array(np.array([55.0, nan, 55.001, 55.002, 55.003, 55.004])),
+        "lon_deg": pa.array(np.array([12.0, 12.0, nan, 12.0, 12.0, 12.0])),
+        "sog_kn": pa.array(np.array([10.0, 10.0, 10.0, nan, 10.0, 10.0])),
+        "cog_deg": pa.array(["90", "90", "90", "90", "nan", "east"]),  # text: 'nan' is no number, as the pure path says
+        "name": pa.array(["ALPHA"] * 6),
+    }), src)
+    s = ingest_paths([src], tmp_path / "ws.duckdb")
+    counts = compare(clean_positions(read_parquet_stage(src)[0]), tmp_path / "ws.duckdb")
+    assert counts == {k: s[k] for k in counts}
+    assert s["reasons"] == {"no_position": 2, "bad_cog": 2} and s["loaded"] == 2
+    with open_workspace(tmp_path / "ws.duckdb") as ws:
+        assert ws.con.execute("SELECT count(*) FROM ais_positions WHERE isnan(sog_kn)").fetchone()[0] == 0
+        assert ws.con.execute("SELECT count(*) FROM ais_positions WHERE sog_kn IS NULL").fetchone()[0] == 1
+    from test_ingest_partitioned import _assert_same_workspace, _partitioned
+
+    (spool := tmp_path / "spool").mkdir()
+    _partitioned([str(src)], tmp_path / "part.duckdb", spool)
+    _assert_same_workspace(tmp_path / "part.duckdb", tmp_path / "ws.duckdb")

@@ -9,8 +9,17 @@ first alias found (case-insensitive) is used, e.g. the New York harbour file of 
 ``width_m`` -> ``beam_m``, ``draft_m`` -> ``draught_m`` (``sog_kn``, ``cog_deg``, ``nav_status``,
 ``length_m`` are already canonical). Timestamps without a time zone are taken as UTC.
 
+A GeoParquet file without latitude and longitude columns (NOAA's daily files from 2024 on, a
+GeoParquet 1.0 ``geometry`` column of points [1]) takes its positions from the point geometry:
+WKB (:func:`wkb_point_xy`) or GeoArrow's native point struct (``x``, ``y``).
+
 The Ushant trajectories (``traj_id``, relative ``t_s``) are not AIS messages: they have no MMSI
 and no absolute time, so this reader refuses them with a message pointing to their own reader.
+
+.. [1] Open Geospatial Consortium, "GeoParquet 1.0.0," 2023, https://geoparquet.org/releases/v1.0.0/
+   (geometry columns: WKB encoding); J. R. Herring (ed.), "OpenGIS Implementation Standard for
+   Geographic information - Simple feature access - Part 1: Common architecture," OGC 06-103r4,
+   v1.2.1, 2011, section 8.2 (Well-known Binary).
 """
 
 from __future__ import annotations
@@ -44,6 +53,8 @@ ALIASES = {
     "destination": ("destination",),
 }
 REQUIRED = ("mmsi", "time_utc", "lat_deg", "lon_deg")
+#: Geometry columns a position may come from when latitude and longitude columns are absent.
+GEOMETRY_NAMES = ("geometry", "geom", "wkb_geometry")
 _FIELD_CODES = {"lat_deg": BAD_LAT, "lon_deg": BAD_LON, "sog_kn": BAD_SOG, "cog_deg": BAD_COG,
                 "heading_deg": BAD_HEADING, "nav_status": BAD_NAV_STATUS}
 
@@ -71,6 +82,9 @@ def column_mapping(columns, path, types: dict | None = None) -> dict[str, str]:
             if n in lower:
                 mapping[fld] = lower[n]
                 break
+    geometry = next((lower[n] for n in GEOMETRY_NAMES if n in lower), None)
+    if geometry is not None and "lat_deg" not in mapping and "lon_deg" not in mapping:
+        mapping["lat_deg"] = mapping["lon_deg"] = geometry  # the point's y and x (see is_geometry)
     missing = [f for f in REQUIRED if f not in mapping]
     if missing:
         hint = ""
@@ -101,7 +115,8 @@ def read_parquet_stage(path) -> tuple[pd.DataFrame, dict]:
     mapping = column_mapping(list(df.columns), path, types=numeric)
     n = len(df)
     out = pd.DataFrame({"line": np.arange(1, n + 1, dtype=np.int64)})
-    out["raw"] = df.astype(str).where(df.notna(), "").agg(",".join, axis=1) if n else []
+    shown = df.apply(lambda c: c.map(_blob_text) if c.map(lambda v: isinstance(v, bytes)).any() else c)
+    out["raw"] = shown.astype(str).where(df.notna(), "").agg(",".join, axis=1) if n else []
     out["kind"] = KIND_POSITION
     perr = np.full(n, None, dtype=object)
 
@@ -118,10 +133,14 @@ def read_parquet_stage(path) -> tuple[pd.DataFrame, dict]:
     t = df[mapping["time_utc"]]
     t = pd.to_datetime(t, errors="coerce", utc=True)
     out["time_utc"] = t
+    point = geometry_xy(table.column(mapping["lat_deg"])) if is_geometry(mapping) else None
     for fld in ("lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg", "nav_status"):
         if fld in mapping:
             col = df[mapping[fld]]
-            vals = pd.to_numeric(col, errors="coerce").astype(float)
+            if point is not None and fld in ("lat_deg", "lon_deg"):
+                vals = pd.Series(point[1] if fld == "lat_deg" else point[0], index=df.index)
+            else:
+                vals = pd.to_numeric(col, errors="coerce").astype(float)
             bad = col.notna() & vals.isna()
             perr[bad.to_numpy() & np.equal(perr, None)] = _FIELD_CODES[fld]
             out[fld] = vals
@@ -136,3 +155,72 @@ def read_parquet_stage(path) -> tuple[pd.DataFrame, dict]:
     for c in typed.columns:
         out[c] = typed[c].to_numpy()
     return conform_stage(out), {"format": "parquet", "path": str(path), "mapping": mapping, "ignored": 0}
+
+
+def _blob_text(v):
+    """A binary value as DuckDB casts a BLOB to text (the bulk path's ``raw``): printable ASCII
+    kept except ``"``, ``'`` and ``\\``, every other byte as ``\\xHH``."""
+    if not isinstance(v, bytes):
+        return v
+    return "".join(chr(c) if 32 <= c < 127 and c not in (34, 39, 92) else f"\\x{c:02X}" for c in v)
+
+
+def is_geometry(mapping: dict) -> bool:
+    """Whether the positions come from a geometry column (:func:`column_mapping`)."""
+    return mapping.get("lat_deg") is not None and mapping.get("lat_deg") == mapping.get("lon_deg")
+
+
+#: WKB geometry type of a point: ISO codes 1, 1001 (Z), 2001 (M), 3001 (ZM) [1], or EWKB's 1 with
+#: its flag bits (0x80000000 Z, 0x40000000 M, 0x20000000 SRID: 4 bytes of SRID before the
+#: coordinates, PostGIS). Coordinates follow as IEEE 754 doubles, x (longitude) then y.
+_EWKB_FLAGS, _EWKB_SRID = 0xE0000000, 0x20000000
+
+
+def geometry_xy(column) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, y)`` of a point geometry column (pyarrow): WKB (:func:`wkb_point_xy`) or GeoArrow's
+    native point struct with fields ``x`` and ``y``. [deg]"""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    if pa.types.is_struct(column.type):
+        return tuple(pc.struct_field(column, k).to_numpy(zero_copy_only=False).astype(float) for k in ("x", "y"))
+    return wkb_point_xy(column)
+
+
+def wkb_point_xy(values) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, y)`` of WKB points (a pyarrow binary or large binary array, chunked or not; OGC
+    06-103r4 section 8.2, byte order per value). NaN where the value is null, shorter than a
+    point, another geometry type, or POINT EMPTY (NaN coordinates). [deg]"""
+    import pyarrow as pa
+
+    if isinstance(values, pa.ChunkedArray):
+        parts = [wkb_point_xy(c) for c in values.chunks]
+        if not parts:
+            return np.zeros(0), np.zeros(0)
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+    arr = values
+    n = len(arr)
+    x, y = np.full(n, np.nan), np.full(n, np.nan)
+    bufs = arr.buffers()
+    if n == 0 or bufs[2] is None:
+        return x, y
+    off = np.frombuffer(bufs[1], np.int64 if pa.types.is_large_binary(arr.type) else np.int32)
+    off = off[arr.offset: arr.offset + n + 1].astype(np.int64)
+    data = np.frombuffer(bufs[2], np.uint8)
+    start, length = off[:-1], np.diff(off)
+    ok = np.asarray(arr.is_valid()) & (length >= 21)
+    i = np.nonzero(ok)[0]
+    s, le = start[i], data[start[i]] == 1
+
+    def take(at, k):  # k bytes from each value at byte offset ``at``, as the value's byte order
+        b = data[at[:, None] + np.arange(k)]
+        return np.where(le[:, None], b, b[:, ::-1])
+
+    code = take(s + 1, 4).astype(np.uint64) @ (np.uint64(1) << (np.arange(4, dtype=np.uint64) * np.uint64(8)))
+    base = (code & ~np.uint64(_EWKB_FLAGS)) % np.uint64(1000)
+    first = s + 5 + np.where((code & np.uint64(_EWKB_SRID)) != 0, 4, 0)
+    point = (base == 1) & (first + 16 <= start[i] + length[i])
+    i, first, le = i[point], first[point], le[point]
+    x[i] = take(first, 8).copy().view("<f8").ravel()
+    y[i] = take(first + 8, 8).copy().view("<f8").ravel()
+    return x, y

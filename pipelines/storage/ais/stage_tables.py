@@ -10,6 +10,7 @@ import pandas as pd
 
 from ais import clean as C
 from ais.io.csv_formats import MMSI_RE
+from ais.io.parquet import is_geometry
 from pipelines.storage.ais._sql import (
     _NUM_FIELDS, _STATIC_TYPES, _TEXT_STATIC, _create_stage, _params, _prepare, _q, _set_stage_kind,
     _stage_kind, _typed_static_select, _used,
@@ -44,9 +45,25 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
         return _q(mapping[fld]) if fld in mapping else "NULL"
 
     def num(fld):
+        """The field as a double, NaN as NULL (isnan: a NaN read from Parquet need not equal
+        'nan'::DOUBLE, so nullif kept it: the SQL path then differed from the pure and spooled ones)."""
         if fld not in mapping:
             return "CAST(NULL AS DOUBLE)"
-        return f"nullif(TRY_CAST({src(fld)} AS DOUBLE), 'nan'::DOUBLE)"
+        value = f"TRY_CAST({src(fld)} AS DOUBLE)"
+        if fld in ("lat_deg", "lon_deg") and is_geometry(mapping):  # a point geometry (ais.io.parquet)
+            axis = "y" if fld == "lat_deg" else "x"
+            if not cols.get(mapping[fld], "").upper().startswith("STRUCT"):
+                return f"ais_wkb_{axis}({src(fld)})"  # NULL where no point
+            value = f"TRY_CAST({src(fld)}.{axis} AS DOUBLE)"
+        return f"CASE WHEN isnan({value}) THEN NULL ELSE {value} END"
+
+    def unreadable(fld):
+        """A value present that gives no number: text that is none (or 'nan', as the pure path),
+        a geometry that is no point. A float column's NaN is a missing value, not an error."""
+        geometric = fld in ("lat_deg", "lon_deg") and is_geometry(mapping)
+        if cols.get(mapping[fld], "") in ("DOUBLE", "FLOAT") and not geometric:
+            return "false"
+        return f"{src(fld)} IS NOT NULL AND {num(fld)} IS NULL"
 
     ttype = cols.get(mapping.get("time_utc"), "")
     if "TIME ZONE" in ttype:
@@ -62,7 +79,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
         m = f"CAST({src('mmsi')} AS VARCHAR)"
         mmsi_expr = f"CASE WHEN regexp_full_match({m}, $mmsi_re) THEN CAST({m} AS BIGINT) END"
     perr = " ".join(
-        f"WHEN {src(fld)} IS NOT NULL AND {num(fld)} IS NULL THEN '{code}'"
+        f"WHEN {unreadable(fld)} THEN '{code}'"
         for fld, code in (("lat_deg", C.BAD_LAT), ("lon_deg", C.BAD_LON), ("sog_kn", C.BAD_SOG),
                           ("cog_deg", C.BAD_COG), ("heading_deg", C.BAD_HEADING), ("nav_status", C.BAD_NAV_STATUS))
         if fld in mapping
