@@ -41,9 +41,9 @@ GZIP_PLAIN_MIN_BYTES = 4 << 20
 
 def wants_plain_copy(f: AisFile) -> bool:
     """Whether :func:`plain_copy` is the way to stage ``f``: a large gzip DMA/NOAA CSV file, and
-    every zip archive's file (the readers take plain files and gzip streams, not zip)."""
-    return bool(f.zip or (f.gzip and f.format in ("dma", "noaa") and f.size_bytes >= GZIP_PLAIN_MIN_BYTES
-                          and FAST_CSV_ENGINES))
+    every zip archive's or zstd file (the readers take plain files and gzip streams)."""
+    large_gzip_csv = f.gzip and f.format in ("dma", "noaa") and f.size_bytes >= GZIP_PLAIN_MIN_BYTES
+    return bool(f.staged_from_plain_copy or (large_gzip_csv and FAST_CSV_ENGINES))
 
 
 def done_future(value):
@@ -57,7 +57,7 @@ def done_future(value):
 
 
 def plain_copy(f: AisFile, folder=None) -> tuple[AisFile, str]:
-    """Decompress the gzip or zip file ``f`` into a temporary plain file in ``folder`` (default: the
+    """Decompress the gzip, zstd or zip file ``f`` into a temporary plain file in ``folder`` (default: the
     temporary folder) and hash the content on the way: returns the plain file (its
     :class:`AisFile`; the caller removes it) and the content's fingerprint, the same
     ``"blake3:<hex>"`` as :func:`ais.io.files.fingerprint` of ``f`` (BLAKE3 of the decompressed
@@ -83,7 +83,7 @@ def plain_copy(f: AisFile, folder=None) -> tuple[AisFile, str]:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return replace(f, path=Path(tmp), gzip=False, zip=False, size_bytes=int(size)), "blake3:" + h.hexdigest()
+    return replace(f, path=Path(tmp), gzip=False, zip=False, zstd=False, size_bytes=int(size)), "blake3:" + h.hexdigest()
 
 
 class PlainCopiesAhead:
@@ -200,8 +200,8 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
     while the stage is committed: the scan's stage reads quarantined lines from it)."""
     from pipelines.storage import ais as store
 
-    if f.zip:
-        raise ValueError(f"{f.path}: a zip archive's file is staged from its plain copy (plain_copy)")
+    if f.staged_from_plain_copy:
+        raise ValueError(f"{f.path}: a zip archive's or zstd file is staged from its plain copy (plain_copy)")
     if f.format in ("dma", "noaa"):
         spec, first, header, index = csv_layout(f)
         info = None
@@ -250,7 +250,7 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
 
 @contextlib.contextmanager
 def _plain_file(f: AisFile):
-    """The path of ``f``'s content as a plain file: itself, or (gzip, zip) a temporary decompressed
+    """The path of ``f``'s content as a plain file: itself, or (compressed) a temporary decompressed
     copy, removed on exit (the stage is a table by then)."""
     if not f.compressed:
         yield f.path

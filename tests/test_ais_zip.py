@@ -1,7 +1,8 @@
 """AIS files inside zip archives, as DMA (``aisdk-YYYY-MM-DD.zip``) and NOAA (``AIS_YYYY_MM_DD.zip``)
-publish them: an archive holding one file loads as that file would, in every reader and on the
-partitioned path; the same content plain, gzip or zipped is one input; anything else about an
-archive is one error naming it, with nothing committed.
+publish them, and Zstandard files (NOAA's ``.csv.zst`` from 2024 on): an archive holding one file,
+or a zstd file, loads as that file would, in every reader and on the partitioned path; the same
+content plain, gzip, zstd or zipped is one input; anything else about an archive, and a truncated
+stream, is one error naming it, with nothing committed.
 """
 
 from __future__ import annotations
@@ -148,3 +149,38 @@ def test_a_truncated_or_corrupt_archive_is_one_error_naming_it(tmp_path):
         fingerprint(corrupt)
     line = _cli_error(tmp_path, corrupt)
     assert "aisdk-bad.zip" in line and "corrupt zip archive member" in line
+
+
+def _zst(src: Path, dest: Path) -> Path:
+    import pyarrow as pa
+
+    with pa.CompressedOutputStream(str(dest), "zstd") as out:
+        out.write(src.read_bytes())
+    return dest
+
+
+def test_a_zstd_day_takes_the_scan_and_equals_its_gzip(tmp_path, monkeypatch):
+    monkeypatch.setattr(ingest_stage, "FAST_CSV_MIN_BYTES", 0)
+    monkeypatch.setattr(ingest_stage, "GZIP_PLAIN_MIN_BYTES", 0)
+    day = _day(tmp_path / "ais-2025-01-02.csv")
+    gz = tmp_path / "ais-2025-01-02.csv.gz"
+    gz.write_bytes(gzip.compress(day.read_bytes()))
+    (d := tmp_path / "in").mkdir()
+    zst = _zst(day, d / "ais-2025-01-02.csv.zst")
+    assert fingerprint(zst) == fingerprint(gz) and [p.name for p in expand_paths([d])] == [zst.name]
+    want = ingest_paths([str(gz)], tmp_path / "gz.duckdb")
+    got = ingest_paths([str(d)], tmp_path / "zst.duckdb")
+    assert got["per_file"][0]["staging"] == "scan" and got["loaded"] == want["loaded"] > 0
+    g, w = _tables_but_paths(tmp_path / "zst.duckdb"), _tables_but_paths(tmp_path / "gz.duckdb")
+    for name in TABLES:
+        pd.testing.assert_frame_equal(g[name], w[name], check_exact=True, obj=name)
+    again = ingest_paths([str(gz), str(day)], tmp_path / "zst.duckdb")  # the same content: nothing added
+    assert again["loaded"] == 0 and again["already_loaded"] == 2
+
+
+def test_a_truncated_zstd_file_is_one_error_naming_it(tmp_path):
+    zst = _zst(_day(tmp_path / "ais-2025-01-02.csv", n_minutes=60), tmp_path / "whole.zst")
+    data = zst.read_bytes()
+    (cut := tmp_path / "ais-cut.csv.zst").write_bytes(data[: len(data) // 2])
+    line = _cli_error(tmp_path, cut)
+    assert "ais-cut.csv.zst" in line and "truncated or corrupt zstd stream" in line and "partial download" in line

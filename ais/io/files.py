@@ -1,10 +1,14 @@
-"""Opening AIS files: gzip and zip by content, fingerprints, format detection by content.
+"""Opening AIS files: gzip, zstd and zip by content, fingerprints, format detection by content.
 
 Formats: ``dma`` (Danish Maritime Authority CSV), ``noaa`` (NOAA MarineCadastre CSV), ``nmea``
 (raw ``!AIVDM``/``!AIVDO`` sentences with optional tag blocks and ``$PGHP`` lines) and
 ``parquet`` (canonical column names, or the mapped aliases in :mod:`ais.io.parquet`).
-Gzip and zip (an archive holding one file, :mod:`ais.io.archives`) are recognised by their magic
-bytes, whatever the file is called; their content is what is read and fingerprinted.
+Gzip, Zstandard (RFC 8878 [1]; NOAA's CSV files from 2024 on, ``.csv.zst``) and zip (an archive
+holding one file, :mod:`ais.io.archives`) are recognised by their magic bytes, whatever the file
+is called; their content is what is read and fingerprinted.
+
+.. [1] Y. Collet, M. Kucherawy (ed.), "Zstandard Compression and the 'application/zstd' Media
+   Type," RFC 8878, 2021 (section 3.1.1: the frame's magic number 0xFD2FB528, little-endian).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ log = logging.getLogger(__name__)
 
 FORMATS = ("dma", "noaa", "nmea", "parquet")
 GZIP_MAGIC = b"\x1f\x8b"
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 PARQUET_MAGIC = b"PAR1"
 #: File names a directory scan picks up (content decides the format; case-insensitive).
 AIS_SUFFIXES = (".csv", ".txt", ".nmea", ".nm4", ".ais", ".log", ".parquet", ".pq")
@@ -40,11 +45,18 @@ class AisFile:
     size_bytes: int
     fingerprint: str  # "blake3:<hex>" of the content (decompressed when gzip or zip)
     zip: bool = False  # a zip archive holding the file (:mod:`ais.io.archives`)
+    zstd: bool = False  # Zstandard-compressed
 
     @property
     def compressed(self) -> bool:
-        """Whether the content must be decompressed (gzip, or a zip archive's member)."""
-        return self.gzip or self.zip
+        """Whether the content must be decompressed (gzip, zstd, or a zip archive's member)."""
+        return self.gzip or self.zip or self.zstd
+
+    @property
+    def staged_from_plain_copy(self) -> bool:
+        """Whether only a decompressed copy can be staged (zip, zstd: the readers take plain
+        files and gzip streams)."""
+        return self.zip or self.zstd
 
 
 def is_gzip(path: str | Path) -> bool:
@@ -52,22 +64,50 @@ def is_gzip(path: str | Path) -> bool:
         return fh.read(2) == GZIP_MAGIC
 
 
+def is_zstd(path: str | Path) -> bool:
+    with open(path, "rb") as fh:
+        return fh.read(4) == ZSTD_MAGIC
+
+
 def is_compressed(path: str | Path) -> bool:
-    """Whether the file's content must be decompressed to be read (gzip, or a zip archive)."""
-    return is_gzip(path) or is_zip(path)
+    """Whether the file's content must be decompressed to be read (gzip, zstd, a zip archive)."""
+    return is_gzip(path) or is_zip(path) or is_zstd(path)
 
 
 def open_binary(path: str | Path):
-    """Open for binary reading, decompressing gzip and a zip archive's one file transparently."""
+    """Open for binary reading, decompressing gzip, zstd and a zip archive's one file transparently."""
     if is_gzip(path):
         return gzip.open(path, "rb")
+    if is_zstd(path):
+        import pyarrow as pa
+
+        return pa.CompressedInputStream(pa.OSFile(str(path)), "zstd")
     return open_member(path) if is_zip(path) else open(path, "rb")
 
 
 def inflate_into(path: str | Path, sink, chunk: int = 1 << 22) -> int:
-    """Decompress a gzip file (:func:`gunzip_into`) or a zip archive's one file
-    (:func:`ais.io.archives.unzip_into`) into ``sink``; returns the content's size."""
-    return unzip_into(path, sink, chunk) if is_zip(path) else gunzip_into(path, sink, chunk)
+    """Decompress a gzip file (:func:`gunzip_into`), a zstd file (:func:`unzstd_into`) or a zip
+    archive's one file (:func:`ais.io.archives.unzip_into`) into ``sink``; returns the content's size."""
+    if is_zip(path):
+        return unzip_into(path, sink, chunk)
+    return unzstd_into(path, sink, chunk) if is_zstd(path) else gunzip_into(path, sink, chunk)
+
+
+def unzstd_into(path: str | Path, sink, chunk: int = 1 << 22) -> int:
+    """Decompress a Zstandard file (every frame; pyarrow's zstd codec, which checks a frame's
+    checksum when the frame has one, as the ``zstd`` tool writes by default) into ``sink``;
+    returns the content's size. A stream that ends inside a frame or does not decode is an
+    :class:`AisInputError` naming the file."""
+    out = 0
+    try:
+        with open_binary(path) as fh:
+            while block := fh.read(chunk):
+                sink(block)
+                out += len(block)
+    except OSError as err:
+        raise AisInputError(path, f"truncated or corrupt zstd stream after {out:,} bytes of content ({err}); "
+                                  "a partial download or copy?") from None
+    return out
 
 
 def read_content(path: str | Path) -> bytes:
@@ -204,6 +244,8 @@ def _unreadable(path, err: Exception) -> AisInputError:
     if isinstance(err, EOFError):
         return AisInputError(path, f"truncated gzip: the {Path(path).stat().st_size:,}-byte file ends inside a compressed "
                                    "member; a partial download or copy?")
+    if is_zstd(path):
+        return AisInputError(path, f"truncated or corrupt zstd stream ({err}); a partial download or copy?")
     return AisInputError(path, f"cannot read: {err}")
 
 
@@ -293,8 +335,8 @@ def identity_suffix(path: str | Path, fmt: str | None) -> str:
 
 def expand_paths(paths) -> list[Path]:
     """Files named by ``paths``: a directory means every AIS-looking file inside it (recursive,
-    sorted; names ending in one of :data:`AIS_SUFFIXES`, optionally followed by ``.gz``, or in one
-    of :data:`ARCHIVE_SUFFIXES`).
+    sorted; names ending in one of :data:`AIS_SUFFIXES`, optionally followed by ``.gz`` or ``.zst``,
+    or in one of :data:`ARCHIVE_SUFFIXES`).
 
     Inside a directory, hidden entries (``.name``: editor and system files), empty files and
     links to nothing are skipped, each with a warning; named on their own, an empty file is an
@@ -318,7 +360,7 @@ def expand_paths(paths) -> list[Path]:
                 dirs[:] = sorted(d for d in dirs if not d.startswith("."))
                 for f in sorted(files):
                     name = f.lower()
-                    base = name[:-3] if name.endswith(".gz") else name
+                    base = name.removesuffix(".gz").removesuffix(".zst")
                     if not base.endswith(AIS_SUFFIXES) and not name.endswith(ARCHIVE_SUFFIXES):
                         continue
                     path = Path(root) / f
@@ -334,7 +376,7 @@ def expand_paths(paths) -> list[Path]:
                     found.append(path)
             if not found:
                 raise AisInputError(p, f"directory contains no AIS file (looked for {', '.join(AIS_SUFFIXES)}, "
-                                       f"optionally .gz, and {', '.join(ARCHIVE_SUFFIXES)}; hidden files are skipped)")
+                                       f"optionally .gz or .zst, and {', '.join(ARCHIVE_SUFFIXES)}; hidden files are skipped)")
             out.extend(found)
         elif p.is_file():
             out.append(p)
@@ -365,4 +407,5 @@ def inspect(path: str | Path, fmt: str | None = None, with_fingerprint: bool = T
         size_bytes=path.stat().st_size,
         fingerprint=fingerprint(path) if with_fingerprint else "",
         zip=is_zip(path),
+        zstd=is_zstd(path),
     )
