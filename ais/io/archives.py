@@ -114,12 +114,17 @@ def unzip_into(path: str | Path, sink, chunk: int = 1 << 22) -> int:
 def _copy_stream(path, info: zipfile.ZipInfo, sink, chunk: int) -> int:
     """A member stored, or compressed by another method, through :mod:`zipfile` (which checks
     its CRC-32 at the end)."""
-    out = 0
     try:
         with open_member(path) as fh:
-            while block := fh.read(chunk):
-                sink(block)
-                out += len(block)
+            return pump(fh, sink, chunk)
     except (zipfile.BadZipFile, EOFError, OSError) as err:
         raise AisInputError(path, f"corrupt zip archive member {info.filename} ({err})") from None
+
+
+def pump(fh, sink, chunk: int) -> int:
+    """Pass a readable stream's content to ``sink`` block by block; returns its size."""
+    out = 0
+    while block := fh.read(chunk):
+        sink(block)
+        out += len(block)
     return out

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ais.errors import AisFormatError, AisInputError
-from ais.io.archives import is_zip, open_member, unzip_into
+from ais.io.archives import is_zip, open_member, pump, unzip_into
 
 log = logging.getLogger(__name__)
 
@@ -98,16 +98,11 @@ def unzstd_into(path: str | Path, sink, chunk: int = 1 << 22) -> int:
     checksum when the frame has one, as the ``zstd`` tool writes by default) into ``sink``;
     returns the content's size. A stream that ends inside a frame or does not decode is an
     :class:`AisInputError` naming the file."""
-    out = 0
     try:
         with open_binary(path) as fh:
-            while block := fh.read(chunk):
-                sink(block)
-                out += len(block)
+            return pump(fh, sink, chunk)
     except OSError as err:
-        raise AisInputError(path, f"truncated or corrupt zstd stream after {out:,} bytes of content ({err}); "
-                                  "a partial download or copy?") from None
-    return out
+        raise AisInputError(path, f"truncated or corrupt zstd stream ({err}); a partial download or copy?") from None
 
 
 def read_content(path: str | Path) -> bytes:
