@@ -123,6 +123,8 @@ def test_format_detection_forcing_and_errors(tmp_path, workspace_path):
                                              r"characters are not text\)") as err:
         ingest_paths([binary], workspace_path)
     assert "\ufffd" not in str(err.value)
+    # what is read is named: both NOAA headers, and the compressions
+    assert "'mmsi,base_date_time,...'" in str(err.value) and "each plain, gzip, zstd or alone in a zip archive" in str(err.value)
     with pytest.raises(AisInputError, match="no such file"):
         ingest_paths([tmp_path / "missing.csv"], workspace_path)
     # Forcing NOAA on a DMA file: the header lacks the NOAA columns -> clear error naming them.

@@ -299,8 +299,9 @@ def detect_format(path: str | Path) -> str:
     raise AisFormatError(
         path,
         f"unknown AIS format ({shown}); expected a DMA CSV header ('# Timestamp,...,MMSI,"
-        "Latitude,Longitude,...'), a NOAA MarineCadastre header ('MMSI,BaseDateTime,...'), NMEA "
-        "sentences ('!AIVDM,...') or Parquet; use --format to force one",
+        "Latitude,Longitude,...'), a NOAA MarineCadastre header ('MMSI,BaseDateTime,...' or "
+        "'mmsi,base_date_time,...'), NMEA sentences ('!AIVDM,...') or Parquet, each plain, gzip, zstd "
+        "or alone in a zip archive; use --format to force one",
         line=1,
     )
 
