@@ -103,7 +103,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
     t_stage = time.perf_counter()
     try:
         if plain is None and wants_plain_copy(f):
-            # A large gzip CSV file, or a zip archive's file: decompressed once into a plain copy
+            # A large gzip CSV file, or a zip archive's or zstd file: decompressed once into a plain copy
             # beside the workspace (hashed on the way: its fingerprint), which the stage reads.
             plain, fp = plain_copy(f, _scratch_folder(ws))
             full = done_future(fp + suffix)

@@ -196,7 +196,7 @@ def check_inputs(files: list, fmt: str | None = None) -> None:
 
 def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) -> dict:
     """Reader step: put one file's typed rows into the workspace's temporary stage. A zip
-    archive's file is staged from its plain copy (:func:`plain_copy`, which the caller keeps
+    archive's or zstd file is staged from its plain copy (:func:`plain_copy`, which the caller keeps
     while the stage is committed: the scan's stage reads quarantined lines from it)."""
     from pipelines.storage import ais as store
 

@@ -327,7 +327,7 @@ def mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn)
     :data:`MAX_MESH_REFINEMENTS` times, within the node bound), and a note says so: the route is
     planned on the finer mesh. A spacing the user chose is kept (the error stands)."""
     tried: list[float] = []
-    reasons: list[str] = []
+    reason = ""
     while True:
         st = _Stage(req, {})
         prepare_mesh(req, weather, land_mask_fn, st, spacing_deg=tried[-1] / 2 if tried else None)
@@ -345,10 +345,9 @@ def mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn)
                 if len(tried) > 1:
                     err.args = (f"{err} (the automatic mesh refined from {tried[0] * 60:.3g} nmi)",)
                 raise
-            if not reasons:
-                reasons.append(_refine_reason(err))
+            reason = reason or _refine_reason(err)
     if tried:
-        st.notes.append(f"{reasons[0]} on the automatic {tried[0] * 60:.3g} nmi mesh: planned on a "
+        st.notes.append(f"{reason} on the automatic {tried[0] * 60:.3g} nmi mesh: planned on a "
                         f"{st.grid.dlat_deg * 60:.3g} nmi mesh")
     return st
 

@@ -33,12 +33,6 @@ _LOCAL_HEADER = struct.Struct("<4sHHHHHIIIHH")
 _ENCRYPTED = 0x1  # general purpose bit 0 (APPNOTE 4.4.4)
 
 
-def is_zip(path: str | Path) -> bool:
-    """Whether the file is a zip archive (its first bytes are a local file header's signature)."""
-    with open(path, "rb") as fh:
-        return fh.read(4) == ZIP_MAGIC
-
-
 def _skipped(name: str) -> bool:
     """Entries that are not content: folders, macOS resource forks, hidden files."""
     base = name.rstrip("/").rsplit("/", 1)[-1]
