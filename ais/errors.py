@@ -16,6 +16,7 @@ class AisInputError(StormlaneError):
     def __init__(self, path, message: str, line: int | None = None):
         self.path = str(path)
         self.line = line
+        self.detail = message  # without the path: the same error can be said of another spelling of it
         where = f"{self.path}:{line}" if line is not None else self.path
         super().__init__(f"{where}: {message}")
 

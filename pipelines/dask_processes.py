@@ -52,7 +52,7 @@ def dask_cluster_processes(workdir: Path, n_workers: int = 2, threads_per_worker
         procs.append(subprocess.Popen(
             [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0", "--dashboard-address",
              ":0", "--scheduler-file", str(sched_file), "--no-show"],
-            stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True))
+            stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True, cwd=workdir))
         deadline = time.monotonic() + timeout_s
         while not sched_file.exists() or not sched_file.read_text().strip():
             if procs[0].poll() is not None or time.monotonic() > deadline:
@@ -66,7 +66,7 @@ def dask_cluster_processes(workdir: Path, n_workers: int = 2, threads_per_worker
             [sys.executable, "-m", "dask", "worker", address, "--nworkers", str(n_workers), "--nthreads",
              str(threads_per_worker), "--memory-limit", memory_limit, "--local-directory", str(workdir / "worker"),
              "--no-dashboard"],
-            stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True))
+            stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True, cwd=workdir))
         _wait_workers(address, n_workers, max(1.0, deadline - time.monotonic()))
         yield address
     finally:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import time
 import uuid
 from pathlib import Path
@@ -402,11 +403,19 @@ def _build_flow() -> dict:
         try:
             for p in files:
                 while todo and len(staged) < STAGE_AHEAD_FILES:  # the spool holds this many at most
-                    staged[todo[0]] = stage_task.submit(todo[0], fmt, spool_dir, run_tag)
+                    # absolute paths: a worker's working folder is its own, not this process's
+                    staged[todo[0]] = stage_task.submit(os.path.abspath(todo[0]), fmt, os.path.abspath(spool_dir), run_tag)
                     todo = todo[1:]
                 # the stage's own exception, raised here (a failed future handed to a task is not run)
-                counts = skipped[p] if p in skipped else commit_task(db, staged.pop(p).result(), max_speed_kn)
+                counts = skipped[p] if p in skipped else commit_task(db, {**_staged(p, staged.pop(p)), "path": p},
+                                                                     max_speed_kn)
                 per_file.append(_file_done(counts))
+        except BaseException as err:
+            if not isinstance(err, Exception):  # stopped (SIGTERM, Ctrl-C): stop the stages too
+                for future in staged.values():
+                    _cancel(future)
+                staged = {}
+            raise
         finally:
             for future in staged.values():
                 future.wait()
@@ -439,6 +448,28 @@ def _build_flow() -> dict:
     _FLOW_OBJECTS.update(ingest_flow=ingest_flow, discover_task=discover_task, ingest_file_task=ingest_file_task,
                          stage_task=stage_task, commit_task=commit_task, summarise_task=summarise_task)
     return _FLOW_OBJECTS
+
+
+def _staged(path: str, future) -> dict:
+    """The stage of ``path`` from its task; an input error of the file is raised naming it as the
+    user did (the task was given its absolute path), as the sequential ingest says it."""
+    from ais.errors import AisInputError
+
+    try:
+        return future.result()
+    except AisInputError as err:
+        if err.path != path and err.path == os.path.abspath(path):
+            raise type(err)(path, err.detail, err.line) from None
+        raise
+
+
+def _cancel(future) -> None:
+    """Cancel a submitted stage: a stopped run does not wait for stages that may never run (a
+    scheduler with no worker) or that a rerun stages again."""
+    wrapped = getattr(future, "wrapped_future", None)  # Dask's future under Prefect's
+    cancel = getattr(wrapped, "cancel", None) or getattr(future, "cancel", None)
+    if cancel is not None:
+        cancel()
 
 
 #: Called with each file's counts by the partitioned flow (the CLI's progress bar).

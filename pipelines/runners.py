@@ -28,8 +28,84 @@ def parse_task_runner(spec: str | None) -> tuple[str, str | None]:
     if spec == "dask":
         return "dask", None
     if spec.startswith("dask:") and spec[5:].strip():
-        return "dask", spec[5:].strip()
+        return "dask", _scheduler_address(spec[5:].strip())
     raise TaskRunnerError(f"--task-runner {spec!r}: use {TASK_RUNNER_SPECS}")
+
+
+#: The protocols a Dask scheduler listens on that another process can reach (``inproc://`` is
+#: one process's own; Dask's documentation, "Communications: Protocols").
+_SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def _scheduler_address(address: str) -> str:
+    """``address`` when it names a host and a port (``[PROTOCOL://]HOST:PORT``, the forms
+    ``dask scheduler`` prints); :class:`TaskRunnerError` naming what is missing otherwise."""
+    from urllib.parse import urlsplit
+
+    protocol = address.split("://", 1)[0].lower() if "://" in address else "tcp"
+    bad = f"--task-runner dask:{address}: "
+    if protocol not in _SCHEDULER_PROTOCOLS:
+        raise TaskRunnerError(bad + f"the protocol {protocol!r} is not one of {', '.join(_SCHEDULER_PROTOCOLS)}")
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if not parts.hostname or port is None or parts.path not in ("", "/"):
+        raise TaskRunnerError(bad + "a scheduler's address is [PROTOCOL://]HOST:PORT, e.g. dask:tcp://10.0.0.5:8786")
+    return address
+
+
+def check_scheduler(spec: str | None, timeout_s: float = 10.0) -> int | None:
+    """The number of workers of the scheduler that ``spec`` names (``dask:ADDRESS``; ``None``
+    for the other specs), asked before a command starts any work. :class:`TaskRunnerError` in
+    one line when nothing answers at the address, or what answers is not a Dask scheduler
+    (otherwise Prefect's Dask runner fails with a traceback, after Dask's 30 s connect timeout
+    when nothing answers). Asked with the ``identity`` call every Dask server answers."""
+    _, address = parse_task_runner(spec)
+    if not address:
+        return None
+    _listening(address, timeout_s)
+    import asyncio
+
+    from distributed.core import rpc
+
+    async def identity() -> dict:
+        server = rpc(address, timeout=timeout_s)
+        try:
+            return await asyncio.wait_for(server.identity(), timeout_s)
+        finally:
+            await server.close_rpc()
+
+    bad = f"--task-runner dask:{address}: "
+    try:
+        info = asyncio.run(identity())
+    except (OSError, TimeoutError) as err:
+        raise TaskRunnerError(bad + f"no Dask scheduler answered within {timeout_s:g} s ({type(err).__name__}); "
+                              "start one with `dask scheduler` or check the address") from None
+    except Exception as err:  # noqa: BLE001  (whatever answered spoke another protocol)
+        raise TaskRunnerError(bad + f"what answers there is not a Dask scheduler ({type(err).__name__})") from None
+    kind = info.get("type") if isinstance(info, dict) else None
+    if kind != "Scheduler":
+        raise TaskRunnerError(bad + f"what answers there is a Dask {(kind or 'server').lower()}, not a scheduler")
+    return len(info.get("workers") or {})
+
+
+def _listening(address: str, timeout_s: float) -> None:
+    """:class:`TaskRunnerError` at once when nothing listens at a TCP-based scheduler address
+    (refused, unknown host, unreachable): Dask's own connect retries these until its timeout."""
+    import socket
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme not in ("tcp", "tls", "ws", "wss"):
+        return
+    try:
+        socket.create_connection((parts.hostname, parts.port), timeout=timeout_s).close()
+    except OSError as err:
+        why = "unknown host" if isinstance(err, socket.gaierror) else (err.strerror or type(err).__name__).lower()
+        raise TaskRunnerError(f"--task-runner dask:{address}: no Dask scheduler answers there ({why}); "
+                              "start one with `dask scheduler` or check the address") from None
 
 
 def make_task_runner(spec: str | None):

@@ -1,8 +1,8 @@
 """The year-scale scenario: a large fleet over a long period, one ship at a time (issue 23).
 
 The demo scenario (:mod:`scenario.generator`) holds the whole fleet's fixes in memory, which
-suits 20 ships for a month (0.6 M rows) but not a year of a few hundred ships (about 0.4 M rows
-per ship-year at the demo's cadence: 100 M rows for 250 ships). Here the same sailing
+suits 20 ships for a month (0.6 M rows) but not a year of a few hundred ships (about 0.36 M rows
+per ship-year at the demo's cadence: 108.5 M rows for 300 ships, measured in docs/scale.md). Here the same sailing
 (:func:`scenario.sailing._sail_vessel`) and the same records (:func:`scenario.records.build_records`:
 message 1/3, dirty rows, the crew's voyage fields) run for one ship at a time, each ship on its
 own random streams (``(seed, 1, index)`` for its sailing as in the demo, ``(seed, 2, index)``

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -253,3 +254,37 @@ def xarray_without_dask_arrays() -> None:
         none.module, none.version, none.type, none.available = None, Version("0.0.0"), (), False
         pycompat._cached_duck_array_modules["dask"] = none
     utils.is_dask_collection = lambda x: False
+
+
+def checked_task_runner(spec: str | None) -> str:
+    """The kind of a ``--task-runner`` spec (``sequential`` or ``dask``), checked before any work:
+    a bad spec, or a ``dask:ADDRESS`` where no scheduler answers, is the one ``error:`` line; a
+    scheduler with no worker yet is a ``note:`` line (the tasks wait until a worker joins, as a
+    cluster that scales up on demand does)."""
+    from pipelines.runners import check_scheduler, parse_task_runner
+
+    kind, address = parse_task_runner(spec)
+    if address and check_scheduler(spec) == 0:
+        note(f"the Dask scheduler at {address} has no worker yet: the tasks wait until one joins "
+             f"(`dask worker {address}`)")
+    return kind
+
+
+def quiet_prefect(console_info: bool = True) -> None:
+    """Prefect quiet and offline for a command that runs a flow."""
+    # quiet and offline (STACK.md): no telemetry look-ups from Prefect
+    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    os.environ.setdefault("DO_NOT_TRACK", "1")
+    if not console_info:
+        # an interactive run shows its progress bar and summary, not a log line per task (as
+        # `stormlane demo`); PREFECT_LOGGING_LEVEL set by the user wins
+        os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
+
+
+def prefect_console_verbose() -> bool:
+    """PREFECT_LOGGING_LEVEL asks for Prefect's INFO or DEBUG lines on the console."""
+    import logging
+
+    value = os.environ.get("PREFECT_LOGGING_LEVEL", "").strip().upper()
+    level = int(value) if value.isdigit() else logging.getLevelName(value) if value else logging.WARNING
+    return isinstance(level, int) and level < logging.WARNING

@@ -7,7 +7,8 @@ from typing import List, Optional
 
 import typer
 
-from pipelines.commands._common import (DbOption, JsonOption, check_output_dir, emit_json, interactive, progress, warning,
+from pipelines.commands._common import (DbOption, JsonOption, check_output_dir, checked_task_runner, emit_json,
+                                        interactive, prefect_console_verbose, progress, quiet_prefect, warning,
                                         warnings_as_lines)
 
 
@@ -52,12 +53,11 @@ def register(app: typer.Typer) -> None:
         """
         from ais.io.files import FORMATS, expand_paths
         from pipelines.ingest import ingest_paths, nothing_loaded_reason, total_bytes
-        from pipelines.runners import parse_task_runner
         from thresholds.errors import StormlaneError
 
         if fmt is not None and fmt not in FORMATS:
             raise StormlaneError(f"--format {fmt!r} is not one of {', '.join(FORMATS)}")
-        kind, _ = parse_task_runner(task_runner)  # a bad spec fails here, before any work
+        kind = checked_task_runner(task_runner)  # a bad spec or no scheduler fails here, before any work
         show = interactive() and not json_out
         with warnings_as_lines("ais"):  # files skipped in a folder (hidden, empty, links to nothing)
             paths = [str(f) for f in expand_paths(paths)]  # once: each skipped file is said once
@@ -103,6 +103,7 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
 
     from ais.io.files import expand_paths
     from pipelines.ingest import check_inputs, commit_progress, flow_with_runner
+    from pipelines.prefect_console import user_errors_one_line
 
     found = expand_paths(paths)
     check_inputs(found, fmt)  # bad paths, formats and headers fail here, before the cluster starts
@@ -111,8 +112,10 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
     own = spool is None
     spool_dir = Path(tempfile.mkdtemp(prefix=".stormlane-spool-", dir=db.parent)) if own else Path(spool)
     spool_dir.mkdir(parents=True, exist_ok=True)
+    quiet_prefect(console_info=False)
     try:
-        with progress("ingest AIS (files)", total=len(files), enabled=show) as advance, \
+        with user_errors_one_line(hold_console=not prefect_console_verbose()), \
+                progress("ingest AIS (files)", total=len(files), enabled=show) as advance, \
                 commit_progress(lambda counts: advance(1)):
             return flow_with_runner(task_runner)(paths=files, db=str(db), fmt=fmt, max_speed_kn=max_speed_kn,
                                                  spool_dir=str(spool_dir))

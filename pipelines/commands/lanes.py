@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import DbReadOption, JsonOption, check_output_file, emit_json
+from pipelines.commands._common import (DbReadOption, JsonOption, check_output_file, checked_task_runner, emit_json,
+                                        prefect_console_verbose, quiet_prefect)
 
 
 def register(app: typer.Typer) -> None:
@@ -55,10 +56,9 @@ def register(app: typer.Typer) -> None:
         from pydantic import ValidationError
 
         from pipelines.lanes import LanesSettings, export_geojson, run_lanes, summary_counts
-        from pipelines.runners import parse_task_runner
         from thresholds.errors import StormlaneError
 
-        kind, _ = parse_task_runner(task_runner)  # a bad spec fails here, before any work
+        kind = checked_task_runner(task_runner)  # a bad spec or no scheduler fails here, before any work
 
         try:
             settings = LanesSettings(step_s=step_s, eps_nmi=eps_nmi, eps_speed_kn=eps_speed_kn, eps_course_deg=eps_course_deg,
@@ -89,14 +89,14 @@ def register(app: typer.Typer) -> None:
 
 
 def _run_flow(db: Path, ports_csv, settings, task_runner: str) -> dict:
-    """The Prefect lanes flow with the partitions on the Dask task runner (quiet, offline Prefect)."""
-    import os
-
-    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
-    os.environ.setdefault("DO_NOT_TRACK", "1")
+    """The Prefect lanes flow with the partitions on the Dask task runner (quiet, offline Prefect;
+    a user error is the one ``error:`` line)."""
+    quiet_prefect(console_info=False)
     from pipelines.lanes import LanesInputError, flow_with_runner
+    from pipelines.prefect_console import user_errors_one_line
 
     if not Path(db).exists():  # fail as one line before Prefect and the cluster start
         raise LanesInputError(f"workspace {db} does not exist; run `stormlane ingest-ais PATH --db {db}` first")
     paths = [str(p) for p in ports_csv] if ports_csv else None
-    return flow_with_runner(task_runner)(db=str(db), ports_csv=paths, settings=settings)
+    with user_errors_one_line(hold_console=not prefect_console_verbose()):
+        return flow_with_runner(task_runner)(db=str(db), ports_csv=paths, settings=settings)

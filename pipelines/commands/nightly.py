@@ -2,36 +2,17 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import typer
 
-from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption, TaskRunnerOption,
-                                        check_output_dir, count, emit_json, paths_text, progress, vessel_option, weather_option,
-                                        warning, xarray_without_dask_arrays)
+from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption,
+                                        TaskRunnerOption, check_output_dir, checked_task_runner, count, emit_json,
+                                        paths_text, prefect_console_verbose, progress, quiet_prefect, vessel_option,
+                                        warning, weather_option, xarray_without_dask_arrays)
 
 #: Deployment name used by `stormlane schedule` (the flow is ``nightly-reroute``).
 DEPLOYMENT_NAME = "nightly"
-
-
-def _quiet_prefect(console_info: bool = True) -> None:
-    # quiet and offline (STACK.md): no telemetry look-ups from Prefect
-    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
-    os.environ.setdefault("DO_NOT_TRACK", "1")
-    if not console_info:
-        # an interactive run shows its progress bar and summary, not a log line per task (as
-        # `stormlane demo`); PREFECT_LOGGING_LEVEL set by the user wins
-        os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
-
-
-def _prefect_console_verbose() -> bool:
-    """PREFECT_LOGGING_LEVEL asks for Prefect's INFO or DEBUG lines on the console."""
-    import logging
-
-    value = os.environ.get("PREFECT_LOGGING_LEVEL", "").strip().upper()
-    level = int(value) if value.isdigit() else logging.getLevelName(value) if value else logging.WARNING
-    return isinstance(level, int) and level < logging.WARNING
 
 
 # The options of one night, shared by `nightly` and `schedule` (one definition, one help text).
@@ -97,9 +78,9 @@ def register(app: typer.Typer) -> None:
           stormlane nightly --db work/stormlane.duckdb --weather forecast/ --now 2025-01-15T00:00Z \\
             --window-h 24 --out work/nightly
         """  # noqa: E501
-        _quiet_prefect(console_info=False)
+        quiet_prefect(console_info=False)
         xarray_without_dask_arrays()
-        from pipelines.nightly import (NightlyParams, flow_with_runner, make_task_runner, preflight, reroute_progress,
+        from pipelines.nightly import (NightlyParams, flow_with_runner, preflight, reroute_progress,
                                        user_errors_one_line)
 
         source = "fetch" if fetch else ("files" if weather else "auto")
@@ -109,12 +90,12 @@ def register(app: typer.Typer) -> None:
             vessel=vessel, profile=profile, speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report,
             exports=exports, least_fuel=least_fuel, rank_departures=rank_departures,
         )
-        make_task_runner(task_runner)  # validate before starting anything
         preflight(params)
+        checked_task_runner(task_runner)  # a bad spec or no scheduler fails here, before any work
         # a user error inside the flow (e.g. weather not covering the window) ends with the one
         # `error:` line: Prefect's run ERROR lines stay off the console unless PREFECT_LOGGING_LEVEL
         # asks for Prefect's INFO/DEBUG lines
-        with user_errors_one_line(hold_console=not _prefect_console_verbose()), progress("rerouting lanes") as advance:
+        with user_errors_one_line(hold_console=not prefect_console_verbose()), progress("rerouting lanes") as advance:
             with reroute_progress(lambda done, total: advance(1 if done else 0, total=total)):
                 summary = flow_with_runner(task_runner)(**params.model_dump())
         warn_beyond_weather(summary)
@@ -157,7 +138,7 @@ def register(app: typer.Typer) -> None:
           stormlane schedule --cron "0 2 * * *" --timezone UTC --db /srv/stormlane/ws.duckdb \\
             --out /srv/stormlane/nightly --weather /srv/stormlane/forecast
         """  # noqa: E501
-        _quiet_prefect()
+        quiet_prefect()
         from prefect.schedules import Cron
 
         from pipelines.nightly import _flow

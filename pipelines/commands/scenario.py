@@ -33,13 +33,13 @@ def register(app: typer.Typer) -> None:
         About 20 ships (ro-pax, container, tanker) sail liner services between Barcelona, Palma, Valencia, Marseille, Genova, Tunis, Alger and Cagliari on hand-built sea routes. Their AIS is written as DMA CSV and NMEA (one file per UTC day) with noise, gaps and a share of dirty rows; DIR/scenario.json records everything that was generated.
 
         With --vessels N it writes a year-scale fleet instead (streaming, bounded memory, the same seed gives
-        byte-identical files whatever --workers): a year of 250 ships is about 100 M rows, 2 GB of gzip.
+        byte-identical files whatever --workers): a year of 300 ships is about 108 M rows, 4.6 GB of gzip (measured: docs/scale.md).
 
-        Examples (three days around the demo's first storm; a year of 250 ships):
+        Examples (three days around the demo's first storm; a year of 300 ships):
 
         \b
           stormlane scenario --out mydata --start 2025-01-13T00:00Z --days 3
-          stormlane scenario --days 365 --vessels 250 --out year
+          stormlane scenario --days 365 --vessels 300 --out year
         """  # noqa: E501
         if vessels is not None:
             _fleet(out, seed, start, days, vessels, workers, json_out)

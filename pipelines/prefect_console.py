@@ -1,0 +1,95 @@
+"""The console while the CLI runs a Prefect flow (a night, an ingest or lanes on a cluster): a user
+error ends it with one ``error:`` line, Prefect's run errors held back."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+
+from thresholds.errors import StormlaneError
+
+class _UserErrorsWithoutTraceback(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.exc_info and isinstance(record.exc_info[1], StormlaneError):
+            record.exc_info, record.exc_text = None, None
+        return True
+
+
+def _workspace_locked(err: BaseException | None) -> bool:
+    try:
+        import duckdb
+    except ImportError:  # pragma: no cover - duckdb is a dependency
+        return False
+    return isinstance(err, duckdb.IOException) and "Could not set lock" in str(err)
+
+
+def is_user_error(err: BaseException | None) -> bool:
+    """An error the CLI reports as one ``error:`` line: a :class:`StormlaneError` (bad input,
+    missing coverage ...) or a workspace locked by another process."""
+    return isinstance(err, StormlaneError) or _workspace_locked(err)
+
+
+#: Loggers of Prefect's flow and task runs (their records reach the console through the root logger).
+RUN_LOGGERS = ("prefect.flow_runs", "prefect.task_runs")
+
+
+class _HoldRunErrors(logging.Filter):
+    """On a console handler: keep the flow and task runs' ERROR records back instead of printing them."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.held: list[logging.LogRecord] = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno >= logging.ERROR and record.name.startswith(RUN_LOGGERS):
+            self.held.append(record)
+            return False
+        return True
+
+
+def prefect_console_handlers() -> list[logging.Handler]:
+    """Prefect's console handlers (on the root logger, set up when Prefect is imported)."""
+    from prefect.logging.configuration import ensure_logging_setup
+    from prefect.logging.handlers import PrefectConsoleHandler
+
+    ensure_logging_setup()  # what `import prefect.main` does first (later calls are incremental: same handlers)
+    return [h for h in logging.getLogger().handlers if isinstance(h, PrefectConsoleHandler)]
+
+
+@contextlib.contextmanager
+def user_errors_one_line(hold_console: bool = True, handlers: list[logging.Handler] | None = None):
+    """While the CLI runs a flow, a user error ends it with the CLI's one ``error:`` line only.
+
+    Prefect logs a failed run's exception with its traceback: for a :class:`StormlaneError`
+    the traceback is dropped (other exceptions keep theirs). With ``hold_console`` the flow and
+    task runs' ERROR lines ("Task run failed with exception ...", "Finished in state Failed",
+    "Flow run ... Encountered exception") are also kept off the console (``handlers``, default
+    Prefect's console handlers) until the run ends: dropped when it ended with a user error
+    (:func:`is_user_error`, whose message the CLI prints), printed then otherwise (an unexpected
+    crash, or a lane that failed in a night that completed). Prefect's API log handler still
+    receives every record.
+    """
+    loggers = [logging.getLogger(n) for n in RUN_LOGGERS]
+    f = _UserErrorsWithoutTraceback()
+    for lg in loggers:
+        lg.addFilter(f)
+    holders = []
+    if hold_console:
+        for h in prefect_console_handlers() if handlers is None else handlers:
+            holder = _HoldRunErrors()
+            h.addFilter(holder)
+            holders.append((h, holder))
+    error = None
+    try:
+        yield
+    except BaseException as err:
+        error = err
+        raise
+    finally:
+        for lg in loggers:
+            lg.removeFilter(f)
+        for h, holder in holders:
+            h.removeFilter(holder)
+            if not is_user_error(error):
+                for record in holder.held:
+                    h.handle(record)
