@@ -107,12 +107,28 @@ def _apply_conventions(typer_app: typer.Typer) -> None:
 _register_commands()
 
 
+def _sigterm_exits() -> None:
+    """SIGTERM ends a command as an exception (exit status 143, 128 + 15), so that its clean-ups
+    run: Python's default action ends the process at once, which left Prefect's temporary API
+    server (a subprocess, stopped at exit) running after every command stopped with SIGTERM. A
+    flow run swaps in Prefect's own handler and re-sends the signal to this one when it is done."""
+    import signal
+    import threading
+
+    def _exit(signum, _frame):
+        raise SystemExit(128 + signum)
+
+    if threading.current_thread() is threading.main_thread():  # only the main thread may set handlers
+        signal.signal(signal.SIGTERM, _exit)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: user errors print one clear line on stderr and exit 2.
 
     That holds for the option parser's errors too (bad or missing option value, unknown option or
     command): one ``error: ...`` line naming the option, instead of a usage box.
     """
+    _sigterm_exits()
     try:
         code = app(args=argv, prog_name="stormlane", standalone_mode=False)
     except StormlaneError as err:

@@ -177,7 +177,26 @@ def test_a_scheduler_without_workers_is_said_and_sigterm_stops_the_waiting_inges
         except subprocess.TimeoutExpired:
             run.kill()
             pytest.fail("the ingest did not stop within 30 s of SIGTERM")
-        assert run.returncode != 0
+        assert run.returncode == 143  # 128 + SIGTERM, as an exit: the clean-ups ran
+        time.sleep(1)
+        left = [pid for pid in _processes_in(tmp_path) if pid != sched.pid]
+        assert not left, "a process of the stopped command still runs (Prefect's temporary server?)"
     finally:
         sched.terminate()
         sched.wait(timeout=30)
+
+
+def _processes_in(folder) -> list[int]:
+    """The processes whose working folder is ``folder`` (Linux /proc)."""
+    import os
+    from pathlib import Path
+
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if os.path.realpath(entry / "cwd") == os.path.realpath(folder):
+                    found.append(int(entry.name))
+            except OSError:
+                continue
+    return found

@@ -90,8 +90,8 @@ def register(app: typer.Typer) -> None:
             vessel=vessel, profile=profile, speed_loss=speed_loss, safety=safety, max_detail=max_detail, report=not no_report,
             exports=exports, least_fuel=least_fuel, rank_departures=rank_departures,
         )
-        preflight(params)
         checked_task_runner(task_runner)  # a bad spec or no scheduler fails here, before any work
+        preflight(params)
         # a user error inside the flow (e.g. weather not covering the window) ends with the one
         # `error:` line: Prefect's run ERROR lines stay off the console unless PREFECT_LOGGING_LEVEL
         # asks for Prefect's INFO/DEBUG lines

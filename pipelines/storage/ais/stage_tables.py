@@ -53,7 +53,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
         if fld in ("lat_deg", "lon_deg") and is_geometry(mapping):  # a point geometry (ais.io.parquet)
             axis = "y" if fld == "lat_deg" else "x"
             if not cols.get(mapping[fld], "").upper().startswith("STRUCT"):
-                return f"ais_wkb_{axis}({src(fld)})"  # NULL where no point
+                return f"{_WKB_PREFIX}{axis}"  # decoded once per row in the FROM below; NULL where no point
             value = f"TRY_CAST({src(fld)}.{axis} AS DOUBLE)"
         return f"CASE WHEN isnan({value}) THEN NULL ELSE {value} END"
 
@@ -96,11 +96,26 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
         {", ".join(f"{num(fld)} AS {fld}" for fld in (*_NUM_FIELDS, "nav_status"))},
         {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
         {statics}, CAST(NULL AS UBIGINT) AS s_hash
-    FROM read_parquet($path, file_row_number = true)
+    FROM {_parquet_rows(mapping, cols)}
     """
     _create_stage(ws.con, typed, {"path": str(path), "mmsi_re": MMSI_RE})
     _set_stage_kind(ws.con, "text")
     return {"ignored": 0, "python_fallback": False}
+
+
+#: The columns a WKB point geometry is decoded into, once per row (the value and the parse-error
+#: check both read them; calling the decoding function in each would decode each point twice).
+_WKB_PREFIX = "__stormlane_wkb_"
+
+
+def _parquet_rows(mapping: dict[str, str], cols: dict[str, str]) -> str:
+    """The FROM of :func:`stage_parquet`: the file's rows, with a WKB point decoded to x and y."""
+    rows = "read_parquet($path, file_row_number = true)"
+    geometry = mapping.get("lat_deg")
+    if not is_geometry(mapping) or cols.get(geometry, "").upper().startswith("STRUCT"):
+        return rows
+    return (f"(SELECT *, ais_wkb_x({_q(geometry)}) AS {_WKB_PREFIX}x, ais_wkb_y({_q(geometry)}) AS {_WKB_PREFIX}y "
+            f"FROM {rows})")
 
 
 def stage_frame(ws, stage: pd.DataFrame) -> dict:
