@@ -200,3 +200,13 @@ def _processes_in(folder) -> list[int]:
             except OSError:
                 continue
     return found
+
+
+def test_spool_without_a_dask_runner_is_said_not_ignored(tmp_path):
+    from ais_fixtures import write_dma
+
+    write_dma(tmp_path / "day.csv")
+    out = _cli(tmp_path, "ingest-ais", "day.csv", "--db", "w.duckdb", "--spool", "sp", "--json")
+    assert out.returncode == 0, out.stderr
+    assert ("note: --spool is used only with --task-runner dask[:ADDRESS]: this sequential run stages and commits "
+            "each file in this process") in out.stderr.splitlines()

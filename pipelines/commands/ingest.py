@@ -8,7 +8,7 @@ from typing import List, Optional
 import typer
 
 from pipelines.commands._common import (DbOption, JsonOption, check_output_dir, checked_task_runner, emit_json,
-                                        interactive, prefect_console_verbose, progress, quiet_prefect, warning,
+                                        interactive, note, prefect_console_verbose, progress, quiet_prefect, warning,
                                         warnings_as_lines)
 
 
@@ -58,6 +58,9 @@ def register(app: typer.Typer) -> None:
         if fmt is not None and fmt not in FORMATS:
             raise StormlaneError(f"--format {fmt!r} is not one of {', '.join(FORMATS)}")
         kind = checked_task_runner(task_runner)  # a bad spec or no scheduler fails here, before any work
+        if spool is not None and kind == "sequential":  # said, not silently ignored
+            note("--spool is used only with --task-runner dask[:ADDRESS]: this sequential run stages and "
+                 "commits each file in this process")
         show = interactive() and not json_out
         with warnings_as_lines("ais"):  # files skipped in a folder (hidden, empty, links to nothing)
             paths = [str(f) for f in expand_paths(paths)]  # once: each skipped file is said once
