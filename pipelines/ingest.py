@@ -404,7 +404,8 @@ def _build_flow() -> dict:
             for p in files:
                 while todo and len(staged) < STAGE_AHEAD_FILES:  # the spool holds this many at most
                     # absolute paths: a worker's working folder is its own, not this process's
-                    staged[todo[0]] = stage_task.submit(os.path.abspath(todo[0]), fmt, os.path.abspath(spool_dir), run_tag)
+                    staged[todo[0]] = stage_task.submit(os.path.abspath(todo[0]), fmt, os.path.abspath(spool_dir),
+                                                        run_tag)
                     todo = todo[1:]
                 # the stage's own exception, raised here (a failed future handed to a task is not run)
                 counts = skipped[p] if p in skipped else commit_task(db, {**_staged(p, staged.pop(p)), "path": p},

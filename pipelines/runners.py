@@ -40,13 +40,10 @@ _SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
 def _scheduler_address(address: str) -> str:
     """``address`` when it names a host and a port (``[PROTOCOL://]HOST:PORT``, the forms
     ``dask scheduler`` prints); :class:`TaskRunnerError` naming what is missing otherwise."""
-    from urllib.parse import urlsplit
-
-    protocol = address.split("://", 1)[0].lower() if "://" in address else "tcp"
+    parts = _split(address)
     bad = f"--task-runner dask:{address}: "
-    if protocol not in _SCHEDULER_PROTOCOLS:
-        raise TaskRunnerError(bad + f"the protocol {protocol!r} is not one of {', '.join(_SCHEDULER_PROTOCOLS)}")
-    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme not in _SCHEDULER_PROTOCOLS:
+        raise TaskRunnerError(bad + f"the protocol {parts.scheme!r} is not one of {', '.join(_SCHEDULER_PROTOCOLS)}")
     try:
         port = parts.port
     except ValueError:
@@ -54,6 +51,13 @@ def _scheduler_address(address: str) -> str:
     if not parts.hostname or port is None or parts.path not in ("", "/"):
         raise TaskRunnerError(bad + "a scheduler's address is [PROTOCOL://]HOST:PORT, e.g. dask:tcp://10.0.0.5:8786")
     return address
+
+
+def _split(address: str):
+    """A scheduler address's parts (``urllib.parse.urlsplit``); no protocol is Dask's default, tcp."""
+    from urllib.parse import urlsplit
+
+    return urlsplit(address if "://" in address else f"tcp://{address}")
 
 
 def check_scheduler(spec: str | None, timeout_s: float = 10.0) -> int | None:
@@ -95,9 +99,8 @@ def _listening(address: str, timeout_s: float) -> None:
     """:class:`TaskRunnerError` at once when nothing listens at a TCP-based scheduler address
     (refused, unknown host, unreachable): Dask's own connect retries these until its timeout."""
     import socket
-    from urllib.parse import urlsplit
 
-    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    parts = _split(address)
     if parts.scheme not in ("tcp", "tls", "ws", "wss"):
         return
     try:
@@ -141,9 +144,7 @@ def runner_flow(flow_obj, spec: str | None):
 
 
 def _loopback(address: str) -> bool:
-    from urllib.parse import urlsplit
-
-    host = urlsplit(address if "://" in address else f"tcp://{address}").hostname or ""
+    host = _split(address).hostname or ""
     return host in ("localhost", "::1") or host.startswith("127.")
 
 
