@@ -154,6 +154,11 @@ def main(argv: list[str] | None = None) -> None:
         typer.echo(f"error: {err.filename}{other}: {err.strerror or err}", err=True)
         sys.exit(2)
     except Exception as err:
+        from pipelines.prefect_console import CLUSTER_RUNS_OTHER_CODE, cluster_runs_other_code
+
+        if cluster_runs_other_code(err):
+            typer.echo(f"error: {CLUSTER_RUNS_OTHER_CODE}", err=True)
+            sys.exit(2)
         # A workspace locked by another process: the flows' I/O tasks retry it (transient), so it
         # stays DuckDB's exception down there; here, once retries are spent, it is one line.
         if not _workspace_locked(err):

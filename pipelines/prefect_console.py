@@ -23,10 +23,25 @@ def _workspace_locked(err: BaseException | None) -> bool:
     return isinstance(err, duckdb.IOException) and "Could not set lock" in str(err)
 
 
+#: What Dask's scheduler says when it cannot unpickle a client's tasks (``distributed``'s
+#: scheduler): a scheduler running other code than the client, e.g. started before an upgrade.
+_GRAPH_UNREADABLE = "Error during deserialization of the task graph"
+
+#: The CLI's line for it.
+CLUSTER_RUNS_OTHER_CODE = ("the Dask scheduler could not read this command's tasks: the scheduler and its workers "
+                           "must run the same stormlane and packages as this process; restart them after installing "
+                           "another version (docs/scale.md)")
+
+
+def cluster_runs_other_code(err: BaseException | None) -> bool:
+    """``err`` is the scheduler's refusal of a task graph it cannot unpickle."""
+    return isinstance(err, RuntimeError) and _GRAPH_UNREADABLE in str(err)
+
+
 def is_user_error(err: BaseException | None) -> bool:
     """An error the CLI reports as one ``error:`` line: a :class:`StormlaneError` (bad input,
-    missing coverage ...) or a workspace locked by another process."""
-    return isinstance(err, StormlaneError) or _workspace_locked(err)
+    missing coverage ...), a workspace locked by another process, or a cluster running other code."""
+    return isinstance(err, StormlaneError) or _workspace_locked(err) or cluster_runs_other_code(err)
 
 
 #: Loggers of Prefect's flow and task runs (their records reach the console through the root logger).

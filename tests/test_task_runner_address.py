@@ -210,3 +210,40 @@ def test_spool_without_a_dask_runner_is_said_not_ignored(tmp_path):
     assert out.returncode == 0, out.stderr
     assert ("note: --spool is used only with --task-runner dask[:ADDRESS]: this sequential run stages and commits "
             "each file in this process") in out.stderr.splitlines()
+
+
+@pytest.mark.slow
+def test_a_cluster_running_other_code_is_one_line(tmp_path):
+    """A scheduler that imports another stormlane (here an empty ``pipelines`` package ahead on
+    its path, as a scheduler started before an upgrade holds the old code) cannot unpickle the
+    command's tasks: one error line saying what to do, not Dask's RuntimeError traceback."""
+    import json
+    import os
+    import time
+
+    from ais_fixtures import write_dma
+
+    stale = tmp_path / "stale" / "pipelines"
+    stale.mkdir(parents=True)
+    for name in ("__init__.py", "ingest.py", "ingest_partitioned.py"):
+        (stale / name).write_text("")
+    sched_file = tmp_path / "scheduler.json"
+    env = {**os.environ, "PYTHONPATH": str(stale.parent)}
+    sched = subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+                              "--dashboard-address", ":0", "--scheduler-file", str(sched_file)],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=stale.parent, env=env)
+    try:
+        deadline = time.monotonic() + 60
+        while not (sched_file.exists() and sched_file.read_text().strip()) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        address = json.loads(sched_file.read_text())["address"]
+        write_dma(tmp_path / "day1.csv")
+        out = _cli(tmp_path, "ingest-ais", "day1.csv", "--db", "w.duckdb", "--task-runner", f"dask:{address}")
+        assert out.returncode == 2, out.stderr
+        lines = [line for line in out.stderr.splitlines() if not line.startswith("note: ")]
+        assert lines == ["error: the Dask scheduler could not read this command's tasks: the scheduler and its workers "
+                         "must run the same stormlane and packages as this process; restart them after installing "
+                         "another version (docs/scale.md)"]
+    finally:
+        sched.terminate()
+        sched.wait(timeout=30)
