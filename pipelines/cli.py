@@ -154,28 +154,20 @@ def main(argv: list[str] | None = None) -> None:
         typer.echo(f"error: {err.filename}{other}: {err.strerror or err}", err=True)
         sys.exit(2)
     except Exception as err:
-        from pipelines.prefect_console import CLUSTER_RUNS_OTHER_CODE, cluster_runs_other_code
+        from pipelines.prefect_console import CLUSTER_RUNS_OTHER_CODE, cluster_runs_other_code, workspace_locked
 
         if cluster_runs_other_code(err):
             typer.echo(f"error: {CLUSTER_RUNS_OTHER_CODE}", err=True)
             sys.exit(2)
         # A workspace locked by another process: the flows' I/O tasks retry it (transient), so it
         # stays DuckDB's exception down there; here, once retries are spent, it is one line.
-        if not _workspace_locked(err):
+        if not workspace_locked(err):
             raise
         typer.echo(f"error: the workspace is in use by another process ({str(err).splitlines()[0]}); "
                    "retry when it has finished", err=True)
         sys.exit(2)
     if isinstance(code, int) and code:
         sys.exit(code)
-
-
-def _workspace_locked(err: BaseException) -> bool:
-    if "duckdb" not in sys.modules:  # nothing opened a workspace
-        return False
-    import duckdb
-
-    return isinstance(err, duckdb.IOException) and "Could not set lock" in str(err)
 
 
 if __name__ == "__main__":

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import sys
 
 from thresholds.errors import StormlaneError
+
 
 class _UserErrorsWithoutTraceback(logging.Filter):
     def filter(self, record: logging.LogRecord) -> bool:
@@ -15,11 +17,12 @@ class _UserErrorsWithoutTraceback(logging.Filter):
         return True
 
 
-def _workspace_locked(err: BaseException | None) -> bool:
-    try:
-        import duckdb
-    except ImportError:  # pragma: no cover - duckdb is a dependency
+def workspace_locked(err: BaseException | None) -> bool:
+    """``err`` is DuckDB's refusal of a workspace another process holds open for writing."""
+    if "duckdb" not in sys.modules:  # nothing opened a workspace
         return False
+    import duckdb
+
     return isinstance(err, duckdb.IOException) and "Could not set lock" in str(err)
 
 
@@ -41,7 +44,7 @@ def cluster_runs_other_code(err: BaseException | None) -> bool:
 def is_user_error(err: BaseException | None) -> bool:
     """An error the CLI reports as one ``error:`` line: a :class:`StormlaneError` (bad input,
     missing coverage ...), a workspace locked by another process, or a cluster running other code."""
-    return isinstance(err, StormlaneError) or _workspace_locked(err) or cluster_runs_other_code(err)
+    return isinstance(err, StormlaneError) or workspace_locked(err) or cluster_runs_other_code(err)
 
 
 #: Loggers of Prefect's flow and task runs (their records reach the console through the root logger).

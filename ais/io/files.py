@@ -69,10 +69,6 @@ def compression(path: str | Path) -> str:
     return {ZSTD_MAGIC: "zstd", ZIP_MAGIC: "zip"}.get(head, "")
 
 
-def is_gzip(path: str | Path) -> bool:
-    return compression(path) == "gzip"
-
-
 def is_compressed(path: str | Path) -> bool:
     """Whether the file's content must be decompressed to be read (gzip, zstd, a zip archive)."""
     return compression(path) != ""

@@ -281,6 +281,15 @@ def quiet_prefect(console_info: bool = True) -> None:
         os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
 
 
+def flow_errors_one_line():
+    """While a command runs a Prefect flow: a user error ends it with the CLI's one ``error:``
+    line, Prefect's run errors held back unless PREFECT_LOGGING_LEVEL asks for Prefect's INFO or
+    DEBUG lines (:func:`pipelines.prefect_console.user_errors_one_line`)."""
+    from pipelines.prefect_console import user_errors_one_line
+
+    return user_errors_one_line(hold_console=not prefect_console_verbose())
+
+
 def prefect_console_verbose() -> bool:
     """PREFECT_LOGGING_LEVEL asks for Prefect's INFO or DEBUG lines on the console."""
     import logging

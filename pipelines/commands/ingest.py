@@ -8,7 +8,7 @@ from typing import List, Optional
 import typer
 
 from pipelines.commands._common import (DbOption, JsonOption, check_output_dir, checked_task_runner, emit_json,
-                                        interactive, note, prefect_console_verbose, progress, quiet_prefect, warning,
+                                        flow_errors_one_line, interactive, note, progress, quiet_prefect, warning,
                                         warnings_as_lines)
 
 
@@ -106,7 +106,6 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
 
     from ais.io.files import expand_paths
     from pipelines.ingest import check_inputs, commit_progress, flow_with_runner
-    from pipelines.prefect_console import user_errors_one_line
 
     found = expand_paths(paths)
     check_inputs(found, fmt)  # bad paths, formats and headers fail here, before the cluster starts
@@ -117,7 +116,7 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
     spool_dir.mkdir(parents=True, exist_ok=True)
     quiet_prefect(console_info=False)
     try:
-        with user_errors_one_line(hold_console=not prefect_console_verbose()), \
+        with flow_errors_one_line(), \
                 progress("ingest AIS (files)", total=len(files), enabled=show) as advance, \
                 commit_progress(lambda counts: advance(1)):
             return flow_with_runner(task_runner)(paths=files, db=str(db), fmt=fmt, max_speed_kn=max_speed_kn,

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import (DbReadOption, JsonOption, check_output_file, checked_task_runner, emit_json,
-                                        prefect_console_verbose, quiet_prefect)
+                                        flow_errors_one_line, quiet_prefect)
 
 
 def register(app: typer.Typer) -> None:
@@ -93,10 +93,9 @@ def _run_flow(db: Path, ports_csv, settings, task_runner: str) -> dict:
     a user error is the one ``error:`` line)."""
     quiet_prefect(console_info=False)
     from pipelines.lanes import LanesInputError, flow_with_runner
-    from pipelines.prefect_console import user_errors_one_line
 
     if not Path(db).exists():  # fail as one line before Prefect and the cluster start
         raise LanesInputError(f"workspace {db} does not exist; run `stormlane ingest-ais PATH --db {db}` first")
     paths = [str(p) for p in ports_csv] if ports_csv else None
-    with user_errors_one_line(hold_console=not prefect_console_verbose()):
+    with flow_errors_one_line():
         return flow_with_runner(task_runner)(db=str(db), ports_csv=paths, settings=settings)

@@ -8,7 +8,7 @@ import typer
 
 from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption,
                                         TaskRunnerOption, check_output_dir, checked_task_runner, count, emit_json,
-                                        paths_text, prefect_console_verbose, progress, quiet_prefect, vessel_option,
+                                        flow_errors_one_line, paths_text, progress, quiet_prefect, vessel_option,
                                         warning, weather_option, xarray_without_dask_arrays)
 
 #: Deployment name used by `stormlane schedule` (the flow is ``nightly-reroute``).
@@ -80,8 +80,7 @@ def register(app: typer.Typer) -> None:
         """  # noqa: E501
         quiet_prefect(console_info=False)
         xarray_without_dask_arrays()
-        from pipelines.nightly import (NightlyParams, flow_with_runner, preflight, reroute_progress,
-                                       user_errors_one_line)
+        from pipelines.nightly import NightlyParams, flow_with_runner, preflight, reroute_progress
 
         source = "fetch" if fetch else ("files" if weather else "auto")
         params = NightlyParams.checked(
@@ -95,7 +94,7 @@ def register(app: typer.Typer) -> None:
         # a user error inside the flow (e.g. weather not covering the window) ends with the one
         # `error:` line: Prefect's run ERROR lines stay off the console unless PREFECT_LOGGING_LEVEL
         # asks for Prefect's INFO/DEBUG lines
-        with user_errors_one_line(hold_console=not prefect_console_verbose()), progress("rerouting lanes") as advance:
+        with flow_errors_one_line(), progress("rerouting lanes") as advance:
             with reroute_progress(lambda done, total: advance(1 if done else 0, total=total)):
                 summary = flow_with_runner(task_runner)(**params.model_dump())
         warn_beyond_weather(summary)

@@ -52,9 +52,9 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
         value = f"TRY_CAST({src(fld)} AS DOUBLE)"
         if fld in ("lat_deg", "lon_deg") and is_geometry(mapping):  # a point geometry (ais.io.parquet)
             axis = "y" if fld == "lat_deg" else "x"
-            if not cols.get(mapping[fld], "").upper().startswith("STRUCT"):
+            if _wkb_column(mapping, cols):
                 return f"{_WKB_PREFIX}{axis}"  # decoded once per row in the FROM below; NULL where no point
-            value = f"TRY_CAST({src(fld)}.{axis} AS DOUBLE)"
+            value = f"TRY_CAST({src(fld)}.{axis} AS DOUBLE)"  # GeoArrow's point struct
         return f"CASE WHEN isnan({value}) THEN NULL ELSE {value} END"
 
     def unreadable(fld):
@@ -108,14 +108,21 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str]) -> dict:
 _WKB_PREFIX = "__stormlane_wkb_"
 
 
+def _wkb_column(mapping: dict[str, str], cols: dict[str, str]) -> str | None:
+    """The column the positions come from when it is a WKB point geometry (not GeoArrow's struct)."""
+    geometry = mapping.get("lat_deg")
+    if is_geometry(mapping) and not cols.get(geometry, "").upper().startswith("STRUCT"):
+        return geometry
+    return None
+
+
 def _parquet_rows(mapping: dict[str, str], cols: dict[str, str]) -> str:
     """The FROM of :func:`stage_parquet`: the file's rows, with a WKB point decoded to x and y."""
     rows = "read_parquet($path, file_row_number = true)"
-    geometry = mapping.get("lat_deg")
-    if not is_geometry(mapping) or cols.get(geometry, "").upper().startswith("STRUCT"):
+    wkb = _wkb_column(mapping, cols)
+    if wkb is None:
         return rows
-    return (f"(SELECT *, ais_wkb_x({_q(geometry)}) AS {_WKB_PREFIX}x, ais_wkb_y({_q(geometry)}) AS {_WKB_PREFIX}y "
-            f"FROM {rows})")
+    return f"(SELECT *, ais_wkb_x({_q(wkb)}) AS {_WKB_PREFIX}x, ais_wkb_y({_q(wkb)}) AS {_WKB_PREFIX}y FROM {rows})"
 
 
 def stage_frame(ws, stage: pd.DataFrame) -> dict:
