@@ -120,6 +120,46 @@ def generate_dma_csv(path: Path, n_rows: int, n_vessels: int = 2000, seed: int =
     return injected
 
 
+def noaa_csv_to_geoparquet(csv_path: Path, path: Path) -> int:
+    """Write the rows of a NOAA-layout CSV file (:func:`generate_dma_csv` with ``layout="noaa"``)
+    as a GeoParquet file shaped like MarineCadastre's daily files from 2024 on: snake_case
+    columns, the position only in a WKB point ``geometry`` (OGC 06-103r4 section 8.2: byte order
+    1, type 1, x = longitude, y = latitude), the data dictionary's types (SOG, COG, heading,
+    length, width and draft as 4-byte floats; vessel type and status short integers) [1].
+    Values that are no number or time are written as missing. Returns the rows written.
+
+    .. [1] NOAA Office for Coastal Management, "AIS data dictionary" (MarineCadastre.gov,
+       Nationwide Automatic Identification System): field names, types and sizes.
+    """
+    import duckdb
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    con = duckdb.connect()
+    con.execute("SET TimeZone = 'UTC'")
+    t = con.execute("""
+        SELECT TRY_CAST("MMSI" AS BIGINT) AS mmsi, TRY_CAST("BaseDateTime" AS TIMESTAMPTZ) AS base_date_time,
+               TRY_CAST("SOG" AS FLOAT) AS sog, TRY_CAST("COG" AS FLOAT) AS cog, TRY_CAST("Heading" AS FLOAT) AS heading,
+               "VesselName" AS vessel_name, "IMO" AS imo, "CallSign" AS call_sign,
+               TRY_CAST("VesselType" AS SMALLINT) AS vessel_type, TRY_CAST("Status" AS SMALLINT) AS status,
+               TRY_CAST("Length" AS FLOAT) AS length, TRY_CAST("Width" AS FLOAT) AS width,
+               TRY_CAST("Draft" AS FLOAT) AS draft, "Cargo" AS cargo, "TransceiverClass" AS transceiver,
+               TRY_CAST("LON" AS DOUBLE) AS x, TRY_CAST("LAT" AS DOUBLE) AS y
+        FROM read_csv(?, all_varchar = true, header = true, delim = ',', quote = '', escape = '')""",
+                    [str(csv_path)]).to_arrow_table()
+    con.close()
+    n = t.num_rows
+    rec = np.zeros((n, 21), np.uint8)
+    rec[:, 0] = 1  # little-endian (NDR)
+    rec[:, 1:5] = np.frombuffer(np.uint32(1).astype("<u4").tobytes(), np.uint8)  # point
+    rec[:, 5:13] = t["x"].to_numpy().astype("<f8").view(np.uint8).reshape(n, 8)
+    rec[:, 13:21] = t["y"].to_numpy().astype("<f8").view(np.uint8).reshape(n, 8)
+    offsets = (np.arange(n + 1, dtype=np.int64) * 21).astype(np.int32)
+    geometry = pa.Array.from_buffers(pa.binary(), n, [None, pa.py_buffer(offsets), pa.py_buffer(rec.ravel())])
+    pq.write_table(t.drop(["x", "y"]).append_column("geometry", geometry), path)
+    return n
+
+
 # --- NMEA -----------------------------------------------------------------------------------
 def _armour(values: np.ndarray) -> np.ndarray:
     """6-bit values -> AIS payload characters (ITU-R M.1371-5 Annex 8 Table 44)."""

@@ -236,7 +236,9 @@ def stage_file(ws, f: AisFile, progress: Callable[[int], None] | None = None) ->
 
         with _plain_file(f) as src:  # DuckDB reads Parquet from a plain file only
             cols = store.parquet_columns(ws, src, shown=f.path)
-            info = store.stage_parquet(ws, src, column_mapping([c for c, _ in cols], f.path, types=dict(cols)))
+            # A decompressed copy is gone by the commit: its rows' text is then staged with them.
+            info = store.stage_parquet(ws, src, column_mapping([c for c, _ in cols], f.path, types=dict(cols)),
+                                       raw_from_file=not f.compressed)
     else:
         from ais.io.nmea import read_nmea
 

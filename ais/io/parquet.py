@@ -187,6 +187,23 @@ def geometry_xy(column) -> tuple[np.ndarray, np.ndarray]:
     return wkb_point_xy(column)
 
 
+#: Bytes of a 2-D WKB point: byte order, geometry type (uint32), x and y (doubles).
+_POINT_2D_BYTES = 21
+#: The first five bytes of a little-endian 2-D WKB point: NDR byte order (1), type 1.
+_POINT_2D_LE_HEAD = np.array([1, 1, 0, 0, 0], np.uint8)
+
+
+def _uniform_points_xy(rec: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(x, y)`` of WKB values that are all little-endian 2-D points (``rec``: one 21-byte row
+    per value), read as strided doubles; None when any value is not (the general path then).
+    GeoParquet writers (GDAL, GeoPandas/Shapely, DuckDB spatial) write points so: decoding them
+    byte by byte cost 1.4 CPU us per row, a quarter of the whole Parquet ingest (issue 23)."""
+    if not (rec[:, :5] == _POINT_2D_LE_HEAD).all():
+        return None
+    return (np.ascontiguousarray(rec[:, 5:13]).view("<f8").ravel(),
+            np.ascontiguousarray(rec[:, 13:21]).view("<f8").ravel())
+
+
 def wkb_point_xy(values) -> tuple[np.ndarray, np.ndarray]:
     """``(x, y)`` of WKB points (a pyarrow binary or large binary array, chunked or not; OGC
     06-103r4 section 8.2, byte order per value). NaN where the value is null, shorter than a
@@ -208,6 +225,10 @@ def wkb_point_xy(values) -> tuple[np.ndarray, np.ndarray]:
     off = off[arr.offset: arr.offset + n + 1].astype(np.int64)
     data = np.frombuffer(bufs[2], np.uint8)
     start, length = off[:-1], np.diff(off)
+    if arr.null_count == 0 and (length == _POINT_2D_BYTES).all():
+        uniform = _uniform_points_xy(data[off[0]: off[-1]].reshape(n, _POINT_2D_BYTES))
+        if uniform is not None:
+            return uniform
     ok = np.asarray(arr.is_valid()) & (length >= 21)
     i = np.nonzero(ok)[0]
     s, le = start[i], data[start[i]] == 1

@@ -35,29 +35,10 @@ def _prepare(con: duckdb.DuckDBPyConnection) -> None:
     # A parsed time outside pandas' nanosecond range is no time (as in the pure path).
     con.execute(f"CREATE OR REPLACE TEMP MACRO ais_time(t) AS CASE WHEN t BETWEEN TIMESTAMP '{_PD_TMIN}' "
                 f"AND TIMESTAMP '{_PD_TMAX}' THEN t END")
-    for name, fn, args, out, kind in (("ais_csv_split", split_csv_line, ["VARCHAR"], "VARCHAR[]", "native"),
-                                      ("ais_wkb_x", _wkb_axis(0), ["BLOB"], "DOUBLE", "arrow"),
-                                      ("ais_wkb_y", _wkb_axis(1), ["BLOB"], "DOUBLE", "arrow")):
-        nulls = "special" if kind == "arrow" else "default"  # the WKB functions return NULL where no point
-        try:
-            con.create_function(name, fn, args, out, type=kind, null_handling=nulls, side_effects=False)
-        except (duckdb.CatalogException, duckdb.NotImplementedException, RuntimeError):
-            pass  # already registered on this connection
-
-
-def _wkb_axis(k: int):
-    """A vectorised DuckDB function: x (k = 0) or y (k = 1) of WKB points (:func:`ais.io.parquet.wkb_point_xy`)."""
-
-    def axis(values):
-        import numpy as np
-        import pyarrow as pa
-
-        from ais.io.parquet import wkb_point_xy
-
-        v = wkb_point_xy(values)[k]
-        return pa.array(v, pa.float64(), mask=np.isnan(v))  # NULL where no point
-
-    return axis
+    try:
+        con.create_function("ais_csv_split", split_csv_line, ["VARCHAR"], "VARCHAR[]", side_effects=False)
+    except (duckdb.CatalogException, duckdb.NotImplementedException, RuntimeError):
+        pass  # already registered on this connection
 
 
 def _params() -> dict:

@@ -14,6 +14,7 @@ from ais import clean as C
 from pipelines.storage.ais._sql import _NORM, _VALUES, _drop_temp, _line_index, _norm, _prepare, _stage_kind
 from pipelines.storage.ais import parquet
 from pipelines.storage.ais.files import file_record
+from pipelines.storage.ais.stage_tables import parquet_raw_lines
 from pipelines.storage.ais.vessels import _upsert_vessels
 from thresholds.units import EARTH_RADIUS_NMI
 
@@ -264,9 +265,16 @@ def _outcomes_with_stored(con, max_speed_kn: float, scan_fixes: dict) -> tuple[n
 
 
 def _fill_raw(con, meta: dict) -> None:
-    """Raw text for the quarantined rows staged without it (fast CSV path), from the line index."""
+    """Raw text for the quarantined rows staged without it: from the line index (fast CSV
+    path) or from the Parquet file (:func:`stage_tables.parquet_raw_lines`)."""
     import pyarrow as pa
 
+    extra = _stage_kind(con)[1]
+    if "raw_path" in extra:
+        con.execute(f"UPDATE ais_q SET raw = r.raw FROM "
+                    f"{parquet_raw_lines(extra, 'SELECT line FROM ais_q WHERE raw IS NULL')} r "
+                    f"WHERE ais_q.line = r.line")
+        return
     need = np.asarray(con.execute("SELECT line FROM ais_q WHERE raw IS NULL ORDER BY line").fetchnumpy()["line"],
                       dtype=np.int64)
     if len(need) == 0:

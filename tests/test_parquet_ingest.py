@@ -1,0 +1,133 @@
+"""Parquet ingest: WKB points read as doubles, the raw text of quarantined rows read from the
+file at the commit, and a workspace whose dataset folder name is taken by a file."""
+
+from __future__ import annotations
+
+import gzip
+import shutil
+import struct
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from ais.io.parquet import wkb_point_xy
+from pipelines.ingest import ingest_paths
+from pipelines.storage import open_workspace
+
+
+def _le_points(n: int, seed: int = 0) -> tuple[list[bytes], np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    x, y = rng.uniform(-180, 180, n), rng.uniform(-90, 90, n)
+    return [struct.pack("<BIdd", 1, 1, a, b) for a, b in zip(x, y)], x, y
+
+
+def test_uniform_wkb_points_are_read_bit_for_bit():
+    """Little-endian 2-D points (what GDAL, Shapely and DuckDB write) come out of the strided
+    read exactly as ``struct`` unpacks them, in a sliced array (offset) too."""
+    values, x, y = _le_points(1000)
+    gx, gy = wkb_point_xy(pa.array(values, pa.binary()))
+    assert np.array_equal(gx, x) and np.array_equal(gy, y)
+    sx, sy = wkb_point_xy(pa.array(values, pa.binary()).slice(17, 500))
+    assert np.array_equal(sx, x[17:517]) and np.array_equal(sy, y[17:517])
+    lx, ly = wkb_point_xy(pa.array(values, pa.large_binary()))
+    assert np.array_equal(lx, x) and np.array_equal(ly, y)
+
+
+@pytest.mark.parametrize("odd", ["big_endian", "null", "linestring_21_bytes", "srid"])
+def test_one_other_value_among_uniform_points_takes_the_general_path(odd):
+    """One value that is not a little-endian 2-D point: every other point read the same, the odd
+    one as the general decoder says (a big-endian or SRID point its coordinates; a null or a
+    21-byte value of another type no point)."""
+    values, x, y = _le_points(300, seed=1)
+    k = 123
+    want_x, want_y = x.copy(), y.copy()
+    if odd == "big_endian":
+        values[k] = struct.pack(">BIdd", 0, 1, x[k], y[k])
+    elif odd == "srid":
+        values[k] = struct.pack("<BIIdd", 1, 0x20000001, 4326, x[k], y[k])
+    else:
+        values[k] = None if odd == "null" else struct.pack("<BIIdI", 1, 2, 1, 5.0, 0)  # 21 bytes, type 2
+        want_x[k] = want_y[k] = np.nan
+    gx, gy = wkb_point_xy(pa.array(values, pa.binary()))
+    assert np.array_equal(gx, want_x, equal_nan=True) and np.array_equal(gy, want_y, equal_nan=True)
+
+
+def _bad_rows_parquet(path):
+    """Four rows: two good, a bad MMSI and a latitude out of range (no position)."""
+    pq.write_table(pa.table({
+        "mmsi": pa.array([219000001, 123, 219000001, 219000001]),
+        "time_utc": pa.array(pd.date_range("2025-01-01", periods=4, freq="min").to_numpy()),
+        "lat": pa.array([55.0, 55.0, 91.0, 55.001]), "lon": pa.array([12.0, 12.0, 12.0, 12.0]),
+        "sog": pa.array([10.0, None, 10.0, 10.5]), "name": pa.array(["ALPHA", "BRAVO", None, "ALPHA"]),
+    }), path)
+    return path
+
+
+def _quarantine(db) -> list[tuple]:
+    with open_workspace(db) as ws:
+        return ws.con.execute("SELECT line, reason, raw FROM ais_quarantine ORDER BY line").fetchall()
+
+
+def test_quarantined_parquet_rows_keep_their_text(tmp_path):
+    """A plain Parquet file is staged without its rows' text, which the commit reads from the
+    file for the quarantined rows only; a compressed one (its decompressed copy is gone by the
+    commit) is staged with it. Both give the text by hand: the values joined by commas, a
+    missing one empty."""
+    plain = _bad_rows_parquet(tmp_path / "day.parquet")
+    packed = tmp_path / "other.parquet.gz"
+    with plain.open("rb") as src, gzip.open(packed, "wb") as out:
+        shutil.copyfileobj(src, out)
+    want = [(2, "bad_mmsi", "123,2025-01-01 00:01:00,55.0,12.0,,BRAVO"),
+            (3, "no_position", "219000001,2025-01-01 00:02:00,91.0,12.0,10.0,")]
+    for src in (plain, packed):
+        s = ingest_paths([src], tmp_path / f"{src.name}.duckdb")
+        assert s["loaded"] == 2 and _quarantine(tmp_path / f"{src.name}.duckdb") == want, src.name
+
+
+def test_a_file_where_the_dataset_folder_goes_is_one_error_line(tmp_path):
+    """``stormlane ingest-ais ais.parquet --db ais.duckdb``: the workspace's positions dataset
+    folder would be ``ais.parquet``, the input itself. One error line naming both, before any
+    load; the input untouched."""
+    src = _bad_rows_parquet(tmp_path / "ais.parquet")
+    before = src.read_bytes()
+    r = subprocess.run([sys.executable, "-m", "pipelines.cli", "ingest-ais", str(src), "--db",
+                        str(tmp_path / "ais.duckdb")], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: workspace ") and "ais.parquet" in lines[0], r.stderr
+    assert "but that is a file" in lines[0]
+    assert src.read_bytes() == before
+    with open_workspace(tmp_path / "ais.duckdb") as ws:
+        assert ws.con.execute("SELECT count(*) FROM ais_files").fetchone()[0] == 0
+
+
+def test_static_numbers_are_typed_from_their_text_whether_staged_or_read_at_the_commit(tmp_path):
+    """The static fields of a plain Parquet file are grouped as values and made text on the
+    distinct values only; a compressed copy stages every row's text. Both give the vessels by
+    hand: a 4-byte float length 0.1 is 0.1 (its shortest text), not 0.100000001490116; 0.0 and
+    -0.0 are missing; the latest value of each vessel wins, a missing one does not."""
+    n = 6
+    src = tmp_path / "statics.parquet"
+    pq.write_table(pa.table({
+        "mmsi": pa.array([219000001, 219000001, 219000002, 219000002, 219000003, 219000003]),
+        "time_utc": pa.array(pd.date_range("2025-01-01", periods=n, freq="min").to_numpy()),
+        "lat": pa.array(55.0 + np.arange(n) * 1e-4), "lon": pa.array(np.full(n, 12.0)),
+        "length": pa.array(np.array([0.1, 120.5, 0.0, -0.0, 33.25, 0.1], np.float32)),
+        "vessel_type": pa.array(np.array([70, 71, 0, 80, 99, 100], np.int16)),
+        "vessel_name": pa.array(["A", " B ", None, "C", "D", "unknown"]),
+    }), src)
+    packed = tmp_path / "statics2.parquet.gz"
+    with src.open("rb") as f, gzip.open(packed, "wb") as out:
+        shutil.copyfileobj(f, out)
+    want = [(219000001, 120.5, 71, "B"), (219000002, None, 80, "C"), (219000003, 0.1, 99, "D")]
+    for p in (src, packed):
+        db = tmp_path / f"{p.name}.duckdb"
+        ingest_paths([p], db)
+        with open_workspace(db) as ws:
+            got = ws.con.execute("SELECT mmsi, length_m, ship_type, name FROM vessels ORDER BY mmsi").fetchall()
+        assert got == want, p.name
