@@ -83,7 +83,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = ""
             else:  # the hash releases the GIL: it overlaps the staging
                 full = pool.submit(lambda: fingerprint(f.path) + suffix)
             mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
-            info = {}
+            info, raw_from = {}, None
             try:
                 info = stage_file(mem, plain) if plain is not None else stage_or_gzip_error(mem, f, full)
                 name = full.result().replace(":", "-").replace("#", "-")
@@ -93,8 +93,10 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = ""
                     out, kind = spool.write_scan(mem.con, info, folder, name), "scan"
                 else:
                     out, kind = Path(spool_dir) / f"{name}.parquet", "parquet"
+                    raw_from = _raw_from_file(mem.con)
                     tmp = spool.part_file(out, run_tag)
-                    pq.write_table(store.stage_table(store.read_stage(mem)), tmp, compression="zstd")
+                    pq.write_table(store.stage_table(store.read_stage(mem, with_raw=raw_from is None)), tmp,
+                                   compression="zstd")
                     tmp.replace(out)  # a retried or concurrent stage of the same bytes writes the same content
             finally:
                 if info.get("line_index") is not None:
@@ -105,7 +107,18 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = ""
         spool.remove(folder)  # renamed away when it holds a scan stage
     return {"path": str(f.path), "format": f.format, "fingerprint": fp, "quick_key": quick_key(f.path) + suffix,
             "size_bytes": f.size_bytes, "ignored": int(info["ignored"]), "spool": str(out), "spool_kind": kind,
-            "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping")}
+            "staging": info.get("staging", f.format), "line_mapping": info.get("line_mapping"),
+            "raw_from": raw_from}
+
+
+def _raw_from_file(con) -> dict | None:
+    """Where the commit reads the ``raw`` text of a Parquet input's quarantined rows (its path and
+    columns), when the stage holds none; None for any other stage. Spooling every row's text
+    cost as much as the staging (issue 23)."""
+    from pipelines.storage.ais._sql import _stage_kind
+
+    extra = _stage_kind(con)[1]
+    return {k: extra[k] for k in ("raw_path", "raw_columns")} if "raw_path" in extra else None
 
 
 def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> dict:
@@ -125,6 +138,10 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
             got = spool.install_scan(ws, staged["spool"])
         else:
             store.stage_arrow(ws, pq.read_table(staged["spool"]))
+            if staged.get("raw_from"):  # the quarantined rows' text from the input (typed statics spooled)
+                from pipelines.storage.ais._sql import _set_stage_kind
+
+                _set_stage_kind(ws.con, "typed", staged["raw_from"])
         meta = {k: staged[k] for k in ("fingerprint", "quick_key", "path", "format", "size_bytes", "ignored")}
         counts = store.classify_and_commit(ws, {**meta, **got}, max_speed_kn=max_speed_kn)
     except BaseException:

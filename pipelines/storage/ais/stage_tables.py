@@ -253,8 +253,9 @@ def stage_arrow(ws, tbl) -> dict:
     return {"ignored": 0, "python_fallback": False}
 
 
-def read_stage(ws) -> pd.DataFrame:
-    """The current typed stage as a DataFrame, statics typed (tests compare it with pandas)."""
+def read_stage(ws, with_raw: bool = True) -> pd.DataFrame:
+    """The current typed stage as a DataFrame, statics typed (tests compare it with pandas).
+    ``with_raw=False``: a Parquet stage's ``raw`` left missing (its commit reads it from the file)."""
     cols = ["mmsi", "timezone('UTC', time_utc) AS time_utc", *_NUM_FIELDS, "nav_status", _typed_static_select()]
     source = "ais_stage"
     kind, extra = _stage_kind(ws.con)
@@ -271,10 +272,12 @@ def read_stage(ws) -> pd.DataFrame:
         registered = True
         source = ("(SELECT s.* REPLACE (coalesce(s.raw, r.raw) AS raw) FROM ais_stage s "
                   "LEFT JOIN ais_rs_raw r USING (line))")
-    if "raw_path" in extra:  # a Parquet stage: the texts from the file
-        texts = ", ".join(f"r.s_{c} AS s_{c}" for c in C.STATIC_COLUMNS)
-        source = (f"(SELECT s.* REPLACE (coalesce(s.raw, r.raw) AS raw, {texts}) FROM ais_stage s LEFT JOIN "
-                  f"{parquet_raw_lines(extra, 'SELECT line FROM ais_stage', statics=True)} r USING (line))")
+    if "raw_path" in extra:  # a Parquet stage: the texts from the file (static ones unless spooled typed)
+        statics = "static_columns" in extra
+        texts = "".join(f", r.s_{c} AS s_{c}" for c in C.STATIC_COLUMNS) if statics else ""
+        raw = "coalesce(s.raw, r.raw)" if with_raw else "s.raw"
+        source = (f"(SELECT s.* REPLACE ({raw} AS raw{texts}) FROM ais_stage s LEFT JOIN "
+                  f"{parquet_raw_lines(extra, 'SELECT line FROM ais_stage', statics=statics)} r USING (line))")
     if kind in ("csvhash", "csvfast"):  # the static texts, re-split from the raw lines
         index = extra["index"]
         texts = ", ".join(f"f[{index[c]}] AS {c}" if c in index else f"CAST(NULL AS VARCHAR) AS {c}"
