@@ -131,3 +131,20 @@ def test_static_numbers_are_typed_from_their_text_whether_staged_or_read_at_the_
         with open_workspace(db) as ws:
             got = ws.con.execute("SELECT mmsi, length_m, ship_type, name FROM vessels ORDER BY mmsi").fetchall()
         assert got == want, p.name
+
+
+def test_a_text_field_written_as_floats_keeps_each_values_own_text(tmp_path):
+    """DuckDB groups 0.0 with -0.0, and NaN with -NaN, as one value, whose texts differ: the
+    latest value's own text wins, as when every row's text is staged."""
+    n = 6
+    src = tmp_path / "signs.parquet"
+    pq.write_table(pa.table({
+        "mmsi": pa.array([219000001, 219000001, 219000002, 219000002, 219000003, 219000003]),
+        "time_utc": pa.array(pd.date_range("2025-01-01", periods=n, freq="min").to_numpy()),
+        "lat": pa.array(55.0 + np.arange(n) * 1e-4), "lon": pa.array(np.full(n, 12.0)),
+        "call_sign": pa.array(np.array([0.0, -0.0, -0.0, 0.0, np.nan, -np.nan])),
+    }), src)
+    ingest_paths([src], tmp_path / "w.duckdb")
+    with open_workspace(tmp_path / "w.duckdb") as ws:
+        got = ws.con.execute("SELECT mmsi, callsign FROM vessels ORDER BY mmsi").fetchall()
+    assert got == [(219000001, "-0.0"), (219000002, "0.0"), (219000003, "-nan")]

@@ -101,7 +101,8 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
         if wkb is not None:
             ws.con.unregister(_WKB_TABLE)
     extra = {"raw_path": str(path), "raw_columns": list(cols),
-             "static_columns": {c: mapping[c] for c in C.STATIC_COLUMNS if c in mapping}}
+             "static_columns": {c: mapping[c] for c in C.STATIC_COLUMNS if c in mapping},
+             "static_floats": [c for c in C.STATIC_COLUMNS if cols.get(mapping.get(c)) in ("FLOAT", "DOUBLE")]}
     _set_stage_kind(ws.con, "text", extra if raw_from_file else None)
     return {"ignored": 0, "python_fallback": False}
 
@@ -142,11 +143,19 @@ def parquet_raw_lines(extra: dict, lines_sql: str, statics: bool = False) -> str
             f"FROM {_file_rows(extra)} WHERE file_row_number + 1 IN ({lines_sql}))")
 
 
+#: The grouping keys of :func:`parquet_statics_rows`: each static field's value and its sign bit.
+PARQUET_STATICS_KEYS = ", ".join(f"v_{c}, z_{c}" for c in C.STATIC_COLUMNS)
+
+
 def parquet_statics_rows(extra: dict, rows_sql: str) -> str:
     """The rows of ``rows_sql`` (a query of the stage with ``line``) with the source values of
     their static fields from the Parquet file, ``v_<field>`` (NULL where the file has no such
-    column), to be grouped before :func:`parquet_statics_texts` turns them into text."""
-    values = ", ".join(f"{_q(extra['static_columns'][c]) if c in extra['static_columns'] else 'NULL'} AS v_{c}"
+    column), and a float's sign bit ``z_<field>``, to be grouped by :data:`PARQUET_STATICS_KEYS`
+    before :func:`parquet_statics_texts` turns them into text. Rows equal in both have equal
+    texts: DuckDB groups 0.0 with -0.0 and every NaN together, whose texts differ in the sign."""
+    static = extra["static_columns"]
+    values = ", ".join(f"{_q(static[c]) if c in static else 'NULL'} AS v_{c}, "
+                       f"{f'signbit({_q(static[c])})' if c in extra['static_floats'] else 'false'} AS z_{c}"
                        for c in C.STATIC_COLUMNS)
     return (f"(SELECT r.*, f.* EXCLUDE (line) FROM ({rows_sql}) r JOIN "
             f"(SELECT file_row_number + 1 AS line, {values} FROM {_file_rows(extra)}) f USING (line))")
@@ -154,8 +163,7 @@ def parquet_statics_rows(extra: dict, rows_sql: str) -> str:
 
 def parquet_statics_texts() -> str:
     """The static fields' texts ``s_<field>`` of grouped :func:`parquet_statics_rows`: the same
-    text as staged with the rows, since values equal as values have equal texts (a float's
-    shortest text; 0.0 and -0.0, which group together, both type to missing)."""
+    texts as :func:`stage_parquet` stages with every row when it stages text."""
     return ", ".join(f"CAST(v_{c} AS VARCHAR) AS s_{c}" for c in C.STATIC_COLUMNS)
 
 

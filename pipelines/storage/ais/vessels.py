@@ -73,13 +73,13 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
     elif "static_columns" in extra:
         # A Parquet stage without texts: the file's static values grouped, then made text on
         # the distinct combinations only (stage_tables.parquet_statics_rows).
-        from pipelines.storage.ais.stage_tables import parquet_statics_rows, parquet_statics_texts
+        from pipelines.storage.ais.stage_tables import PARQUET_STATICS_KEYS, parquet_statics_rows, parquet_statics_texts
 
-        values = ", ".join(f"v_{c}" for c in C.STATIC_COLUMNS)
         combos = f"""
             grouped AS (
-                SELECT mmsi, {values}, max({key}) AS k, max(time_utc) AS tmax
-                FROM {parquet_statics_rows(extra, f"SELECT mmsi, time_utc, line {rows}")} GROUP BY mmsi, {values}
+                SELECT mmsi, {PARQUET_STATICS_KEYS}, max({key}) AS k, max(time_utc) AS tmax
+                FROM {parquet_statics_rows(extra, f"SELECT mmsi, time_utc, line {rows}")}
+                GROUP BY mmsi, {PARQUET_STATICS_KEYS}
             ),
             combos AS (SELECT mmsi, k, tmax, {parquet_statics_texts()} FROM grouped),"""
         typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
