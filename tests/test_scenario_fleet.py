@@ -209,3 +209,21 @@ def test_spill_is_compressed_and_reads_back_the_records(tmp_path, spec):
     assert path.stat().st_size / len(recs) < 60
     day = (recs["sort_s"].to_numpy() - st.start_s) // 86400
     assert np.all(np.diff(day) >= 0)
+
+
+@pytest.mark.parametrize("args, said", [
+    (["--vessels", "2", "--gzip"], "note: --gzip changes nothing with --vessels"),
+    (["--workers", "2"], "note: --workers applies to --vessels only"),
+])
+def test_an_option_that_changes_nothing_is_said(tmp_path, args, said):
+    """``--gzip`` with ``--vessels`` (the fleet is always gzip) and ``--workers`` without it (the
+    demo scenario is one process) change nothing: one note line, the files written all the same."""
+    from typer.testing import CliRunner
+
+    from pipelines.cli import app
+
+    res = CliRunner().invoke(app, ["scenario", "--out", str(tmp_path / "s"), "--days", "0.05", *args])
+    assert res.exit_code == 0, res.output
+    notes = [ln for ln in res.stderr.splitlines() if ln.startswith("note:")]
+    assert len(notes) == 1 and notes[0].startswith(said), res.stderr
+    assert list((tmp_path / "s" / "ais").iterdir())

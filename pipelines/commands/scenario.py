@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from pipelines.commands._common import JsonOption, check_output_dir, emit_json
+from pipelines.commands._common import JsonOption, check_output_dir, emit_json, note
 
 
 def register(app: typer.Typer) -> None:
@@ -41,6 +41,11 @@ def register(app: typer.Typer) -> None:
           stormlane scenario --out mydata --start 2025-01-13T00:00Z --days 3
           stormlane scenario --days 365 --vessels 300 --out year
         """  # noqa: E501
+        # Options that change nothing in this mode are said, not silently ignored.
+        if vessels is not None and gzip:
+            note("--gzip changes nothing with --vessels: the fleet's AIS is always written as gzip")
+        if vessels is None and workers is not None:
+            note("--workers applies to --vessels only: the demo scenario is written by one process")
         if vessels is not None:
             _fleet(out, seed, start, days, vessels, workers, json_out)
             return
