@@ -40,9 +40,10 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
 
     With ``raw_from_file`` (the file stays readable until the commit) no text is staged: ``raw``
     is read from the file for the quarantined rows only (:func:`parquet_raw_lines`), and the
-    static fields' texts for the vessels' distinct values only (:func:`parquet_statics_rows`).
-    Writing every row's values as text took a third of the stage's CPU (1.8 of 5.3 us per row on
-    a NOAA-style daily file), and the static numbers' texts 0.9 us more (issue 23).
+    static fields' texts for the latest row of each vessel's distinct static values only, found
+    by a hash of them (``s_hash``, as the fast CSV stages do). Writing every row's values as
+    text took a third of the stage's CPU (1.8 of 5.3 us per row on a NOAA-style daily file), and
+    the static numbers' texts 0.9 us more (issue 23).
     """
     _prepare(ws.con)
     cols = dict(parquet_columns(ws, path))
@@ -89,7 +90,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
         {_time_sql(src('time_utc'), cols.get(mapping.get("time_utc"), ""))} AS time_utc,
         {", ".join(f"{num(fld)} AS {fld}" for fld in (*_NUM_FIELDS, "nav_status"))},
         {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
-        {statics}, CAST(NULL AS UBIGINT) AS s_hash
+        {statics}, {_statics_hash(mapping) if raw_from_file else "CAST(NULL AS UBIGINT)"} AS s_hash
     FROM {_parquet_rows(mapping, cols)}
     """
     wkb = _wkb_column(mapping, cols)
@@ -101,8 +102,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
         if wkb is not None:
             ws.con.unregister(_WKB_TABLE)
     extra = {"raw_path": str(path), "raw_columns": list(cols),
-             "static_columns": {c: mapping[c] for c in C.STATIC_COLUMNS if c in mapping},
-             "static_floats": [c for c in C.STATIC_COLUMNS if cols.get(mapping.get(c)) in ("FLOAT", "DOUBLE")]}
+             "static_columns": {c: mapping[c] for c in C.STATIC_COLUMNS if c in mapping}}
     _set_stage_kind(ws.con, "text", extra if raw_from_file else None)
     return {"ignored": 0, "python_fallback": False}
 
@@ -143,28 +143,14 @@ def parquet_raw_lines(extra: dict, lines_sql: str, statics: bool = False) -> str
             f"FROM {_file_rows(extra)} WHERE file_row_number + 1 IN ({lines_sql}))")
 
 
-#: The grouping keys of :func:`parquet_statics_rows`: each static field's value and its sign bit.
-PARQUET_STATICS_KEYS = ", ".join(f"v_{c}, z_{c}" for c in C.STATIC_COLUMNS)
-
-
-def parquet_statics_rows(extra: dict, rows_sql: str) -> str:
-    """The rows of ``rows_sql`` (a query of the stage with ``line``) with the source values of
-    their static fields from the Parquet file, ``v_<field>`` (NULL where the file has no such
-    column), and a float's sign bit ``z_<field>``, to be grouped by :data:`PARQUET_STATICS_KEYS`
-    before :func:`parquet_statics_texts` turns them into text. Rows equal in both have equal
-    texts: DuckDB groups 0.0 with -0.0 and every NaN together, whose texts differ in the sign."""
-    static = extra["static_columns"]
-    values = ", ".join(f"{_q(static[c]) if c in static else 'NULL'} AS v_{c}, "
-                       f"{f'signbit({_q(static[c])})' if c in extra['static_floats'] else 'false'} AS z_{c}"
-                       for c in C.STATIC_COLUMNS)
-    return (f"(SELECT r.*, f.* EXCLUDE (line) FROM ({rows_sql}) r JOIN "
-            f"(SELECT file_row_number + 1 AS line, {values} FROM {_file_rows(extra)}) f USING (line))")
-
-
-def parquet_statics_texts() -> str:
-    """The static fields' texts ``s_<field>`` of grouped :func:`parquet_statics_rows`: the same
-    texts as :func:`stage_parquet` stages with every row when it stages text."""
-    return ", ".join(f"CAST(v_{c} AS VARCHAR) AS s_{c}" for c in C.STATIC_COLUMNS)
+def _statics_hash(mapping: dict[str, str]) -> str:
+    """A 64-bit hash of a row's static source values (DuckDB's ``hash``), NULL when the file has
+    no static column: rows of one vessel with equal values share it. Values equal as values but
+    not as text (0.0 and -0.0, NaN and -NaN) share it too, and the text is then the latest
+    row's: the outcome of typing each text apart, since such texts type alike (both missing as
+    numbers, both kept as text)."""
+    columns = [_q(mapping[c]) for c in C.STATIC_COLUMNS if c in mapping]
+    return f"hash({', '.join(columns)})" if columns else "CAST(NULL AS UBIGINT)"
 
 
 def _static_text(extra: dict, field: str) -> str:

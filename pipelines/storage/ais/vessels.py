@@ -71,17 +71,17 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
             combos AS (SELECT mmsi, k, tmax, {texts} FROM split),"""
         typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
     elif "static_columns" in extra:
-        # A Parquet stage without texts: the file's static values grouped, then made text on
-        # the distinct combinations only (stage_tables.parquet_statics_rows).
-        from pipelines.storage.ais.stage_tables import PARQUET_STATICS_KEYS, parquet_statics_rows, parquet_statics_texts
+        # A Parquet stage without texts: its rows grouped by (MMSI, hash of the static values),
+        # the texts of each group's latest row read from the file (stage_tables.parquet_raw_lines).
+        from pipelines.storage.ais.stage_tables import parquet_raw_lines
 
+        latest = (f"SELECT mmsi, s_hash, k, tmax, CAST(((k % 4294967296) + 4294967296) % 4294967296 AS BIGINT) AS l "
+                  f"FROM (SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax {rows} GROUP BY mmsi, s_hash)")
+        texts = ", ".join(f"r.{c}" for c in _TEXT_STATIC)
         combos = f"""
-            grouped AS (
-                SELECT mmsi, {PARQUET_STATICS_KEYS}, max({key}) AS k, max(time_utc) AS tmax
-                FROM {parquet_statics_rows(extra, f"SELECT mmsi, time_utc, line {rows}")}
-                GROUP BY mmsi, {PARQUET_STATICS_KEYS}
-            ),
-            combos AS (SELECT mmsi, k, tmax, {parquet_statics_texts()} FROM grouped),"""
+            latest AS MATERIALIZED ({latest}),
+            combos AS (SELECT latest.mmsi, latest.k, latest.tmax, {texts} FROM latest
+                       JOIN {parquet_raw_lines(extra, "SELECT l FROM latest", statics=True)} r ON r.line = latest.l),"""
         typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
     else:
         # Group by the columns that can hold values (Parquet: text; NMEA: typed).
