@@ -41,6 +41,12 @@ def cluster_runs_other_code(err: BaseException | None) -> bool:
     return isinstance(err, RuntimeError) and _GRAPH_UNREADABLE in str(err)
 
 
+def stopped_by_user(err: BaseException | None) -> bool:
+    """``err`` ends a run the user stopped: Ctrl-C, or SIGTERM (the CLI turns it into exit status
+    143). Prefect logs such a stop as "Crash detected!", which is no crash of ours to print."""
+    return isinstance(err, KeyboardInterrupt) or (isinstance(err, SystemExit) and err.code in (130, 143))
+
+
 def is_user_error(err: BaseException | None) -> bool:
     """An error the CLI reports as one ``error:`` line: a :class:`StormlaneError` (bad input,
     missing coverage ...), a workspace locked by another process, or a cluster running other code."""
@@ -83,9 +89,9 @@ def user_errors_one_line(hold_console: bool = True, handlers: list[logging.Handl
     task runs' ERROR lines ("Task run failed with exception ...", "Finished in state Failed",
     "Flow run ... Encountered exception") are also kept off the console (``handlers``, default
     Prefect's console handlers) until the run ends: dropped when it ended with a user error
-    (:func:`is_user_error`, whose message the CLI prints), printed then otherwise (an unexpected
-    crash, or a lane that failed in a night that completed). Prefect's API log handler still
-    receives every record.
+    (:func:`is_user_error`, whose message the CLI prints) or a stop by the user
+    (:func:`stopped_by_user`), printed then otherwise (an unexpected crash, or a lane that failed
+    in a night that completed). Prefect's API log handler still receives every record.
     """
     loggers = [logging.getLogger(n) for n in RUN_LOGGERS]
     f = _UserErrorsWithoutTraceback()
@@ -108,6 +114,6 @@ def user_errors_one_line(hold_console: bool = True, handlers: list[logging.Handl
             lg.removeFilter(f)
         for h, holder in holders:
             h.removeFilter(holder)
-            if not is_user_error(error):
+            if not (is_user_error(error) or stopped_by_user(error)):
                 for record in holder.held:
                     h.handle(record)

@@ -178,6 +178,8 @@ def test_a_scheduler_without_workers_is_said_and_sigterm_stops_the_waiting_inges
             run.kill()
             pytest.fail("the ingest did not stop within 30 s of SIGTERM")
         assert run.returncode == 143  # 128 + SIGTERM, as an exit: the clean-ups ran
+        said = run.stderr.read()  # a stop is no crash: none of Prefect's "Crash detected!" ERROR lines
+        assert "Crash detected" not in said and "ERROR" not in said, said
         time.sleep(1)
         left = [pid for pid in _processes_in(tmp_path) if pid != sched.pid]
         assert not left, "a process of the stopped command still runs (Prefect's temporary server?)"
