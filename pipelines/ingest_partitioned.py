@@ -93,7 +93,8 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = ""
                     out, kind = spool.write_scan(mem.con, info, folder, name), "scan"
                 else:
                     out, kind = Path(spool_dir) / f"{name}.parquet", "parquet"
-                    raw_from = _raw_from_file(mem.con)
+                    # a decompressed copy (zip, zstd) is gone by the commit: its text is spooled
+                    raw_from = _raw_from_file(mem.con) if plain is None else None
                     tmp = spool.part_file(out, run_tag)
                     pq.write_table(store.stage_table(store.read_stage(mem, with_raw=raw_from is None)), tmp,
                                    compression="zstd")

@@ -112,6 +112,6 @@ def test_a_script_run_alone_is_merged_and_scripts_without_figures_are_not_run_ye
     assert readme.read_text().startswith("intro\n") and readme.read_text().endswith("\nrest\n")
     assert "Re-run alone after the full run: bench/probe.py, started " in table and "| probe | probe |" in table
     assert "Not run yet: bench/routing.py (" in table and "Not run yet: bench/ingest.py (" not in table
-    assert "csv_dma" in on_disk["unmeasured"]["ingest"] and "Not run yet: bench/ingest.py csv_dma, nmea" in table
+    assert "csv_dma" in on_disk["unmeasured"]["ingest"] and "Not run yet: bench/ingest.py csv_dma, geoparquet, nmea" in table
     page = (tmp_path / "benchmarks.md").read_text()
     assert "Measured (re-run alone after the full run): started" in page and "`bench/routing.py`: no figures" in page

@@ -106,21 +106,28 @@ def test_a_file_where_the_dataset_folder_goes_is_one_error_line(tmp_path):
         assert ws.con.execute("SELECT count(*) FROM ais_files").fetchone()[0] == 0
 
 
-def test_static_numbers_are_typed_from_their_text_whether_staged_or_read_at_the_commit(tmp_path):
-    """The static fields of a plain Parquet file are grouped as values and made text on the
-    distinct values only; a compressed copy stages every row's text. Both give the vessels by
-    hand: a 4-byte float length 0.1 is 0.1 (its shortest text), not 0.100000001490116; 0.0 and
-    -0.0 are missing; the latest value of each vessel wins, a missing one does not."""
+def _three_vessels(path, **statics):
+    """Six rows, two per vessel a minute apart, with the static columns ``statics``."""
     n = 6
-    src = tmp_path / "statics.parquet"
     pq.write_table(pa.table({
         "mmsi": pa.array([219000001, 219000001, 219000002, 219000002, 219000003, 219000003]),
         "time_utc": pa.array(pd.date_range("2025-01-01", periods=n, freq="min").to_numpy()),
         "lat": pa.array(55.0 + np.arange(n) * 1e-4), "lon": pa.array(np.full(n, 12.0)),
-        "length": pa.array(np.array([0.1, 120.5, 0.0, -0.0, 33.25, 0.1], np.float32)),
-        "vessel_type": pa.array(np.array([70, 71, 0, 80, 99, 100], np.int16)),
-        "vessel_name": pa.array(["A", " B ", None, "C", "D", "unknown"]),
-    }), src)
+        **{name: pa.array(values) for name, values in statics.items()},
+    }), path)
+    return path
+
+
+def test_static_numbers_are_typed_from_their_text_whether_staged_or_read_at_the_commit(tmp_path):
+    """The static values of a plain Parquet file are read from it for the latest row of each
+    vessel's distinct values only (found by a hash of them); a compressed copy stages every
+    row's text. Both give the vessels by hand: a 4-byte float length 0.1 is 0.1 (its shortest
+    text), not 0.100000001490116; 0.0 and -0.0 are missing; the latest value of each vessel
+    wins, a missing one does not."""
+    src = _three_vessels(tmp_path / "statics.parquet",
+                         length=np.array([0.1, 120.5, 0.0, -0.0, 33.25, 0.1], np.float32),
+                         vessel_type=np.array([70, 71, 0, 80, 99, 100], np.int16),
+                         vessel_name=["A", " B ", None, "C", "D", "unknown"])
     packed = tmp_path / "statics2.parquet.gz"
     with src.open("rb") as f, gzip.open(packed, "wb") as out:
         shutil.copyfileobj(f, out)
@@ -134,16 +141,9 @@ def test_static_numbers_are_typed_from_their_text_whether_staged_or_read_at_the_
 
 
 def test_a_text_field_written_as_floats_keeps_each_values_own_text(tmp_path):
-    """DuckDB groups 0.0 with -0.0, and NaN with -NaN, as one value, whose texts differ: the
-    latest value's own text wins, as when every row's text is staged."""
-    n = 6
-    src = tmp_path / "signs.parquet"
-    pq.write_table(pa.table({
-        "mmsi": pa.array([219000001, 219000001, 219000002, 219000002, 219000003, 219000003]),
-        "time_utc": pa.array(pd.date_range("2025-01-01", periods=n, freq="min").to_numpy()),
-        "lat": pa.array(55.0 + np.arange(n) * 1e-4), "lon": pa.array(np.full(n, 12.0)),
-        "call_sign": pa.array(np.array([0.0, -0.0, -0.0, 0.0, np.nan, -np.nan])),
-    }), src)
+    """DuckDB's hash and grouping take 0.0 and -0.0, and NaN and -NaN, as one value, whose texts
+    differ: the latest row's own text wins, as when every row's text is staged."""
+    src = _three_vessels(tmp_path / "signs.parquet", call_sign=np.array([0.0, -0.0, -0.0, 0.0, np.nan, -np.nan]))
     ingest_paths([src], tmp_path / "w.duckdb")
     with open_workspace(tmp_path / "w.duckdb") as ws:
         got = ws.con.execute("SELECT mmsi, callsign FROM vessels ORDER BY mmsi").fetchall()

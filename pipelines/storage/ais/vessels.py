@@ -24,6 +24,9 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
     key = "(epoch_us(coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'))::HUGEINT * 4294967296 + line)"
     rows = (f"FROM ais_stage WHERE kind <> '{C.KIND_IGNORED}' AND mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} "
             f"AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'")
+    # Each (MMSI, hash of the static fields) with its latest (time, line) key ``k`` and line ``l``.
+    by_hash = (f"SELECT mmsi, s_hash, k, tmax, CAST(((k % 4294967296) + 4294967296) % 4294967296 AS BIGINT) AS l "
+               f"FROM (SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax {rows} GROUP BY mmsi, s_hash)")
     if kind in ("csvhash", "csvfast"):
         # Distinct static field tuples by hash (a 64-bit collision inside one MMSI would merge two
         # tuples: odds ~1e-19 per pair); their texts come from re-splitting the latest raw line
@@ -31,8 +34,7 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
         index = extra["index"]
         texts = ", ".join(f"f[{index[c]}] AS {c}" if c in index else f"CAST(NULL AS VARCHAR) AS {c}"
                           for c in _TEXT_STATIC)
-        latest = (f"SELECT mmsi, s_hash, k, tmax, CAST(((k % 4294967296) + 4294967296) % 4294967296 AS BIGINT) AS l "
-                  f"FROM (SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax {rows} GROUP BY mmsi, s_hash)")
+        latest = by_hash
         raw_source = "ais_stage"
         if kind == "csvfast":
             import pyarrow as pa
@@ -75,11 +77,9 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
         # the texts of each group's latest row read from the file (stage_tables.parquet_raw_lines).
         from pipelines.storage.ais.stage_tables import parquet_raw_lines
 
-        latest = (f"SELECT mmsi, s_hash, k, tmax, CAST(((k % 4294967296) + 4294967296) % 4294967296 AS BIGINT) AS l "
-                  f"FROM (SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax {rows} GROUP BY mmsi, s_hash)")
         texts = ", ".join(f"r.{c}" for c in _TEXT_STATIC)
         combos = f"""
-            latest AS MATERIALIZED ({latest}),
+            latest AS MATERIALIZED ({by_hash}),
             combos AS (SELECT latest.mmsi, latest.k, latest.tmax, {texts} FROM latest
                        JOIN {parquet_raw_lines(extra, "SELECT l FROM latest", statics=True)} r ON r.line = latest.l),"""
         typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
