@@ -191,10 +191,11 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
     """
     from pipelines.storage import ais as store
     from pipelines.storage import open_workspace
-    from pipelines.storage.ais import limit_ingest_memory, sync_positions_parquet
+    from pipelines.storage.ais import check_dataset_folders, limit_ingest_memory, sync_positions_parquet
 
     files = expand_paths(paths)
     check_inputs(files, fmt)
+    check_dataset_folders(db)  # before the workspace file is made
     summary = empty_summary()
     per_file = []
     with open_workspace(db) as ws:

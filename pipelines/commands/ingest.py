@@ -57,6 +57,9 @@ def register(app: typer.Typer) -> None:
 
         if fmt is not None and fmt not in FORMATS:
             raise StormlaneError(f"--format {fmt!r} is not one of {', '.join(FORMATS)}")
+        from pipelines.storage.ais import check_dataset_folders
+
+        check_dataset_folders(db)  # a file where the positions dataset goes: before the workspace is made
         kind = checked_task_runner(task_runner)  # a bad spec or no scheduler fails here, before any work
         if spool is not None and kind == "sequential":  # said, not silently ignored
             note("--spool is used only with --task-runner dask[:ADDRESS]: this sequential run stages and "

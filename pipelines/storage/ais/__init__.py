@@ -36,7 +36,7 @@ never half of it (DuckDB MVCC); other processes wait for the writer's file lock
 """
 
 from pipelines.storage.ais.commit import AlreadyLoaded, classify_and_commit, discard_stage, limit_ingest_memory
-from pipelines.storage.ais.parquet import positions_root, sync_positions_parquet
+from pipelines.storage.ais.parquet import check_dataset_folders, positions_root, sync_positions_parquet
 from pipelines.storage.ais.files import file_record, fingerprint_algos, quick_key_known, read_files
 from pipelines.storage.ais.read import (open_for_reading, positions_per_mmsi, read_positions, read_positions_parquet,
                                         read_quarantine, read_vessels)
@@ -50,7 +50,7 @@ from pipelines.storage.ais.stage_tables import (
 
 __all__ = [
     "COMPONENT", "MIGRATIONS", "AlreadyLoaded", "classify_and_commit", "discard_stage", "file_record", "limit_ingest_memory", "fingerprint_algos",
-    "open_for_reading", "parquet_columns", "positions_per_mmsi", "positions_root", "sync_positions_parquet", "quick_key_known", "read_files", "read_positions", "read_positions_parquet", "read_quarantine", "read_stage",
+    "check_dataset_folders", "open_for_reading", "parquet_columns", "positions_per_mmsi", "positions_root", "sync_positions_parquet", "quick_key_known", "read_files", "read_positions", "read_positions_parquet", "read_quarantine", "read_stage",
     "read_vessels", "stage_arrow", "stage_csv", "stage_csv_arrow", "stage_csv_fast", "stage_csv_scan", "stage_frame",
     "stage_parquet", "stage_table",
 ]

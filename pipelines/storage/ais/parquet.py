@@ -299,7 +299,7 @@ def sync_positions_parquet(ws) -> dict:
     out = {"parts": 0, "published": 0, "written": 0, "removed": 0}
     if root is None:
         return out
-    _check_dataset_folders(Path(ws.path))
+    check_dataset_folders(Path(ws.path))
     rows = ws.con.execute("SELECT file_id, strftime(day, '%Y-%m-%d'), n_rows FROM ais_parquet_parts").fetchall()
     want = {(int(f), d): int(n) for f, d, n in rows}
     out["parts"] = len(want)
@@ -328,12 +328,15 @@ def sync_positions_parquet(ws) -> dict:
     return out
 
 
-def _check_dataset_folders(db_path: Path) -> None:
+def check_dataset_folders(db_path: Path) -> None:
     """The dataset's folders must be folders: a file named ``<workspace stem>.parquet`` beside
     the workspace (an AIS input named like the workspace, say) made every commit fail with "Not a
-    directory" after the file was staged. Now one error line before any work, naming both."""
+    directory" after the file was staged. Now one error line before any work, naming both
+    (checked by the ingest before it opens the workspace, and by every sync)."""
     from pipelines.storage import WorkspaceError
 
+    if dataset_root(db_path) is None:
+        return
     for folder in (dataset_root(db_path), positions_root(db_path)):
         if folder.exists() and not folder.is_dir():
             raise WorkspaceError(
