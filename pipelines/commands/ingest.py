@@ -57,9 +57,6 @@ def register(app: typer.Typer) -> None:
 
         if fmt is not None and fmt not in FORMATS:
             raise StormlaneError(f"--format {fmt!r} is not one of {', '.join(FORMATS)}")
-        from pipelines.storage.ais import check_dataset_folders
-
-        check_dataset_folders(db)  # a file where the positions dataset goes: before the workspace is made
         kind = checked_task_runner(task_runner)  # a bad spec or no scheduler fails here, before any work
         if spool is not None and kind == "sequential":  # said, not silently ignored
             note("--spool is used only with --task-runner dask[:ADDRESS]: this sequential run stages and "
@@ -109,9 +106,11 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
 
     from ais.io.files import expand_paths
     from pipelines.ingest import check_inputs, commit_progress, flow_with_runner
+    from pipelines.storage.ais import check_dataset_folders
 
     found = expand_paths(paths)
     check_inputs(found, fmt)  # bad paths, formats and headers fail here, before the cluster starts
+    check_dataset_folders(db)  # as ingest_paths does: before the workspace file is made
     files = [str(p) for p in found]
     db = Path(db)
     own = spool is None

@@ -133,14 +133,16 @@ def parquet_raw_sql(columns: list[str]) -> str:
     return "concat_ws(',', " + ", ".join(f"coalesce(CAST({_q(c)} AS VARCHAR), '')" for c in columns) + ")"
 
 
-def parquet_raw_lines(extra: dict, lines_sql: str, statics: bool = False) -> str:
+def parquet_raw_lines(extra: dict, lines_sql: str, statics: bool = False, raw: bool = True) -> str:
     """``(line, raw)`` of the rows of a Parquet stage staged without their text (the stage
     info's ``extra``: ``raw_path``, ``raw_columns``, ``static_columns``) whose line is in
     ``lines_sql`` (a query of one column ``line``); with ``statics`` also their static fields'
-    texts ``s_<field>`` (as :func:`stage_parquet` stages them with their text)."""
-    texts = "".join(f", {_static_text(extra, c)} AS s_{c}" for c in C.STATIC_COLUMNS) if statics else ""
-    return (f"(SELECT file_row_number + 1 AS line, {parquet_raw_sql(extra['raw_columns'])} AS raw{texts} "
-            f"FROM {_file_rows(extra)} WHERE file_row_number + 1 IN ({lines_sql}))")
+    texts ``s_<field>`` (as :func:`stage_parquet` stages them with their text); without ``raw``
+    only those (``line`` and the texts)."""
+    texts = [f"{_static_text(extra, c)} AS s_{c}" for c in C.STATIC_COLUMNS] if statics else []
+    values = ", ".join(["file_row_number + 1 AS line", *([f"{parquet_raw_sql(extra['raw_columns'])} AS raw"] if raw else []),
+                        *texts])
+    return f"(SELECT {values} FROM {_file_rows(extra)} WHERE file_row_number + 1 IN ({lines_sql}))"
 
 
 def _statics_hash(mapping: dict[str, str]) -> str:
@@ -270,8 +272,8 @@ def read_stage(ws, with_raw: bool = True) -> pd.DataFrame:
         statics = "static_columns" in extra
         texts = "".join(f", r.s_{c} AS s_{c}" for c in C.STATIC_COLUMNS) if statics else ""
         raw = "coalesce(s.raw, r.raw)" if with_raw else "s.raw"
-        source = (f"(SELECT s.* REPLACE ({raw} AS raw{texts}) FROM ais_stage s LEFT JOIN "
-                  f"{parquet_raw_lines(extra, 'SELECT line FROM ais_stage', statics=statics)} r USING (line))")
+        rows = parquet_raw_lines(extra, "SELECT line FROM ais_stage", statics=statics, raw=with_raw)
+        source = f"(SELECT s.* REPLACE ({raw} AS raw{texts}) FROM ais_stage s LEFT JOIN {rows} r USING (line))"
     if kind in ("csvhash", "csvfast"):  # the static texts, re-split from the raw lines
         index = extra["index"]
         texts = ", ".join(f"f[{index[c]}] AS {c}" if c in index else f"CAST(NULL AS VARCHAR) AS {c}"

@@ -81,7 +81,8 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
         combos = f"""
             latest AS MATERIALIZED ({by_hash}),
             combos AS (SELECT latest.mmsi, latest.k, latest.tmax, {texts} FROM latest
-                       JOIN {parquet_raw_lines(extra, "SELECT l FROM latest", statics=True)} r ON r.line = latest.l),"""
+                       JOIN {parquet_raw_lines(extra, "SELECT l FROM latest", statics=True, raw=False)} r
+                       ON r.line = latest.l),"""
         typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
     else:
         # Group by the columns that can hold values (Parquet: text; NMEA: typed).
