@@ -136,11 +136,16 @@ def runner_flow(flow_obj, spec: str | None):
     4-8 s of a 2-core machine and about 200 MB per worker, and the workers' task runs recorded
     there instead of beside the flow's). Workers on other machines cannot reach a server bound to
     this machine's loopback: point every process at one Prefect server (``PREFECT_API_URL``)."""
-    kind, address = parse_task_runner(spec)
     flow_obj = flow_obj.with_options(task_runner=make_task_runner(spec))
-    if kind != "dask" or (address and not _loopback(address)):
-        return flow_obj
-    return _SharedApiFlow(flow_obj)
+    return _SharedApiFlow(flow_obj) if uses_local_api(spec) else flow_obj
+
+
+def uses_local_api(spec: str | None) -> bool:
+    """Whether a flow on this runner runs against this process's Prefect API when none is
+    configured (:func:`runner_flow`, :mod:`pipelines.prefect_api`): in this process, or with Dask
+    workers on this machine (a scheduler elsewhere has workers that cannot reach it)."""
+    _, address = parse_task_runner(spec)
+    return not (address and not _loopback(address))
 
 
 def _loopback(address: str) -> bool:
@@ -156,15 +161,12 @@ class _SharedApiFlow:
         self._flow = flow_obj
 
     def __call__(self, *args, **kwargs):
-        from prefect.settings import PREFECT_API_URL, get_current_settings, temporary_settings
+        from prefect.settings import PREFECT_API_URL, temporary_settings
 
-        if get_current_settings().api.url:
-            return self._flow(*args, **kwargs)
-        from prefect.server.api.server import SubprocessASGIServer
+        from pipelines import prefect_api
 
-        server = SubprocessASGIServer()  # Prefect's own temporary server (stopped at exit)
-        server.start()
-        with temporary_settings({PREFECT_API_URL: server.api_url}):
+        # the configured API, else a temporary server (started early by the command, else now)
+        with temporary_settings({PREFECT_API_URL: prefect_api.api_url()}):
             return self._flow(*args, **kwargs)
 
     def __getattr__(self, name):

@@ -270,6 +270,19 @@ def checked_task_runner(spec: str | None) -> str:
     return kind
 
 
+def start_prefect_api(spec: str | None) -> None:
+    """A command about to run a Prefect flow on the runner ``spec``, its inputs checked: with no
+    Prefect API configured, the temporary one starts now, before Prefect is imported, so that it
+    boots on another core meanwhile (:mod:`pipelines.prefect_api`). After the checks: a user
+    error starts nothing."""
+    from pipelines.runners import uses_local_api
+
+    if uses_local_api(spec):
+        from pipelines import prefect_api
+
+        prefect_api.start_early()
+
+
 def quiet_prefect(console_info: bool = True) -> None:
     """Prefect quiet and offline for a command that runs a flow."""
     # quiet and offline (STACK.md): no telemetry look-ups from Prefect

@@ -8,7 +8,8 @@ from typing import List, Optional
 import typer
 
 from pipelines.commands._common import (DbOption, JsonOption, check_output_dir, checked_task_runner, emit_json,
-                                        flow_errors_one_line, interactive, note, progress, quiet_prefect, warning,
+                                        flow_errors_one_line, interactive, note, progress, quiet_prefect,
+                                        start_prefect_api, warning,
                                         warnings_as_lines)
 
 
@@ -111,6 +112,7 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
     found = expand_paths(paths)
     check_inputs(found, fmt)  # bad paths, formats and headers fail here, before the cluster starts
     check_dataset_folders(db)  # as ingest_paths does: before the workspace file is made
+    start_prefect_api(task_runner)
     files = [str(p) for p in found]
     db = Path(db)
     own = spool is None

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import (DbReadOption, JsonOption, check_output_file, checked_task_runner, emit_json,
-                                        flow_errors_one_line, quiet_prefect)
+                                        flow_errors_one_line, quiet_prefect, start_prefect_api)
 
 
 def register(app: typer.Typer) -> None:
@@ -96,6 +96,7 @@ def _run_flow(db: Path, ports_csv, settings, task_runner: str) -> dict:
 
     if not Path(db).exists():  # fail as one line before Prefect and the cluster start
         raise LanesInputError(f"workspace {db} does not exist; run `stormlane ingest-ais PATH --db {db}` first")
+    start_prefect_api(task_runner)
     paths = [str(p) for p in ports_csv] if ports_csv else None
     with flow_errors_one_line():
         return flow_with_runner(task_runner)(db=str(db), ports_csv=paths, settings=settings)

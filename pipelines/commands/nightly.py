@@ -8,8 +8,8 @@ import typer
 
 from pipelines.commands._common import (VESSEL_FROM_AIS, DbReadOption, JsonOption, ProfileOption, SpeedLossOption,
                                         TaskRunnerOption, check_output_dir, checked_task_runner, count, emit_json,
-                                        flow_errors_one_line, paths_text, progress, quiet_prefect, vessel_option,
-                                        warning, weather_option, xarray_without_dask_arrays)
+                                        flow_errors_one_line, paths_text, progress, quiet_prefect, start_prefect_api,
+                                        vessel_option, warning, weather_option, xarray_without_dask_arrays)
 
 #: Deployment name used by `stormlane schedule` (the flow is ``nightly-reroute``).
 DEPLOYMENT_NAME = "nightly"
@@ -91,6 +91,7 @@ def register(app: typer.Typer) -> None:
         )
         checked_task_runner(task_runner)  # a bad spec or no scheduler fails here, before any work
         preflight(params)
+        start_prefect_api(task_runner)
         # a user error inside the flow (e.g. weather not covering the window) ends with the one
         # `error:` line: Prefect's run ERROR lines stay off the console unless PREFECT_LOGGING_LEVEL
         # asks for Prefect's INFO/DEBUG lines
