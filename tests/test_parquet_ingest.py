@@ -146,3 +146,42 @@ def test_a_text_field_written_as_floats_keeps_each_values_own_text(tmp_path):
     with open_workspace(tmp_path / "w.duckdb") as ws:
         got = ws.con.execute("SELECT mmsi, callsign FROM vessels ORDER BY mmsi").fetchall()
     assert got == [(219000001, "-0.0"), (219000002, "0.0"), (219000003, "-nan")]
+
+
+@pytest.mark.parametrize("layout", ["columns", "geometry"])
+def test_four_byte_float_fields_are_the_decimals_they_were_written_from(tmp_path, layout):
+    """A binary32 SOG of 5.9 is 5.9 (as the row's CSV text reads), not 5.900000095...: the SQL
+    stage and the pure reader give the shortest decimal that reads back as the stored float
+    (numpy's text of it, the reference here), a missing or NaN value is missing."""
+    from ais.io.parquet import read_parquet_stage
+
+    lat = np.array([55.123456, 55.5, -33.8675, 0.0001, 89.99999, 55.2], np.float32)
+    lon = np.array([12.654321, -0.1, 151.207, -179.99, 10.0, 12.3], np.float32)
+    sog = np.array([5.9, 12.3, 0.1, 22.3, np.nan, 7.7], np.float32)
+    cog = np.array([359.9, 0.0, 181.5, 300.1, 42.42, np.nan], np.float32)
+    heading = np.array([270.5, 0, 359, 77.7, 1, 2], np.float32)
+    n = len(lat)
+    cols = {"mmsi": pa.array([219000001 + i for i in range(n)]),
+            "time_utc": pa.array(pd.date_range("2025-01-01", periods=n, freq="min").to_numpy()),
+            "sog_kn": pa.array(sog), "cog_deg": pa.array(cog), "heading_deg": pa.array(heading)}
+    if layout == "columns":
+        cols.update(lat=pa.array(lat), lon=pa.array(lon))
+    else:  # the positions as WKB points of doubles (the widened decimals), the rest binary32
+        cols["geometry"] = pa.array([struct.pack("<BIdd", 1, 1, float(str(x)), float(str(y))) for x, y in zip(lon, lat)])
+    src = tmp_path / "f32.parquet"
+    pq.write_table(pa.table(cols), src)
+
+    def decimal(v):
+        return None if np.isnan(v) else float(str(v))
+
+    want = [tuple(decimal(a[i]) for a in (lat, lon, sog, cog, heading)) for i in range(n)]
+    assert want[0][2] == 5.9 != float(sog[0])  # the two readings differ: the test can tell them apart
+    ingest_paths([src], tmp_path / "w.duckdb")
+    with open_workspace(tmp_path / "w.duckdb") as ws:
+        got = ws.con.execute("SELECT lat_deg, lon_deg, sog_kn, cog_deg, heading_deg FROM ais_positions "
+                             "ORDER BY mmsi").fetchall()
+    assert got == want
+    stage = read_parquet_stage(src)[0]
+    pure = [tuple(None if pd.isna(v) else float(v) for v in row)
+            for row in stage[["lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg"]].itertuples(index=False)]
+    assert pure == want

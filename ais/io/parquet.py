@@ -108,6 +108,8 @@ def read_parquet_stage(path) -> tuple[pd.DataFrame, dict]:
     """Read a Parquet AIS file into a typed stage (pure path; the bulk ingest uses DuckDB)."""
     import pyarrow.parquet as pq
 
+    from ais.io.float32 import widen_float32
+
     path = Path(path)
     table = pq.read_table(path)
     df = table.to_pandas()
@@ -139,6 +141,8 @@ def read_parquet_stage(path) -> tuple[pd.DataFrame, dict]:
             col = df[mapping[fld]]
             if point is not None and fld in ("lat_deg", "lon_deg"):
                 vals = pd.Series(point[1] if fld == "lat_deg" else point[0], index=df.index)
+            elif col.dtype == np.float32:  # binary32: the decimal it was written from (ais.io.float32)
+                vals = pd.Series(widen_float32(col.to_numpy()), index=df.index)
             else:
                 vals = pd.to_numeric(col, errors="coerce").astype(float)
             bad = col.notna() & vals.isna()

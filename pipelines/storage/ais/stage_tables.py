@@ -47,6 +47,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
     """
     _prepare(ws.con)
     cols = dict(parquet_columns(ws, path))
+    wkb, f32 = _side_columns(mapping, cols)
 
     def src(fld):
         return _q(mapping[fld]) if fld in mapping else "NULL"
@@ -59,9 +60,11 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
         value = f"TRY_CAST({src(fld)} AS DOUBLE)"
         if fld in ("lat_deg", "lon_deg") and is_geometry(mapping):  # a point geometry (ais.io.parquet)
             axis = "y" if fld == "lat_deg" else "x"
-            if _wkb_column(mapping, cols):
+            if wkb:
                 return f"{_WKB_PREFIX}{axis}"  # decoded in numpy and joined by row (_parquet_rows)
             value = f"TRY_CAST({src(fld)}.{axis} AS DOUBLE)"  # GeoArrow's point struct
+        elif fld in f32:
+            value = f"{_F32_PREFIX}{fld}"  # widened in numpy and joined by row (_side_table)
         return f"CASE WHEN isnan({value}) THEN NULL ELSE {value} END"
 
     def unreadable(fld):
@@ -91,16 +94,15 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
         {", ".join(f"{num(fld)} AS {fld}" for fld in (*_NUM_FIELDS, "nav_status"))},
         {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
         {statics}, {_statics_hash(mapping) if raw_from_file else "CAST(NULL AS UBIGINT)"} AS s_hash
-    FROM {_parquet_rows(mapping, cols)}
+    FROM {_parquet_rows(wkb is not None or bool(f32))}
     """
-    wkb = _wkb_column(mapping, cols)
-    if wkb is not None:
-        ws.con.register(_WKB_TABLE, _wkb_points(path, wkb))
+    if wkb is not None or f32:
+        ws.con.register(_SIDE_TABLE, _side_table(path, wkb, f32))
     try:
         _create_stage(ws.con, typed, {"path": str(path), "mmsi_re": MMSI_RE})
     finally:
-        if wkb is not None:
-            ws.con.unregister(_WKB_TABLE)
+        if wkb is not None or f32:
+            ws.con.unregister(_SIDE_TABLE)
     extra = {"raw_path": str(path), "raw_columns": list(cols),
              "static_columns": {c: mapping[c] for c in C.STATIC_COLUMNS if c in mapping}}
     _set_stage_kind(ws.con, "text", extra if raw_from_file else None)
@@ -165,9 +167,23 @@ def _file_rows(extra: dict) -> str:
     return f"read_parquet('{path}', file_row_number = true)"
 
 
-#: The columns a WKB point geometry is decoded into (x, y), and the table of them by row number.
+#: The columns a WKB point geometry is decoded into (x, y), those binary32 fields are widened
+#: into, and the table of them by row number (:func:`_side_table`).
 _WKB_PREFIX = "__stormlane_wkb_"
-_WKB_TABLE = "ais_wkb_points_df"
+_F32_PREFIX = "__stormlane_f32_"
+_SIDE_TABLE = "ais_side_columns_df"
+
+
+def _side_columns(mapping: dict[str, str], cols: dict[str, str]) -> tuple[str | None, dict[str, str]]:
+    """What is read beside the SQL: the WKB point column of the positions (or None), and the
+    position fields stored as binary32 ``FLOAT`` (field -> column), widened as the decimals they
+    were written from (:func:`ais.io.float32.widen_float32`: an SOG of 5.9f is 5.9, as its CSV
+    text reads, not 5.900000095...; DuckDB's cast widens bit for bit, and its text of a FLOAT is
+    not always the shortest: -162.921875 for -162.92188f)."""
+    geometric = ("lat_deg", "lon_deg") if is_geometry(mapping) else ()
+    f32 = {fld: mapping[fld] for fld in (*_NUM_FIELDS, "nav_status")
+           if fld in mapping and fld not in geometric and cols.get(mapping[fld], "") == "FLOAT"}
+    return _wkb_column(mapping, cols), f32
 
 
 def _wkb_column(mapping: dict[str, str], cols: dict[str, str]) -> str | None:
@@ -178,36 +194,42 @@ def _wkb_column(mapping: dict[str, str], cols: dict[str, str]) -> str | None:
     return None
 
 
-def _wkb_points(path: Path, column: str):
-    """The points of a WKB column as an Arrow table (``row``: 0-based row number, ``x``, ``y``;
-    NULL where a value is no point), read batch by batch and decoded in numpy
-    (:func:`ais.io.parquet.wkb_point_xy`). A DuckDB function over the column took 0.8 CPU us per
-    row, most of it converting each vector of BLOBs to Arrow; this takes about 0.1 (issue 23)."""
+def _side_table(path: Path, wkb: str | None, f32: dict[str, str]):
+    """The columns of :func:`_side_columns` as an Arrow table (``row``: 0-based row number; the
+    WKB points' x and y, NULL where a value is no point; each binary32 field widened, NaN where
+    missing), read batch by batch and computed in numpy (:func:`ais.io.parquet.wkb_point_xy`,
+    :func:`ais.io.float32.widen_float32`). A DuckDB function over the WKB column took 0.8 CPU us
+    per row, most of it converting each vector of BLOBs to Arrow; this takes about 0.1 (issue 23)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    from ais.io.float32 import widen_float32
     from ais.io.parquet import wkb_point_xy
 
-    xs, ys = [], []
+    names = list(dict.fromkeys(([wkb] if wkb else []) + list(f32.values())))
+    keys = ([f"{_WKB_PREFIX}x", f"{_WKB_PREFIX}y"] if wkb else []) + [f"{_F32_PREFIX}{fld}" for fld in f32]
+    out: dict[str, list] = {k: [np.zeros(0)] for k in keys}
     with pq.ParquetFile(str(path)) as pf:
-        for batch in pf.iter_batches(columns=[column], batch_size=1 << 16):
-            x, y = wkb_point_xy(batch.column(0))
-            xs.append(x)
-            ys.append(y)
-    x = np.concatenate(xs) if xs else np.zeros(0)
-    y = np.concatenate(ys) if ys else np.zeros(0)
-    return pa.table({"row": pa.array(np.arange(len(x), dtype=np.int64)),
-                     f"{_WKB_PREFIX}x": pa.array(x, pa.float64(), mask=np.isnan(x)),
-                     f"{_WKB_PREFIX}y": pa.array(y, pa.float64(), mask=np.isnan(y))})
+        for batch in pf.iter_batches(columns=names, batch_size=1 << 16):
+            if wkb:
+                x, y = wkb_point_xy(batch.column(wkb))
+                out[f"{_WKB_PREFIX}x"].append(x)
+                out[f"{_WKB_PREFIX}y"].append(y)
+            for fld, column in f32.items():
+                values = batch.column(column).to_numpy(zero_copy_only=False)  # a missing value as NaN
+                out[f"{_F32_PREFIX}{fld}"].append(widen_float32(values))
+    arrays = {k: np.concatenate(v) for k, v in out.items()}
+    n = len(arrays[keys[0]])
+    return pa.table({"row": pa.array(np.arange(n, dtype=np.int64)),
+                     **{k: pa.array(v, pa.float64(), mask=np.isnan(v) if k.startswith(_WKB_PREFIX) else None)
+                        for k, v in arrays.items()}})
 
 
-def _parquet_rows(mapping: dict[str, str], cols: dict[str, str]) -> str:
-    """The FROM of :func:`stage_parquet`: the file's rows, with a WKB point's x and y joined by
-    row number from :func:`_wkb_points` (registered as :data:`_WKB_TABLE` meanwhile)."""
+def _parquet_rows(side: bool) -> str:
+    """The FROM of :func:`stage_parquet`: the file's rows, with the side columns (``side``) joined
+    by row number from :func:`_side_table` (registered as :data:`_SIDE_TABLE` meanwhile)."""
     rows = "read_parquet($path, file_row_number = true)"
-    if _wkb_column(mapping, cols) is None:
-        return rows
-    return f"{rows} LEFT JOIN {_WKB_TABLE} ON file_row_number = {_WKB_TABLE}.row"
+    return f"{rows} LEFT JOIN {_SIDE_TABLE} ON file_row_number = {_SIDE_TABLE}.row" if side else rows
 
 
 def stage_frame(ws, stage: pd.DataFrame) -> dict:
