@@ -132,6 +132,7 @@ class _Server:
 
         if self._ready:
             return self.url
+        direct = urllib.request.build_opener(urllib.request.ProxyHandler({}))  # loopback: no proxy
         deadline = time.monotonic() + float(os.environ.get(_STARTUP_ENV, "180"))
         attempts = 1
         while time.monotonic() < deadline:
@@ -144,7 +145,7 @@ class _Server:
                 raise PrefectApiError(f"the temporary Prefect API server exited (code {code}): {self._last_line()}"
                                       " (or set PREFECT_API_URL to a running `prefect server start`)")
             try:
-                with urllib.request.urlopen(f"{self.url}/health", timeout=2) as r:
+                with direct.open(f"{self.url}/health", timeout=2) as r:
                     if r.status == 200:
                         self._ready = True
                         return self.url
@@ -155,9 +156,13 @@ class _Server:
                               f"({_STARTUP_ENV}); set PREFECT_API_URL to a running `prefect server start`")
 
     def _last_line(self) -> str:
+        """The log's last exception line (``SomeError: why``), else its last line."""
+        import re
+
         with open(self._log.name, encoding="utf-8", errors="replace") as f:
             lines = [ln.strip() for ln in f if ln.strip()]
-        return lines[-1] if lines else "no output"
+        errors = [ln for ln in lines if re.match(r"^[\w.]+(Error|Exception|Exit)\b.*:", ln)]
+        return (errors or lines or ["no output"])[-1]
 
     def stop(self) -> None:
         if self._log.closed:

@@ -128,10 +128,11 @@ def make_task_runner(spec: str | None):
 
 
 def runner_flow(flow_obj, spec: str | None):
-    """``flow_obj`` with the task runner of ``spec`` (:func:`make_task_runner`). With Dask workers
-    on this machine (``dask``, or a scheduler at a loopback address) and no Prefect API
-    configured, a call of it first starts Prefect's temporary API server in this process and
-    hands its address to the tasks (Prefect sends the settings with each task): otherwise every
+    """``flow_obj`` with the task runner of ``spec`` (:func:`make_task_runner`). In this process or
+    with Dask workers on this machine (``sequential``, ``dask``, or a scheduler at a loopback
+    address) and no Prefect API configured, a call of it runs against the temporary API server
+    of :mod:`pipelines.prefect_api` (the command may have started it early) and hands its address
+    to the tasks (Prefect sends the settings with each task): otherwise every
     worker process starts a temporary server of its own at its first task (measured, issue 23:
     4-8 s of a 2-core machine and about 200 MB per worker, and the workers' task runs recorded
     there instead of beside the flow's). Workers on other machines cannot reach a server bound to

@@ -88,3 +88,16 @@ def test_an_api_set_in_a_profile_wins_and_the_early_server_stops(tmp_path):
         run.kill()
         run.wait(timeout=30)
 
+
+
+def test_a_server_that_cannot_start_is_one_line_naming_why(tmp_path):
+    code = ("from pipelines import prefect_api\nprefect_api.start_early()\n"
+            "try:\n    prefect_api.api_url()\nexcept prefect_api.PrefectApiError as err:\n    print(err)\n")
+    env = _env(tmp_path, PREFECT_API_DATABASE_CONNECTION_URL=f"sqlite+aiosqlite:///{tmp_path}/no/such/dir/p.db")
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    line = out.stdout.strip()
+    assert len(line.splitlines()) == 1 and line.startswith("the temporary Prefect API server exited (code "), line
+    assert "unable to open database file" in line and "PREFECT_API_URL" in line
+    assert not list(tmp_path.glob("stormlane-prefect-api-*"))

@@ -9,8 +9,7 @@ import typer
 
 from pipelines.commands._common import (DbOption, JsonOption, check_output_dir, checked_task_runner, emit_json,
                                         flow_errors_one_line, interactive, note, progress, quiet_prefect,
-                                        start_prefect_api, warning,
-                                        warnings_as_lines)
+                                        start_prefect_api, warning, warnings_as_lines)
 
 
 def register(app: typer.Typer) -> None:
