@@ -97,6 +97,8 @@ def check(counts, pure):
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                   HealthCheck.too_slow])
 @given(lines=st.lists(mutated(BASE_CSV), min_size=1, max_size=12), crlf=st.booleans())
+# found by `make fuzz` (2026-11-28): in a CRLF file DuckDB's line reader ended a line at a \r alone
+@example(lines=[BASE_CSV[0].replace("Under way using engine", "Under way using\r engine")], crlf=True)
 def test_mutated_csv_lines(tmp_path_factory, lines, crlf):
     d = tmp_path_factory.mktemp("fuzzcsv")
     body = "\r\n" if crlf else "\n"

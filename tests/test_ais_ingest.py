@@ -490,3 +490,26 @@ def test_cr_only_line_ends_and_a_blank_first_line_are_errors(tmp_path, workspace
     with pytest.raises(AisFormatError, match=r"blank_first\.csv:1: line 1 is empty: the DMA CSV header"):
         ingest_paths([blank], workspace_path)
     _nothing_loaded(workspace_path)
+
+
+@pytest.mark.parametrize("fast", [False, True])
+@pytest.mark.parametrize("gz", [False, True])
+def test_a_carriage_return_alone_inside_a_crlf_line_keeps_the_line_whole(tmp_path, monkeypatch, fast, gz):
+    """A line is split on \\n with one trailing \\r removed (ais.io.csv_formats.read_lines): a \\r
+    alone inside a line of a CRLF file is part of it. DuckDB's line reader ended the line there
+    (two bad_line rows instead of one row), and the compiled scan kept that line's trailing \\r
+    in its quarantined text."""
+    import gzip as gzip_mod
+
+    from pipelines import ingest_stage as stage_mod
+
+    monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0 if fast else 1 << 62)
+    monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0 if fast else 1 << 62)
+    bad = DMA_LINES[1].replace(DMA_LINES[1].split(",")[5], "Under way\r using engine")
+    body = "\r\n".join([DMA_LINES[0], bad, DMA_LINES[2]]) + "\r\n"
+    path = tmp_path / ("crlf.csv.gz" if gz else "crlf.csv")
+    path.write_bytes(gzip_mod.compress(body.encode()) if gz else body.encode())
+    s = ingest_paths([path], tmp_path / "w.duckdb")
+    assert (s["read"], s["loaded"], s["quarantined"], s["reasons"]) == (2, 1, 1, {"bad_nav_status": 1})
+    with open_workspace(tmp_path / "w.duckdb") as ws:
+        assert ws.con.execute("SELECT line, raw FROM ais_quarantine").fetchall() == [(2, bad)]

@@ -214,9 +214,9 @@ def scan(buf, pos, end, n_fields, roles, slots, layout, words, woff, wcode,
             # a comma or the end of the line: field f is fs:fe
             fe = i
             if k == 2 and n_cr > 0:
-                if n_cr == 1 and last_cr == i - 1:
+                if last_cr == i - 1:  # the line's one trailing \r is not part of it
                     fe = i - 1
-                else:
+                if n_cr > 1 or last_cr != i - 1:
                     special = True
             if f >= n_fields:
                 special = True

@@ -115,18 +115,31 @@ def read_content(path: str | Path) -> bytes:
     return b"".join(parts)
 
 
-def content_has(path: str | Path, byte: bytes) -> bool:
-    """Whether the content (decompressed when compressed) holds ``byte`` (a single byte)."""
+def content_has(path: str | Path, byte: bytes, stray_cr: bool = False) -> bool:
+    """Whether the content (decompressed when compressed) holds ``byte`` (a single byte), or
+    with ``stray_cr`` also a ``\r`` that is not right before a ``\n`` (at the end included)."""
+    import re
+
+    pattern = re.compile(re.escape(byte) + (rb"|\r(?!\n)" if stray_cr else b""))
     if is_compressed(path):
-        found = []
-        inflate_into(path, lambda block: found or (byte in block and found.append(True)))
-        return bool(found)
+        state = {"found": False, "tail": b""}
+
+        def sink(block: bytes) -> None:
+            if state["found"]:
+                return
+            data = state["tail"] + block
+            cut = len(data) - 1 if data.endswith(b"\r") else len(data)  # a last \r: decided with what follows
+            state["found"] = pattern.search(data, 0, cut) is not None
+            state["tail"] = data[cut:]
+
+        inflate_into(path, sink)
+        return state["found"] or (stray_cr and state["tail"] == b"\r")
     if Path(path).stat().st_size == 0:
         return False
     import mmap
 
     with open(path, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as m:
-        return m.find(byte) >= 0
+        return pattern.search(m) is not None
 
 
 #: Algorithm of new fingerprints, then those that earlier versions stored (still recognised).

@@ -117,10 +117,12 @@ def stage_csv(ws, path: Path, gz: bool, spec: CsvSpec, index: dict[str, int], n_
     params = _csv_params(spec, header)
     fallback = False
     try:
-        if content_has(path, _LINE_DELIM.encode()):
+        if content_has(path, _LINE_DELIM.encode(), stray_cr=True):
             # DuckDB drops a delimiter that ends a line ('x\x01' reads as 'x'; one inside a
-            # line is an error): such content goes to Python's splitter
-            raise duckdb.InvalidInputException(f"the content holds the line reader's delimiter {_LINE_DELIM!r}")
+            # line is an error), and in a CRLF file it ends a line at a \r alone (a line of the
+            # rules, split on \n, is two rows then): such content goes to Python's splitter
+            raise duckdb.InvalidInputException("the content holds the line reader's delimiter "
+                                               f"{_LINE_DELIM!r} or a \\r not before a \\n")
         sql = _csv_split_typing(index, n_fields, _CSV_LINES.replace("?", "$p_path", 1).replace("?", "$p_delim", 1)
                                 .replace("?", "$p_comp", 1).replace("?", "$p_max", 1)[:-1] + _buffer_option() + ")")
         _create_stage(con, sql, {**params, "p_path": str(path), "p_delim": _LINE_DELIM,
