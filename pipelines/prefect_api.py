@@ -14,7 +14,7 @@ on the other core while the command goes on importing and checking its inputs; :
 waits for it to answer. The server is Prefect's own application (``create_app`` with
 ``ephemeral=True``: no UI, the background services of a temporary server) under uvicorn, the
 ASGI server Prefect runs it with; it stops when the command exits. Its log goes to a temporary
-file, whose last line an error quotes.
+file, whose exception line (else last line) an error quotes.
 """
 
 from __future__ import annotations
@@ -133,7 +133,8 @@ class _Server:
         if self._ready:
             return self.url
         direct = urllib.request.build_opener(urllib.request.ProxyHandler({}))  # loopback: no proxy
-        deadline = time.monotonic() + float(os.environ.get(_STARTUP_ENV, "180"))
+        timeout_s = os.environ.get(_STARTUP_ENV, "180")
+        deadline = time.monotonic() + float(timeout_s)
         attempts = 1
         while time.monotonic() < deadline:
             code = self.proc.poll()
@@ -152,7 +153,7 @@ class _Server:
             except (urllib.error.URLError, OSError):
                 pass
             time.sleep(0.1)
-        raise PrefectApiError(f"the temporary Prefect API server did not answer within {os.environ.get(_STARTUP_ENV, '180')} s "
+        raise PrefectApiError(f"the temporary Prefect API server did not answer within {timeout_s} s "
                               f"({_STARTUP_ENV}); set PREFECT_API_URL to a running `prefect server start`")
 
     def _last_line(self) -> str:

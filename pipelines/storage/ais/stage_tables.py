@@ -48,6 +48,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
     _prepare(ws.con)
     cols = dict(parquet_columns(ws, path))
     wkb, f32 = _side_columns(mapping, cols)
+    side = wkb is not None or bool(f32)  # columns computed in numpy, joined by row (_side_table)
 
     def src(fld):
         return _q(mapping[fld]) if fld in mapping else "NULL"
@@ -94,14 +95,14 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
         {", ".join(f"{num(fld)} AS {fld}" for fld in (*_NUM_FIELDS, "nav_status"))},
         {", ".join(f"CAST(NULL AS {t}) AS {c}" for c, t in _STATIC_TYPES.items())},
         {statics}, {_statics_hash(mapping) if raw_from_file else "CAST(NULL AS UBIGINT)"} AS s_hash
-    FROM {_parquet_rows(wkb is not None or bool(f32))}
+    FROM {_parquet_rows(side)}
     """
-    if wkb is not None or f32:
+    if side:
         ws.con.register(_SIDE_TABLE, _side_table(path, wkb, f32))
     try:
         _create_stage(ws.con, typed, {"path": str(path), "mmsi_re": MMSI_RE})
     finally:
-        if wkb is not None or f32:
+        if side:
             ws.con.unregister(_SIDE_TABLE)
     extra = {"raw_path": str(path), "raw_columns": list(cols),
              "static_columns": {c: mapping[c] for c in C.STATIC_COLUMNS if c in mapping}}

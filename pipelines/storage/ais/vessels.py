@@ -24,9 +24,12 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
     key = "(epoch_us(coalesce(time_utc, TIMESTAMP '1677-09-22 00:00:00'))::HUGEINT * 4294967296 + line)"
     rows = (f"FROM ais_stage WHERE kind <> '{C.KIND_IGNORED}' AND mmsi BETWEEN {C.MMSI_MIN} AND {C.MMSI_MAX} "
             f"AND parse_error IS DISTINCT FROM '{C.BAD_LINE}'")
-    # Each (MMSI, hash of the static fields) with its latest (time, line) key ``k`` and line ``l``.
-    by_hash = (f"SELECT mmsi, s_hash, k, tmax, CAST(((k % 4294967296) + 4294967296) % 4294967296 AS BIGINT) AS l "
+    # The line of a key ``k`` (its low 32 bits), and each (MMSI, hash of the static fields) with
+    # its latest (time, line) key ``k`` and line ``l``.
+    line_of_k = "CAST(((k % 4294967296) + 4294967296) % 4294967296 AS BIGINT)"
+    by_hash = (f"SELECT mmsi, s_hash, k, tmax, {line_of_k} AS l "
                f"FROM (SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax {rows} GROUP BY mmsi, s_hash)")
+    statics = list(_TEXT_STATIC)  # the static fields typed from their texts (below: every path but the last)
     if kind in ("csvhash", "csvfast"):
         # Distinct static field tuples by hash (a 64-bit collision inside one MMSI would merge two
         # tuples: odds ~1e-19 per pair); their texts come from re-splitting the latest raw line
@@ -50,7 +53,7 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
                                      C.MMSI_MAX)
                 con.register("ais_latest_scan", pa.table(g))
                 registered.append("ais_latest_scan")
-                latest = (f"SELECT mmsi, s_hash, k, tmax, CAST(((k % 4294967296) + 4294967296) % 4294967296 AS BIGINT) "
+                latest = (f"SELECT mmsi, s_hash, k, tmax, {line_of_k} "
                           f"AS l FROM (SELECT mmsi, shash AS s_hash, t_us::HUGEINT * 4294967296 + line AS k, "
                           f"make_timestamp(t_max) AS tmax FROM ais_latest_scan "
                           f"UNION ALL SELECT mmsi, s_hash, max({key}) AS k, max(time_utc) AS tmax "
@@ -71,7 +74,6 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
                 FROM latest JOIN {raw_source} s ON s.line = latest.l
             ),
             combos AS (SELECT mmsi, k, tmax, {texts} FROM split),"""
-        typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
     elif "static_columns" in extra:
         # A Parquet stage without texts: its rows grouped by (MMSI, hash of the static values),
         # the texts of each group's latest row read from the file (stage_tables.parquet_raw_lines).
@@ -83,7 +85,6 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
             combos AS (SELECT latest.mmsi, latest.k, latest.tmax, {texts} FROM latest
                        JOIN {parquet_raw_lines(extra, "SELECT l FROM latest", statics=True, raw=False)} r
                        ON r.line = latest.l),"""
-        typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(list(_TEXT_STATIC))} FROM combos),"
     else:
         # Group by the columns that can hold values (Parquet: text; NMEA: typed).
         statics = list(_STAGE_STATIC_COLUMNS.get(kind, C.STATIC_COLUMNS))
@@ -92,7 +93,7 @@ def _upsert_vessels(con, file_id: int, meta: dict | None = None) -> None:
                 SELECT mmsi, {", ".join(statics)}, max({key}) AS k, max(time_utc) AS tmax
                 {rows} GROUP BY mmsi, {", ".join(statics)}
             ),"""
-        typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(statics)} FROM combos),"
+    typed = f"typed AS (SELECT mmsi, k, tmax, {_typed_static_select(statics)} FROM combos),"
     aggs = ",\n".join(f"arg_max({c}, k) FILTER (WHERE {c} IS NOT NULL) AS {c}" for c in C.STATIC_COLUMNS)
     any_set = " OR ".join(f"{c} IS NOT NULL" for c in C.STATIC_COLUMNS)
     merge = ",\n".join(
