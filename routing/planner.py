@@ -432,7 +432,10 @@ def model_notes(req: RouteRequest, mw: MeshWeather | None) -> list:
     it reads that the weather lacks a part of (direction assumed head seas)."""
     ship = req.ship
     notes = [f"speed loss: {ship.describe()}" + ("" if ship.wait else "; the ship never waits (not optimal where costs jump)")]
-    if mw is None or ship.model == "none":
+    if mw is None:  # the speed-loss model then never acts: said, so a calm-sea time is not read as a weather route's
+        notes.append("no weather given: every route is sailed in a calm sea (no waves, wind or current)")
+        return notes
+    if ship.model == "none":
         return notes
     if ship.wind_driven:
         notes.append("Kwon's loss reads the 10 m wind (Beaufort number and direction), not the waves")

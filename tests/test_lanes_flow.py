@@ -108,6 +108,32 @@ def test_cli_human_output_and_help(workspace, cli):
     assert cli("lanes", "--help").returncode == 0
 
 
+def test_a_run_without_lanes_says_which_step_gave_nothing(workspace, tmp_path, cli):
+    """Zero lanes is one warning line naming the first empty step: here the 12 voyages make no cluster of 13
+    (--json still prints exactly the counts); a vessel that never stops gives no port, so no voyage."""
+    from lanes_tracks import Itinerary
+
+    from pipelines.ingest import ingest_paths
+
+    db, _ = workspace
+    res = cli("lanes", "--db", str(db), "--min-voyages", "13", "--json")
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout)["lanes"] == 0
+    assert res.stderr.splitlines() == ["warning: no lanes: the 12 port-to-port voyages formed no cluster of at least 13 "
+                                       "voyages (--min-voyages, --min-density 3, --eps-nmi 2)"]
+    res = cli("lanes", "--db", str(db))  # the default run makes lanes: nothing to warn about
+    assert res.returncode == 0 and "warning" not in res.stderr
+    transit = Itinerary(219000001).stay(*A, 1).sail(*B, 12.0).frame()  # one fix in port, then under way: no stop
+    transit["heading_deg"] = float("nan")
+    transit.to_parquet(tmp_path / "transit.parquet")
+    ingest_paths([tmp_path / "transit.parquet"], tmp_path / "t.duckdb")
+    res = cli("lanes", "--db", str(tmp_path / "t.duckdb"))
+    assert res.returncode == 0, res.stderr
+    assert "voyages port-to-port 0 (all segments: transit 1)" in res.stdout
+    assert res.stderr.splitlines() == ["warning: no lanes: no vessel stopped (below 0.5 kn for 3 min or more), so no ports were "
+                                       "found; lanes are built from voyages between ports"]
+
+
 def test_cli_errors_are_one_line_exit_2(tmp_path, cli):
     res = cli("lanes", "--db", str(tmp_path / "none.duckdb"), "--json")
     assert res.returncode == 2

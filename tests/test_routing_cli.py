@@ -31,7 +31,9 @@ def test_cli_json_contract_calm_sea(capsys, tmp_path):
     assert list(data) == ["great_circle_nmi", "optimal", "optimal_smoothed", "min_distance", "min_distance_calm", "speed_loss",
                           "notes"]
     assert data["speed_loss"] == "bowditch (symmetric sectors)"
-    assert data["notes"] == ["speed loss: bowditch (symmetric sectors)"]  # the model, said in every output
+    # the model, said in every output, and that no weather was given (the model never acts)
+    assert data["notes"] == ["speed loss: bowditch (symmetric sectors)",
+                             "no weather given: every route is sailed in a calm sea (no waves, wind or current)"]
     assert data["great_circle_nmi"] == pytest.approx(haversine_nmi(10, 0, 12, 6), rel=1e-6)
     for name in list(data)[1:-2]:
         route = data[name]

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from pipelines.commands._common import (DbReadOption, JsonOption, check_output_file, checked_task_runner, emit_json,
-                                        flow_errors_one_line, quiet_prefect, start_prefect_api)
+                                        flow_errors_one_line, quiet_prefect, start_prefect_api, warning, count)
 
 
 def register(app: typer.Typer) -> None:
@@ -73,6 +73,8 @@ def register(app: typer.Typer) -> None:
             out = _run_flow(db, ports_csv, settings, task_runner)
         if geojson is not None:
             export_geojson(db, geojson)
+        if out["lanes"] == 0:
+            warning(no_lanes_reason(out, settings))
         if json_out:
             emit_json(summary_counts(out))
             return
@@ -80,7 +82,7 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"lanes run {out['run_id']} on {db}")
         typer.echo(f"  positions {d['positions']:,} ({d['dropped_jumps']:,} dropped as position jumps), stops {d['stops']:,}")
         typer.echo(f"  ports {out['ports']} ({d['named_ports']} named from the port list, the rest numbered waypoints)")
-        kinds = ", ".join(f"{k} {v}" for k, v in sorted(d["voyage_kinds"].items()))
+        kinds = ", ".join(f"{k} {v}" for k, v in sorted(d["voyage_kinds"].items())) or "none"
         typer.echo(f"  voyages port-to-port {out['voyages']} (all segments: {kinds})")
         typer.echo(f"  lanes {out['lanes']} from {d['resampled_points']:,} resampled points; noise {out['noise_points']:,}"
                    f" (of which {d['slow_points']:,} slower than the lane speed floor)")
@@ -100,3 +102,17 @@ def _run_flow(db: Path, ports_csv, settings, task_runner: str) -> dict:
     paths = [str(p) for p in ports_csv] if ports_csv else None
     with flow_errors_one_line():
         return flow_with_runner(task_runner)(db=str(db), ports_csv=paths, settings=settings)
+
+
+def no_lanes_reason(out: dict, settings) -> str:
+    """Why a run found no lane, from the first step of the chain that gave nothing (the user's next option to change)."""
+    d = out["details"]
+    if d["stops"] == 0:
+        return (f"no lanes: no vessel stopped (below {settings.stop_speed_kn:g} kn for {settings.min_stop_s / 60:g} min or more), "
+                "so no ports were found; lanes are built from voyages between ports")
+    if out["ports"] < 2:
+        return f"no lanes: {count(out['ports'], 'port')} found from {d['stops']:,} stops; lanes are built from voyages between two ports"
+    if out["voyages"] == 0:
+        return f"no lanes: no voyage sailed from one of the {out['ports']} ports to another"
+    return (f"no lanes: the {out['voyages']:,} port-to-port voyages formed no cluster of at least {settings.min_voyages} voyages "
+            f"(--min-voyages, --min-density {settings.min_density:g}, --eps-nmi {settings.eps_nmi:g})")
