@@ -48,6 +48,16 @@ def test_info_json_on_real_cmems(shared_data, capsys):
     assert info["variables"] == {"hs_m": info["product"], "wave_from_deg": info["product"], "tp_s": info["product"]}
 
 
+def test_info_table_on_real_cmems(shared_data, capsys):
+    """The table: the grid as lat x lon with its step, the box rounded to 0.0001 deg (1/24 deg cells: 38.4375, 42.1458)."""
+    code, out, _ = run_cli(capsys, "weather", "info", str(shared_file(shared_data, MED)))
+    assert code == 0
+    lines = out.splitlines()
+    assert lines[:3] == ["CMEMS MEDSEA_ANALYSIS_FORECAST_WAV_006_017",
+                         "  time   2020-01-20T00:00Z -> 2020-01-21T23:00Z  (48 steps)",
+                         "  grid   90 x 99 (lat x lon), step 0.04167 x 0.04167 deg, bbox [1.5, 38.4375, 5.5833, 42.1458]"]
+
+
 def test_load_join_and_exceedance(demo_weather_dir, tmp_path, capsys):
     db = tmp_path / "ws.duckdb"
     code, out, _ = run_cli(capsys, "weather", "load", str(demo_weather_dir), "--db", str(db), "--json")

@@ -129,7 +129,10 @@ def info(
         return
     typer.echo(f"{summary['product']}")
     typer.echo(f"  time   {summary['start_utc']} -> {summary['end_utc']}  ({summary['shape'][0]} steps)")
-    typer.echo(f"  grid   {summary['shape'][1]} x {summary['shape'][2]}, bbox {summary['bbox']}")
+    box = ", ".join(f"{v:.4f}".rstrip("0").rstrip(".") for v in summary["bbox"])  # 0.0001 deg ~ 11 m; --json has every digit
+    dlat, dlon = summary.get("grid_step_deg") or (None, None)  # [lat, lon] (weather.io.netcdf.summary)
+    step = f", step {dlat:.4g} x {dlon:.4g} deg" if dlat and dlon else ""
+    typer.echo(f"  grid   {summary['shape'][1]} x {summary['shape'][2]} (lat x lon){step}, bbox [{box}]")
     for var, prod in summary["variables"].items():
         typer.echo(f"  {var:<14} from {prod}")
     for ign in summary.get("ignored", []):
