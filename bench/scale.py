@@ -307,7 +307,9 @@ def run_scale(rows: int, workdir: Path, vessels: int = 300, workers: int = 2, se
     tmp = workdir / "harness"
     tmp.mkdir(exist_ok=True)
     scen = workdir / f"scenario-{vessels}x{days:g}d-s{seed}"
-    print(f"scale run: {vessels} ships x {days:g} days (target {rows:,} rows), {workers}-worker cluster; "
+    floor = "" if rows >= vessels * ROWS_PER_SHIP_DAY else f", less than one day of {vessels} ships: about {vessels * ROWS_PER_SHIP_DAY:,} rows; fewer --vessels for fewer"
+    cluster = f"{workers}-worker cluster" if "cluster" in sides else "no cluster"
+    print(f"scale run: {vessels} ships x {days:g} day{'' if days == 1 else 's'} (target {rows:,} rows{floor}), {cluster}; "
           f"load {os.getloadavg()[0]:.1f}", flush=True)
     gen = _child(cfg, tmp, None, "bench.scale:generate", {"folder": str(scen), "vessels": vessels, "days": days,
                                                            "seed": seed, "workers": workers}, 1, {},
