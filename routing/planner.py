@@ -213,10 +213,10 @@ class _Clock:
         self.timings[f"{self.name}_cpu_s"] = _time.process_time() - self.c
 
 
-def mesh_box(req: RouteRequest, weather: WeatherField | None, start, goal) -> tuple:
+def mesh_box(req: RouteRequest, weather: WeatherField | None, start, goal, margin_scale: float = 1.0) -> tuple:
     """The mesh's box in the start's longitude frame: the request's (lon_max < lon_min crosses the
-    antimeridian) or the great circle's, clipped to the weather's grid; checks that the weather
-    holds start and goal."""
+    antimeridian) or the great circle's (its margin times ``margin_scale``), clipped to the
+    weather's grid; checks that the weather holds start and goal."""
     if req.bbox is not None:
         lo, la0, hi, la1 = (float(x) for x in req.bbox)
         if hi < lo:
@@ -224,7 +224,7 @@ def mesh_box(req: RouteRequest, weather: WeatherField | None, start, goal) -> tu
         shift = 360.0 * round(((lo + hi) / 2.0 - start[1]) / 360.0)  # the frame of the start
         bbox = (lo - shift, la0, hi - shift, la1)
     else:
-        bbox = default_bbox(start, goal)
+        bbox = default_bbox(start, goal, margin_scale=margin_scale)
     if weather is None or req.ignore_land:
         return bbox
     for what, (lat, lon) in (("start", req.start), ("goal", req.goal)):
@@ -243,14 +243,14 @@ def mesh_box(req: RouteRequest, weather: WeatherField | None, start, goal) -> tu
     return bbox
 
 
-def prepare_mesh(req: RouteRequest, weather: WeatherField | None, land_mask_fn, st: _Stage, spacing_deg: float | None = None) -> None:
+def prepare_mesh(req: RouteRequest, weather: WeatherField | None, land_mask_fn, st: _Stage, spacing_deg: float | None = None,
+                 margin_scale: float = 1.0) -> None:
     """Box, spacing, land mask, weather on the mesh, the mesh and its weather arrays (into ``st``).
-    ``spacing_deg`` overrides the request's (a refined automatic mesh, :func:`mesh_and_ends`)."""
+    ``spacing_deg`` overrides the request's (a refined automatic mesh), ``margin_scale`` widens the
+    automatic box (:func:`mesh_and_ends`)."""
     start = (float(req.start[0]), float(req.start[1]))
-    goal_lon = float(req.goal[1])
-    goal_lon += 360.0 * round((start[1] - goal_lon) / 360.0)  # the goal in the start's frame (unchanged unless across 180)
-    st.start, st.goal = start, (float(req.goal[0]), goal_lon)
-    bbox = mesh_box(req, weather, start, st.goal)
+    st.start, st.goal = start, _goal_in_start_frame(req)
+    bbox = mesh_box(req, weather, start, st.goal, margin_scale)
     spacing = req.spacing_deg if spacing_deg is None else spacing_deg
     if spacing is None:
         base = DEFAULT_SPACING_DEG
@@ -319,7 +319,57 @@ def place_ends(st: _Stage) -> None:
 MAX_MESH_REFINEMENTS = 3
 
 
+#: Doublings of the automatic box's margin tried when start and goal still do not connect on the
+#: refined mesh: the sea way leaves the great circle's box (Venice to Naples rounds Italy's heel,
+#: 4-5 deg beyond the box's 1 deg margin). Each wider box keeps the first mesh's step and lattice
+#: (the same nodes around start and goal), so only the box changes, while it stays within the
+#: automatic mesh's node bound (:data:`routing.planner_parts.DEFAULT_MAX_AUTO_NODES`).
+MAX_BOX_WIDENINGS = 5
+
+
 def mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn) -> _Stage:
+    """:func:`refined_mesh_and_ends` on the great circle's box; where start and goal do not
+    connect in it, the box (when automatic) widened by doubling its margin, at the first mesh's
+    step, at most :data:`MAX_BOX_WIDENINGS` times, within the node bound and the weather's grid;
+    the first box that connects them is planned, and a note says so. A box the user chose is
+    kept (the error stands)."""
+    try:
+        return refined_mesh_and_ends(req, weather, land_mask_fn)
+    except DisconnectedSeaError as err:
+        if req.bbox is not None or req.ignore_land:
+            raise
+        first, step_deg = err, getattr(err, "first_step_deg", None)
+        if step_deg is None:
+            raise
+    box0, scale = None, 1.0
+    for k in range(1, MAX_BOX_WIDENINGS + 1):
+        lo, la0, hi, la1 = mesh_box(req, weather, req.start, _goal_in_start_frame(req), 2.0**k)
+        box = (round(lo, 4), round(la0, 4), round(hi, 4), round(la1, 4))
+        if box == box0 or (hi - lo) * (la1 - la0) / step_deg**2 > DEFAULT_MAX_AUTO_NODES:
+            break  # the weather's grid holds the box, or a wider box needs a coarser step
+        st = _Stage(req, {})
+        prepare_mesh(req, weather, land_mask_fn, st, spacing_deg=step_deg, margin_scale=2.0**k)
+        box0, scale = box, 2.0**k
+        try:
+            place_ends(st)
+        except DisconnectedSeaError:
+            continue
+        st.notes.append(f"start and goal do not connect through the sea within the great circle's box: planned in a box "
+                        f"widened to lon {box[0]:.2f}..{box[2]:.2f}, lat {box[1]:.2f}..{box[3]:.2f}")
+        return st
+    if scale > 1.0:
+        first.args = (f"{first}; the great circle's box widened up to {scale:g} times its margin on a {step_deg * 60:.3g} nmi mesh "
+                      "did not connect them either",)
+    raise first
+
+
+def _goal_in_start_frame(req: RouteRequest) -> tuple:
+    """The goal's longitude in the start's frame (unchanged unless the route crosses 180)."""
+    lon = float(req.goal[1]) + 360.0 * round((float(req.start[1]) - float(req.goal[1])) / 360.0)
+    return (float(req.goal[0]), lon)
+
+
+def refined_mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn) -> _Stage:
     """:func:`prepare_mesh` and :func:`place_ends`. With an automatic step (no spacing in the
     request), a mesh on which start and goal do not connect, or on which one of them has no sea
     node within the snapping limit while the step is longer than that limit, is refined by
@@ -335,6 +385,7 @@ def mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn)
             place_ends(st)
             break
         except (DisconnectedSeaError, LandPointError) as err:
+            err.first_step_deg = tried[0] if tried else st.grid.dlat_deg  # the step a wider box keeps (mesh_and_ends)
             # a point with no sea node within the limit gains from a finer mesh only while the
             # step is longer than the limit (else the sea is that far: an inland point stays refused at once)
             helps = not isinstance(err, LandPointError) or st.grid.dlat_deg * 60.0 > err.limit_nmi

@@ -35,13 +35,14 @@ def great_circle_frame(start, goal, n: int = 257) -> tuple[np.ndarray, np.ndarra
     return np.asarray(lat, dtype=float), lon
 
 
-def default_bbox(start, goal, margin_deg: float | None = None) -> tuple:
-    """Box around the great circle start -> goal plus a margin (max(1 deg, 15 % of its span)),
-    in the continuous longitude frame of :func:`great_circle_frame` (e.g. 130..250 for Japan ->
-    Canada across the antimeridian)."""
+def default_bbox(start, goal, margin_deg: float | None = None, margin_scale: float = 1.0) -> tuple:
+    """Box around the great circle start -> goal plus a margin (max(1 deg, 15 % of its span),
+    times ``margin_scale``: a widened box, :func:`routing.planner.mesh_and_ends`), in the
+    continuous longitude frame of :func:`great_circle_frame` (e.g. 130..250 for Japan -> Canada
+    across the antimeridian)."""
     lat, lon = great_circle_frame(start, goal)
     span = max(lat.max() - lat.min(), lon.max() - lon.min())
-    m = max(1.0, 0.15 * span) if margin_deg is None else margin_deg
+    m = (max(1.0, 0.15 * span) if margin_deg is None else margin_deg) * margin_scale
     lo, hi = lon.min() - m, lon.max() + m
     if hi - lo >= 359.0:  # a circle round the world: the whole band
         lo, hi = float(lon[0]) - 179.5, float(lon[0]) + 179.5

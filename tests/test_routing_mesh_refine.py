@@ -98,15 +98,63 @@ def test_a_wide_channel_keeps_the_automatic_step_and_says_nothing():
 
 
 def test_a_step_the_user_chose_is_kept():
-    with pytest.raises(DisconnectedSeaError, match=r"do not connect within the mesh .*1\.5 nmi.*refine the mesh$"):
+    with pytest.raises(DisconnectedSeaError, match=r"do not connect within the mesh .*1\.5 nmi.*refine the mesh; the great circle's box "
+                                                   r"widened up to 16 times its margin on a 1\.5 nmi mesh"):
         plan_routes(_req(STEP), None, land_mask_fn=channel_lake(40.5 + STEP / 2, 0.02))
 
 
-def test_a_closed_basin_is_refused_after_the_refinements():
+def test_a_closed_basin_is_refused_after_the_refinements_and_the_wider_boxes():
+    """The refinements on the great circle's box (1 deg margin), then the box widened at the first
+    step while it holds at most 2 M nodes: margins 2, 4, 8 and 16 deg (33 x 32 deg, 1.69 M nodes;
+    32 deg would be 6.6 M)."""
     calls = []
-    with pytest.raises(DisconnectedSeaError, match=r"\(the automatic mesh refined from 1\.5 nmi\)$"):
+    with pytest.raises(DisconnectedSeaError, match=r"\(the automatic mesh refined from 1\.5 nmi\); the great circle's box widened "
+                                                   r"up to 16 times its margin on a 1\.5 nmi mesh did not connect them either$"):
         plan_routes(_req(), None, land_mask_fn=channel_lake(None, 0.0, calls))
-    assert calls == pytest.approx([STEP / 2**k for k in range(planner.MAX_MESH_REFINEMENTS + 1)])
+    assert calls == pytest.approx([STEP / 2**k for k in range(planner.MAX_MESH_REFINEMENTS + 1)] + [STEP] * 4)
+
+
+def wall(lat_min: float, lat_max: float):
+    """A wall of land 0.2 deg thick at 2.4-2.6 E from ``lat_min`` to ``lat_max``: between start and goal."""
+    return _mask(lambda la, lo: (lo > 2.4) & (lo < 2.6) & (la > lat_min) & (la < lat_max), None)
+
+
+def test_a_sea_way_round_the_box_is_found_in_a_wider_box():
+    """The wall ends 3.5 deg south of the route (and 5.5 deg north): the great circle's box (1 deg
+    margin) and the box with a 2 deg margin hold no way round it, the 4 deg margin's does (36.5 N). The route is the
+    one planned by hand in that box on the same step, every leg at sea; a box given by hand keeps
+    its error."""
+    mask = wall(37.0, 46.0)
+    plan = plan_routes(_req(), None, land_mask_fn=mask)
+    assert ("start and goal do not connect through the sea within the great circle's box: planned in a box widened to "
+            "lon -2.00..7.00, lat 36.50..44.50") in plan.notes
+    assert plan.mesh.grid.dlat_deg == pytest.approx(STEP)
+    for name in ("optimal", "optimal_smoothed", "min_distance"):
+        route = plan.routes[name]
+        assert _legs_on_mask_at_sea(route, mask, plan.mesh.grid), name
+        assert min(route.lat_deg) < 37.0  # round the wall's end
+    by_hand = plan_routes(dataclasses.replace(_req(STEP), bbox=(-2.0, 36.5, 7.0, 44.5)), None, land_mask_fn=mask)
+    assert by_hand.routes["optimal"].time_h == plan.routes["optimal"].time_h
+    with pytest.raises(DisconnectedSeaError, match=r"\(bbox \(1\.0, 39\.0, 4\.0, 42\.0\).*\(the automatic mesh refined from 1\.5 nmi\)$"):
+        plan_routes(dataclasses.replace(_req(), bbox=(1.0, 39.0, 4.0, 42.0)), None, land_mask_fn=mask)
+
+
+def test_venice_to_naples_rounds_italy_on_the_land_mask():
+    """On the real coastline (routing.land): the great circle's box of Venice -> Naples (1 deg
+    margin) holds no sea way; the box widened to an 8 deg margin rounds Italy's heel (the Strait
+    of Otranto, 18.5-19.5 E), and every leg of every route is at sea on the land check."""
+    from routing import land
+
+    req = RouteRequest((45.4, 12.4), (40.8, 14.2), T0, ShipModel(12.0, "none"))
+    plan = plan_routes(req, None)
+    assert any(n.startswith("start and goal do not connect through the sea within the great circle's box: planned in a box "
+                            "widened to lon 4.40..22.20") for n in plan.notes), plan.notes
+    for name in ("optimal", "optimal_smoothed", "min_distance"):
+        route = plan.routes[name]
+        lat, lon = np.asarray(route.lat_deg), np.asarray(route.lon_deg)
+        assert land.legs_at_sea(lat, lon, berths=[(45.4, 12.4), (40.8, 14.2)]).all(), name
+        assert lon.max() > 18.0 and lat.min() < 38.5, name  # out of the Adriatic and round Calabria
+        assert 700.0 < route.dist_nmi < 900.0, name
 
 
 def test_a_departure_window_refines_the_same_way():

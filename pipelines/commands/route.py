@@ -56,7 +56,7 @@ def register(app: typer.Typer) -> None:
         ),
         mesh_nmi: float = typer.Option(None, "--mesh-nmi", min=0.01, metavar="NMI", help="Mesh step in nmi, taken as X/60 deg on both axes (SIMROUTE's convention). Default: the weather's grid step (1.5 nmi without weather), halved where start and goal do not connect through a narrow passage or a port has no sea node within --snap-nmi (a note says so)."),
         mesh_deg: float = typer.Option(None, "--mesh-deg", min=0.0001, metavar="DEG", help="Mesh step in degrees on both axes."),
-        bbox: str = typer.Option(None, "--bbox", metavar="LONMIN,LATMIN,LONMAX,LATMAX", help="Mesh extent; default the great circle's box plus a margin."),
+        bbox: str = typer.Option(None, "--bbox", metavar="LONMIN,LATMIN,LONMAX,LATMAX", help="Mesh extent; default the great circle's box plus a margin, widened (a note says so) where the sea way leaves it."),
         edges: int = typer.Option(48, "--edges", metavar="8|16|24|48", help="Edges per node.", show_default=True),
         ignore_land: bool = typer.Option(False, "--ignore-land", help="Route on an all-sea sphere (accuracy tests)."),
         snap_nmi: float = typer.Option(10.0, "--snap-nmi", min=0.0, metavar="NMI", show_default=True, help="How far (nmi) a start or goal on land may move to the nearest sea node."),
