@@ -193,7 +193,9 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
     from pipelines.storage import open_workspace
     from pipelines.storage.ais import check_dataset_folders, limit_ingest_memory, sync_positions_parquet
 
-    files = expand_paths(paths)
+    files, skipped = without_own_dataset(expand_paths(paths), db)
+    if skipped:
+        log.warning(skipped)
     check_inputs(files, fmt)
     check_dataset_folders(db)  # before the workspace file is made
     summary = empty_summary()
@@ -287,6 +289,29 @@ def nothing_loaded_reason(counts: dict) -> str | None:
         head = f"all {read:,} rows were quarantined, most as {code} ({REASONS.get(code, code)}: {n:,})"
     rest = [f"{k} {v:,}" for k, v in sorted(reasons.items(), key=lambda kv: (-kv[1], kv[0])) if k != code]
     return head + (f"; also {', '.join(rest)}" if rest else "")
+
+
+def without_own_dataset(files: list, db) -> tuple[list, str | None]:
+    """``(files, what was skipped)``: the files outside the workspace's own positions dataset
+    (``<stem>.parquet/`` beside it, :func:`pipelines.storage.ais.parquet.dataset_root`), found
+    when the workspace sits inside an input folder. Its parts are this ingest's own output: read
+    again they would load nothing (every row a duplicate) after re-reading every row (a year:
+    100 M rows). The text says what was skipped, for the caller's note; None when nothing was."""
+    from pipelines.storage.ais.parquet import dataset_root
+
+    root = dataset_root(db)
+    if root is None:
+        return list(files), None
+    root = root.resolve()
+    kept = [f for f in files if not Path(f).resolve().is_relative_to(root)]
+    n = len(files) - len(kept)
+    if n == 0:
+        return kept, None
+    if not kept:
+        from ais.errors import AisInputError
+
+        raise AisInputError(root, "this workspace's own positions dataset is its output, not an input, and the inputs hold no other AIS file")
+    return kept, f"{n:,} file{'s' if n != 1 else ''} of this workspace's own positions dataset ({root}) skipped: its output, not an input"
 
 
 def total_bytes(paths: Iterable) -> int:

@@ -123,8 +123,21 @@ def make_task_runner(spec: str | None):
 
     if address:
         return DaskTaskRunner(address=address)
+    _quiet_local_cluster()
     n = max(1, min(os.cpu_count() or 1, 8))
-    return DaskTaskRunner(cluster_kwargs={"n_workers": n, "threads_per_worker": 1, "processes": True, "dashboard_address": ":0"})
+    return DaskTaskRunner(cluster_kwargs={"n_workers": n, "threads_per_worker": 1, "processes": True, "dashboard_address": ":0",
+                                          "preload": ["pipelines.dask_quiet_close"]})
+
+
+def _quiet_local_cluster() -> None:
+    """A local cluster's scheduler and nannies live in this process and log each start, worker
+    and close at INFO (about 35 lines a run) through the root logger to Prefect's console: kept to
+    WARNING unless PREFECT_LOGGING_LEVEL asks for INFO or DEBUG (as Prefect's own lines)."""
+    import logging
+
+    value = os.environ.get("PREFECT_LOGGING_LEVEL", "").strip().upper()
+    if value not in ("INFO", "DEBUG") and not (value.isdigit() and int(value) < logging.WARNING):
+        logging.getLogger("distributed").setLevel(logging.WARNING)
 
 
 def runner_flow(flow_obj, spec: str | None):

@@ -177,3 +177,26 @@ def test_sync_brings_a_damaged_folder_back_to_the_workspace(loaded):
     shutil.rmtree(tmp_path / "w.parquet")
     ingest_paths([tmp_path / "a.csv"], db)
     assert {k: v[1] for k, v in files_state(root).items()} == {k: v[1] for k, v in before.items()}
+
+
+def test_a_workspace_inside_its_input_folder_does_not_read_its_own_dataset(tmp_path, capsys):
+    """The workspace in the folder it loads: its dataset's parts (.parquet, an AIS suffix) are
+    its output; a second run skips them with a note (it read every part again, all duplicates),
+    and inputs holding nothing else are the one error line."""
+    from ais.errors import AisInputError
+    from pipelines.cli import main
+
+    two_day_file(tmp_path / "aisdk-2025-01-01.csv")
+    db = tmp_path / "ws.duckdb"
+    main(["ingest-ais", str(tmp_path), "--db", str(db)])
+    assert len(list((tmp_path / "ws.parquet").rglob("*.parquet"))) == 2  # one part per day
+    capsys.readouterr()
+    main(["ingest-ais", str(tmp_path), "--db", str(db)])
+    out, err = capsys.readouterr()
+    assert err.splitlines() == [f"note: 2 files of this workspace's own positions dataset ({tmp_path / 'ws.parquet'}) "
+                                "skipped: its output, not an input"]
+    assert out.splitlines() == [f"{tmp_path / 'aisdk-2025-01-01.csv'}: already loaded, skipped",
+                                "total: 1 file(s), read 0 = loaded 0 + quarantined 0 + duplicates 0"]
+    (tmp_path / "aisdk-2025-01-01.csv").unlink()
+    with pytest.raises(AisInputError, match="own positions dataset is its output, not an input"):
+        ingest_paths([tmp_path], db)

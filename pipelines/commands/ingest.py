@@ -52,7 +52,7 @@ def register(app: typer.Typer) -> None:
           stormlane ingest-ais ais/ more/aisdk-2025-01-14.csv.gz --db work/stormlane.duckdb
         """
         from ais.io.files import FORMATS, expand_paths
-        from pipelines.ingest import ingest_paths, nothing_loaded_reason, total_bytes
+        from pipelines.ingest import ingest_paths, nothing_loaded_reason, total_bytes, without_own_dataset
         from thresholds.errors import StormlaneError
 
         if fmt is not None and fmt not in FORMATS:
@@ -63,7 +63,10 @@ def register(app: typer.Typer) -> None:
                  "commits each file in this process")
         show = interactive() and not json_out
         with warnings_as_lines("ais"):  # files skipped in a folder (hidden, empty, links to nothing)
-            paths = [str(f) for f in expand_paths(paths)]  # once: each skipped file is said once
+            found, own = without_own_dataset(expand_paths(paths), db)  # once: each skipped file is said once
+            if own:
+                note(own)
+            paths = [str(f) for f in found]
             if kind == "sequential":
                 total = total_bytes(paths) if show else None
                 with progress("ingest AIS", total=total, enabled=show) as advance:
