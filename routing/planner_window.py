@@ -28,7 +28,7 @@ import pandas as pd
 from routing.astar import evaluate_path, search
 from routing.errors import NoRouteError
 from routing.fuel import FuelSpec
-from routing.planner import RouteRequest, _props_maker, mesh_and_ends, plain_routes
+from routing.planner import RouteRequest, _props_maker, mesh_and_ends, model_notes, plain_routes
 from routing.planner_fuel import fuel_routes
 from routing.planner_parts import mesh_weather_at
 from routing.mesh import global_land_mask_window
@@ -96,7 +96,9 @@ def plan_window(req: RouteRequest, weather, times: list, *, objective: str = "ti
     best = min(ok, key=lambda i: (rows[i][key], i)) if ok else None
     for i, r in enumerate(rows):
         r["best"] = i == best
-    return {"objective": objective, "rows": rows, "best": best, "seconds": round(_time.perf_counter() - t_all, 4)}
+    # what every row rests on, as a plan's notes: the model, and the mesh's refinement, wider box or antimeridian frame
+    notes = model_notes(first, base.mw) + base.notes
+    return {"objective": objective, "rows": rows, "best": best, "notes": notes, "seconds": round(_time.perf_counter() - t_all, 4)}
 
 
 def _row(r, exposure) -> dict:

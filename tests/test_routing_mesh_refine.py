@@ -161,6 +161,10 @@ def test_a_departure_window_refines_the_same_way():
     res = plan_window(_req(), None, [T0, T0 + pd.Timedelta(hours=6)], land_mask_fn=channel_lake(40.5 + STEP / 2, 0.02))
     assert [r.get("error") for r in res["rows"]] == [None, None]
     assert all(r["route"] is not None for r in res["rows"])
+    # the table says it as a single departure's does (it was dropped: a window's rows had no notes)
+    assert res["notes"] == ["speed loss: none",
+                            "no weather given: every route is sailed in a calm sea (no waves, wind or current)",
+                            "start and goal do not connect through the sea on the automatic 1.5 nmi mesh: planned on a 0.75 nmi mesh"]
 
 
 def coast_west_of(lon_deg: float, calls: list | None = None):

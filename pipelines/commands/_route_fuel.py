@@ -152,6 +152,8 @@ def echo_window(result: dict) -> None:
     """The departure table, best first marked with '*', in departure order."""
     fuel = result["objective"] != "time"
     typer.echo(f"departure window: {len(result['rows'])} departures, objective {result['objective']}, best marked *")
+    for line in result.get("notes", []):
+        typer.echo(f"note: {line}")
     typer.echo(f"  {'depart_utc':<27}{'arrive_utc':<27}{'time_h':>8}{'dist_nmi':>10}{'fuel_t':>9}{'co2_t':>9}{'max_hs_m':>9}{'over_lim_h':>11}")
     for r in result["rows"]:
         mark = "*" if r["best"] else " "
