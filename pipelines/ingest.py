@@ -303,7 +303,7 @@ def without_own_dataset(files: list, db) -> tuple[list, str | None]:
     if root is None:
         return list(files), None
     root = root.resolve()
-    kept = [f for f in files if not Path(f).resolve().is_relative_to(root)]
+    kept = [f for f in files if root not in Path(f).resolve().parents]  # inside it (a file of its name is refused later)
     n = len(files) - len(kept)
     if n == 0:
         return kept, None

@@ -119,7 +119,7 @@ def _raw_from_file(con) -> dict | None:
     from pipelines.storage.ais._sql import _stage_kind
 
     extra = _stage_kind(con)[1]
-    return {k: extra[k] for k in ("raw_path", "raw_columns")} if "raw_path" in extra else None
+    return {k: extra.get(k) for k in ("raw_path", "raw_columns", "raw_wkb")} if "raw_path" in extra else None
 
 
 def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN) -> dict:

@@ -236,6 +236,41 @@ def test_geoparquet_positions_from_the_geometry_agree(tmp_path, encoding):
     _assert_same_workspace(tmp_path / "part.duckdb", tmp_path / "ws.duckdb")
 
 
+def test_a_quarantined_geoparquet_row_shows_its_point_as_wkt(tmp_path):
+    """Every row's MMSI is bad, so every row is quarantined with its ``raw`` text: a 2D WKB point
+    (either byte order) as ``POINT (x y)`` (DuckDB's ST_AsText; it showed the 21 bytes escaped),
+    the other values as their bytes' text; the same in the workspace whether the text is staged
+    (a gzip input), read from the file at the commit (a plain one) or spooled from another
+    DuckDB (a Dask worker's), and on the pure path."""
+    import gzip
+    import shutil
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from ais.io.parquet import _blob_text
+
+    wkb = _wkb_points()
+    src = _geoparquet(tmp_path / "ais-2024-01-01.parquet", pa.array(wkb, pa.binary()))
+    pq.write_table(pq.read_table(src).set_column(0, "mmsi", pa.array([123] * 8, pa.int64())), src)
+    with open(src, "rb") as f, gzip.open(packed := tmp_path / "ais-2024-01-02.parquet.gz", "wb") as g:
+        shutil.copyfileobj(f, g)
+    shown = ["POINT (8 54)", "POINT (8.001 54.0002)", _blob_text(wkb[2]), _blob_text(wkb[3]), _blob_text(wkb[4]),
+             "POINT EMPTY", "", "POINT (8.007 54.0014)"]
+    want = [f"123,2024-01-01 00:0{i}:00,10.0,{'ALPHA' if i % 2 == 0 else 'BRAVO'},{g}" for i, g in enumerate(shown)]
+    assert want[0] == "123,2024-01-01 00:00:00,10.0,ALPHA,POINT (8 54)"
+    assert read_parquet_stage(src)[0]["raw"].tolist() == want
+    from test_ingest_partitioned import _partitioned
+
+    (spool := tmp_path / "spool").mkdir()
+    _partitioned([str(src)], tmp_path / "part.duckdb", spool)
+    for path, db in ((src, tmp_path / "plain.duckdb"), (packed, tmp_path / "packed.duckdb"), (None, tmp_path / "part.duckdb")):
+        if path is not None:
+            assert ingest_paths([path], db)["quarantined"] == 8
+        with open_workspace(db) as ws:
+            assert [r[0] for r in ws.con.execute("SELECT raw FROM ais_quarantine ORDER BY line").fetchall()] == want, db.name
+
+
 def test_parquet_nan_values_are_missing_on_every_path(tmp_path):
     """A Parquet file with real NaN values (pyarrow, polars or Spark write them; pandas writes
     NULL): a NaN is a missing value on every path. The SQL path once kept it (a NaN read from

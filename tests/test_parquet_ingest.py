@@ -185,3 +185,34 @@ def test_four_byte_float_fields_are_the_decimals_they_were_written_from(tmp_path
     pure = [tuple(None if pd.isna(v) else float(v) for v in row)
             for row in stage[["lat_deg", "lon_deg", "sog_kn", "cog_deg", "heading_deg"]].itertuples(index=False)]
     assert pure == want
+
+
+def test_a_wkb_point_is_written_as_duckdbs_st_astext_writes_it():
+    """The pure path's WKT of a 2D point (ais.io.parquet.geometry_text) against DuckDB's
+    ST_AsText, the bulk path's: AIS-like coordinates, 6-decimal ones, whole degrees, 100 k
+    random bit patterns (every magnitude, NaN payloads), signed zeros, NaN with and without its
+    sign bit, infinities, subnormals; both byte orders."""
+    import struct
+
+    import duckdb
+    import numpy as np
+    import pyarrow as pa
+
+    from ais.io.parquet import geometry_text
+
+    rng = np.random.default_rng(23)
+    neg_nan = struct.unpack("<d", struct.pack("<Q", 0xFFF8000000000000))[0]
+    special = [0.0, -0.0, float("nan"), neg_nan, float("inf"), -float("inf"), 5e-324, -5e-324, 1e16, 1e-5, 1e22, 0.1]
+    x = np.concatenate([rng.uniform(-180, 180, 20_000), np.round(rng.uniform(-180, 180, 20_000), 6),
+                        rng.integers(-180, 181, 2_000).astype(float), rng.integers(0, 2**64, 100_000, dtype=np.uint64).view(np.float64),
+                        np.repeat(special, len(special))])
+    y = np.concatenate([rng.uniform(-90, 90, 20_000), np.round(rng.uniform(-90, 90, 20_000), 6),
+                        rng.integers(-90, 91, 2_000).astype(float), rng.integers(0, 2**64, 100_000, dtype=np.uint64).view(np.float64),
+                        np.tile(special, len(special))])
+    blobs = [struct.pack("<BIdd" if i % 2 else ">BIdd", 1 if i % 2 else 0, 1, a, b) for i, (a, b) in enumerate(zip(x, y))]
+    con = duckdb.connect()
+    con.register("points", pa.table({"g": pa.array(blobs, pa.binary())}))
+    want = [r[0] for r in con.sql("SELECT ST_AsText(ST_GeomFromWKB(g)) FROM points").fetchall()]
+    got = [geometry_text(b) for b in blobs]
+    assert got == want
+    assert got[-1] == "POINT (0.1 0.1)" and "POINT (-nan -inf)" in got and "POINT EMPTY" in got

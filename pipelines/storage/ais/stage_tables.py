@@ -10,7 +10,7 @@ import pandas as pd
 
 from ais import clean as C
 from ais.io.csv_formats import MMSI_RE
-from ais.io.parquet import is_geometry
+from ais.io.parquet import WKB_POINT_HEADS, is_geometry
 from pipelines.storage.ais._sql import (
     _NUM_FIELDS, _STATIC_TYPES, _TEXT_STATIC, _create_stage, _params, _prepare, _q, _set_stage_kind,
     _stage_kind, _typed_static_select, _used,
@@ -86,7 +86,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
         (f"CAST({src(c)} AS VARCHAR) AS s_{c}" if c in mapping and not raw_from_file else f"CAST(NULL AS VARCHAR) AS s_{c}")
         for c in C.STATIC_COLUMNS
     )
-    raw = "CAST(NULL AS VARCHAR)" if raw_from_file else parquet_raw_sql(list(cols))
+    raw = "CAST(NULL AS VARCHAR)" if raw_from_file else parquet_raw_sql(list(cols), wkb)
     typed = f"""
     SELECT file_row_number + 1 AS line, {raw} AS raw, '{C.KIND_POSITION}' AS kind,
         CASE {perr or "WHEN false THEN NULL"} END AS parse_error,
@@ -104,7 +104,7 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
     finally:
         if side:
             ws.con.unregister(_SIDE_TABLE)
-    extra = {"raw_path": str(path), "raw_columns": list(cols),
+    extra = {"raw_path": str(path), "raw_columns": list(cols), "raw_wkb": wkb,
              "static_columns": {c: mapping[c] for c in C.STATIC_COLUMNS if c in mapping}}
     _set_stage_kind(ws.con, "text", extra if raw_from_file else None)
     return {"ignored": 0, "python_fallback": False}
@@ -130,10 +130,23 @@ def _mmsi_sql(value: str, mtype: str) -> str:
     return f"CASE WHEN regexp_full_match({text}, $mmsi_re) THEN CAST({text} AS BIGINT) END"
 
 
-def parquet_raw_sql(columns: list[str]) -> str:
+def parquet_raw_sql(columns: list[str], wkb: str | None = None) -> str:
     """A Parquet row's ``raw`` text: its values in column order as text, joined by commas (a
-    missing value empty)."""
-    return "concat_ws(',', " + ", ".join(f"coalesce(CAST({_q(c)} AS VARCHAR), '')" for c in columns) + ")"
+    missing value empty); a 2D point of the WKB geometry column ``wkb`` as its WKT (DuckDB's
+    ``ST_AsText``, as :func:`ais.io.parquet.geometry_text` writes it on the pure path)."""
+    def text(c: str) -> str:
+        value = f"CAST({_q(c)} AS VARCHAR)"
+        if c == wkb:
+            heads = " OR ".join(f"starts_with({value}, '{_blob_text_sql(head)}')" for head in WKB_POINT_HEADS)
+            value = f"CASE WHEN octet_length({_q(c)}) = 21 AND ({heads}) THEN ST_AsText(ST_GeomFromWKB({_q(c)})) ELSE {value} END"
+        return f"coalesce({value}, '')"
+
+    return "concat_ws(',', " + ", ".join(text(c) for c in columns) + ")"
+
+
+def _blob_text_sql(head: bytes) -> str:
+    """The text DuckDB casts these unprintable bytes of a BLOB to: ``\\xHH`` each."""
+    return "".join("\\x%02X" % b for b in head)
 
 
 def parquet_raw_lines(extra: dict, lines_sql: str, statics: bool = False, raw: bool = True) -> str:
@@ -143,7 +156,7 @@ def parquet_raw_lines(extra: dict, lines_sql: str, statics: bool = False, raw: b
     texts ``s_<field>`` (as :func:`stage_parquet` stages them with their text); without ``raw``
     only those (``line`` and the texts)."""
     texts = [f"{_static_text(extra, c)} AS s_{c}" for c in C.STATIC_COLUMNS] if statics else []
-    values = ", ".join(["file_row_number + 1 AS line", *([f"{parquet_raw_sql(extra['raw_columns'])} AS raw"] if raw else []),
+    values = ", ".join(["file_row_number + 1 AS line", *([f"{parquet_raw_sql(extra['raw_columns'], extra.get('raw_wkb'))} AS raw"] if raw else []),
                         *texts])
     return f"(SELECT {values} FROM {_file_rows(extra)} WHERE file_row_number + 1 IN ({lines_sql}))"
 
