@@ -53,6 +53,15 @@ def is_user_error(err: BaseException | None) -> bool:
     return isinstance(err, StormlaneError) or workspace_locked(err) or cluster_runs_other_code(err)
 
 
+def prefect_console_verbose() -> bool:
+    """PREFECT_LOGGING_LEVEL asks for Prefect's INFO or DEBUG lines on the console."""
+    import os
+
+    value = os.environ.get("PREFECT_LOGGING_LEVEL", "").strip().upper()
+    level = int(value) if value.isdigit() else logging.getLevelName(value) if value else logging.WARNING
+    return isinstance(level, int) and level < logging.WARNING
+
+
 #: Loggers of Prefect's flow and task runs (their records reach the console through the root logger).
 RUN_LOGGERS = ("prefect.flow_runs", "prefect.task_runs")
 

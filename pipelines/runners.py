@@ -135,8 +135,9 @@ def _quiet_local_cluster() -> None:
     WARNING unless PREFECT_LOGGING_LEVEL asks for INFO or DEBUG (as Prefect's own lines)."""
     import logging
 
-    value = os.environ.get("PREFECT_LOGGING_LEVEL", "").strip().upper()
-    if value not in ("INFO", "DEBUG") and not (value.isdigit() and int(value) < logging.WARNING):
+    from pipelines.prefect_console import prefect_console_verbose
+
+    if not prefect_console_verbose():
         logging.getLogger("distributed").setLevel(logging.WARNING)
 
 

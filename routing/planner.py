@@ -341,10 +341,13 @@ def mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn)
         first, step_deg = err, getattr(err, "first_step_deg", None)
         if step_deg is None:
             raise
-    box0, scale = None, 1.0
+    def rounded_box(factor: float) -> tuple:  # the automatic box with its margin times factor, clipped to the weather
+        return tuple(round(x, 4) for x in mesh_box(req, weather, req.start, _goal_in_start_frame(req), factor))
+
+    box0, scale = rounded_box(1.0), 1.0
     for k in range(1, MAX_BOX_WIDENINGS + 1):
-        lo, la0, hi, la1 = mesh_box(req, weather, req.start, _goal_in_start_frame(req), 2.0**k)
-        box = (round(lo, 4), round(la0, 4), round(hi, 4), round(la1, 4))
+        box = rounded_box(2.0**k)
+        lo, la0, hi, la1 = box
         if box == box0 or (hi - lo) * (la1 - la0) / step_deg**2 > DEFAULT_MAX_AUTO_NODES:
             break  # the weather's grid holds the box, or a wider box needs a coarser step
         st = _Stage(req, {})

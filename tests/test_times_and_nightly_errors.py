@@ -254,7 +254,7 @@ def test_run_error_lines_are_dropped_for_a_user_error_only(console):
 @pytest.mark.parametrize("value, verbose", [(None, False), ("WARNING", False), ("ERROR", False), ("INFO", True),
                                             ("debug", True), ("10", True), ("30", False)])
 def test_an_explicit_info_or_debug_prefect_level_shows_every_prefect_line(monkeypatch, value, verbose):
-    from pipelines.commands._common import prefect_console_verbose
+    from pipelines.prefect_console import prefect_console_verbose
 
     if value is None:
         monkeypatch.delenv("PREFECT_LOGGING_LEVEL", raising=False)

@@ -298,15 +298,8 @@ def flow_errors_one_line():
     """While a command runs a Prefect flow: a user error ends it with the CLI's one ``error:``
     line, Prefect's run errors held back unless PREFECT_LOGGING_LEVEL asks for Prefect's INFO or
     DEBUG lines (:func:`pipelines.prefect_console.user_errors_one_line`)."""
-    from pipelines.prefect_console import user_errors_one_line
+    from pipelines.prefect_console import prefect_console_verbose, user_errors_one_line
 
     return user_errors_one_line(hold_console=not prefect_console_verbose())
 
 
-def prefect_console_verbose() -> bool:
-    """PREFECT_LOGGING_LEVEL asks for Prefect's INFO or DEBUG lines on the console."""
-    import logging
-
-    value = os.environ.get("PREFECT_LOGGING_LEVEL", "").strip().upper()
-    level = int(value) if value.isdigit() else logging.getLevelName(value) if value else logging.WARNING
-    return isinstance(level, int) and level < logging.WARNING
