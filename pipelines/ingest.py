@@ -193,10 +193,7 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
     from pipelines.storage import open_workspace
     from pipelines.storage.ais import check_dataset_folders, limit_ingest_memory, sync_positions_parquet
 
-    files, skipped = without_own_dataset(expand_paths(paths), db)
-    if skipped:
-        log.warning(skipped)
-    check_inputs(files, fmt)
+    files = input_files(paths, fmt, db)
     check_dataset_folders(db)  # before the workspace file is made
     summary = empty_summary()
     per_file = []
@@ -323,10 +320,19 @@ def total_bytes(paths: Iterable) -> int:
 # Prefect flow (thin: discovery -> per file: stage, clean + commit -> summary). Built on first
 # access so that the CLI and ``ingest_paths`` do not pay Prefect's import time.
 # ---------------------------------------------------------------------------------------------
-def _discover(paths: list[str], fmt: Optional[str] = None) -> list[str]:
-    files = expand_paths(paths)
+def input_files(paths, fmt: Optional[str] = None, db=None) -> list[Path]:
+    """The AIS files named by ``paths`` (:func:`ais.io.files.expand_paths`), checked
+    (:func:`check_inputs`), without the workspace's own dataset (:func:`without_own_dataset`,
+    a warning saying so)."""
+    files, skipped = without_own_dataset(expand_paths(paths), db)
+    if skipped:
+        log.warning(skipped)
     check_inputs(files, fmt)
-    return [str(p) for p in files]
+    return files
+
+
+def _discover(paths: list[str], fmt: Optional[str] = None, db=None) -> list[str]:
+    return [str(p) for p in input_files(paths, fmt, db)]
 
 
 #: Workspaces the flow's file tasks share (one connection per flow run and workspace: opening
@@ -462,7 +468,7 @@ def _build_flow() -> dict:
         files are partitioned: each is staged by a task submitted to the flow's task runner
         (e.g. Dask workers, see :mod:`pipelines.ingest_partitioned`) while this process commits
         them one by one in the same order, so the workspace ends the same."""
-        files = discover_task(paths, fmt)
+        files = discover_task(paths, fmt, db)
         try:
             if spool_dir is None:
                 per_file = [ingest_file_task(db, p, fmt, max_speed_kn) for p in files]

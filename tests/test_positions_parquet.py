@@ -197,6 +197,9 @@ def test_a_workspace_inside_its_input_folder_does_not_read_its_own_dataset(tmp_p
                                 "skipped: its output, not an input"]
     assert out.splitlines() == [f"{tmp_path / 'aisdk-2025-01-01.csv'}: already loaded, skipped",
                                 "total: 1 file(s), read 0 = loaded 0 + quarantined 0 + duplicates 0"]
+    from pipelines.ingest import _discover  # the Prefect flow's discovery task skips them too
+
+    assert _discover([str(tmp_path)], None, str(db)) == [str(tmp_path / "aisdk-2025-01-01.csv")]
     (tmp_path / "aisdk-2025-01-01.csv").unlink()
     with pytest.raises(AisInputError, match="own positions dataset is its output, not an input"):
         ingest_paths([tmp_path], db)
