@@ -243,6 +243,17 @@ def mesh_box(req: RouteRequest, weather: WeatherField | None, start, goal, margi
     return bbox
 
 
+def mesh_spacing(req: RouteRequest, weather: WeatherField | None, bbox) -> float:
+    """The mesh step over ``bbox``: the request's, else the automatic one (the weather's grid
+    step, 1.5 nmi without weather, coarsened to keep the node bound). [deg]"""
+    if req.spacing_deg is not None:
+        return req.spacing_deg
+    base = DEFAULT_SPACING_DEG
+    if weather is not None:
+        base = float(min(np.min(np.diff(weather.lat_deg)), np.min(np.diff(weather.lon_deg))))
+    return auto_spacing(bbox, base)
+
+
 def prepare_mesh(req: RouteRequest, weather: WeatherField | None, land_mask_fn, st: _Stage, spacing_deg: float | None = None,
                  margin_scale: float = 1.0) -> None:
     """Box, spacing, land mask, weather on the mesh, the mesh and its weather arrays (into ``st``).
@@ -251,12 +262,7 @@ def prepare_mesh(req: RouteRequest, weather: WeatherField | None, land_mask_fn, 
     start = (float(req.start[0]), float(req.start[1]))
     st.start, st.goal = start, _goal_in_start_frame(req)
     bbox = mesh_box(req, weather, start, st.goal, margin_scale)
-    spacing = req.spacing_deg if spacing_deg is None else spacing_deg
-    if spacing is None:
-        base = DEFAULT_SPACING_DEG
-        if weather is not None:
-            base = float(min(np.min(np.diff(weather.lat_deg)), np.min(np.diff(weather.lon_deg))))
-        spacing = auto_spacing(bbox, base)
+    spacing = mesh_spacing(req, weather, bbox) if spacing_deg is None else spacing_deg
     grid = MeshGrid.from_bbox(bbox, spacing, anchor=start)
     st.grid = grid
     if grid.lon_deg[0] < -180.0 or grid.lon_deg[-1] >= 180.0:
@@ -338,21 +344,25 @@ def mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_mask_fn)
     except DisconnectedSeaError as err:
         if req.bbox is not None or req.ignore_land:
             raise
-        first, step_deg = err, getattr(err, "first_step_deg", None)
-        if step_deg is None:
-            raise
-    def rounded_box(factor: float) -> tuple:  # the automatic box with its margin times factor, clipped to the weather
-        return tuple(round(x, 4) for x in mesh_box(req, weather, req.start, _goal_in_start_frame(req), factor))
+        first = err
+    goal = _goal_in_start_frame(req)
 
-    box0, scale = rounded_box(1.0), 1.0
+    def box_of(factor: float) -> tuple:  # the automatic box with its margin times factor, clipped to the weather
+        return mesh_box(req, weather, req.start, goal, factor)
+
+    def rounded(box: tuple) -> tuple:
+        return tuple(round(x, 4) for x in box)
+
+    box = box_of(1.0)
+    step_deg = mesh_spacing(req, weather, box)  # the first mesh's step, before any refinement
+    seen, scale = rounded(box), 1.0
     for k in range(1, MAX_BOX_WIDENINGS + 1):
-        box = rounded_box(2.0**k)
-        lo, la0, hi, la1 = box
-        if box == box0 or (hi - lo) * (la1 - la0) / step_deg**2 > DEFAULT_MAX_AUTO_NODES:
-            break  # the weather's grid holds the box, or a wider box needs a coarser step
+        box = box_of(2.0**k)
+        if rounded(box) == seen or auto_spacing(box, step_deg) != step_deg:
+            break  # the weather's grid holds the box, or a wider box needs a coarser step (the node bound)
         st = _Stage(req, {})
         prepare_mesh(req, weather, land_mask_fn, st, spacing_deg=step_deg, margin_scale=2.0**k)
-        box0, scale = box, 2.0**k
+        seen, scale = rounded(box), 2.0**k
         try:
             place_ends(st)
         except DisconnectedSeaError:
@@ -388,7 +398,6 @@ def refined_mesh_and_ends(req: RouteRequest, weather: WeatherField | None, land_
             place_ends(st)
             break
         except (DisconnectedSeaError, LandPointError) as err:
-            err.first_step_deg = tried[0] if tried else st.grid.dlat_deg  # the step a wider box keeps (mesh_and_ends)
             # a point with no sea node within the limit gains from a finer mesh only while the
             # step is longer than the limit (else the sea is that far: an inland point stays refused at once)
             helps = not isinstance(err, LandPointError) or st.grid.dlat_deg * 60.0 > err.limit_nmi

@@ -107,12 +107,10 @@ def _run_partitioned(paths, db: Path, fmt, max_speed_kn: float, task_runner: str
     import shutil
     import tempfile
 
-    from ais.io.files import expand_paths
-    from pipelines.ingest import check_inputs, commit_progress, flow_with_runner
+    from pipelines.ingest import commit_progress, flow_with_runner, input_files
     from pipelines.storage.ais import check_dataset_folders
 
-    found = expand_paths(paths)
-    check_inputs(found, fmt)  # bad paths, formats and headers fail here, before the cluster starts
+    found = input_files(paths, fmt, db)  # bad paths, formats and headers fail here, before the cluster starts
     check_dataset_folders(db)  # as ingest_paths does: before the workspace file is made
     start_prefect_api(task_runner)
     files = [str(p) for p in found]

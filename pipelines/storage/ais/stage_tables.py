@@ -10,7 +10,7 @@ import pandas as pd
 
 from ais import clean as C
 from ais.io.csv_formats import MMSI_RE
-from ais.io.parquet import WKB_POINT_HEADS, is_geometry
+from ais.io.parquet import WKB_POINT_HEADS, _blob_text, is_geometry
 from pipelines.storage.ais._sql import (
     _NUM_FIELDS, _STATIC_TYPES, _TEXT_STATIC, _create_stage, _params, _prepare, _q, _set_stage_kind,
     _stage_kind, _typed_static_select, _used,
@@ -137,16 +137,11 @@ def parquet_raw_sql(columns: list[str], wkb: str | None = None) -> str:
     def text(c: str) -> str:
         value = f"CAST({_q(c)} AS VARCHAR)"
         if c == wkb:
-            heads = " OR ".join(f"starts_with({value}, '{_blob_text_sql(head)}')" for head in WKB_POINT_HEADS)
+            heads = " OR ".join(f"starts_with({value}, '{_blob_text(head)}')" for head in WKB_POINT_HEADS)
             value = f"CASE WHEN octet_length({_q(c)}) = 21 AND ({heads}) THEN ST_AsText(ST_GeomFromWKB({_q(c)})) ELSE {value} END"
         return f"coalesce({value}, '')"
 
     return "concat_ws(',', " + ", ".join(text(c) for c in columns) + ")"
-
-
-def _blob_text_sql(head: bytes) -> str:
-    """The text DuckDB casts these unprintable bytes of a BLOB to: ``\\xHH`` each."""
-    return "".join("\\x%02X" % b for b in head)
 
 
 def parquet_raw_lines(extra: dict, lines_sql: str, statics: bool = False, raw: bool = True) -> str:
