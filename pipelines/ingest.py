@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import shutil
 import time
 import uuid
 from pathlib import Path
@@ -30,6 +31,7 @@ from pipelines.ingest_stage import (
     PlainCopiesAhead, check_inputs, done_future, loaded_record, plain_copy, skipped_counts, stage_file,
     stage_or_gzip_error, wants_plain_copy,
 )
+from pipelines.ingest_groups import installers, split_file, wants_groups
 from pipelines.runners import retry_transient
 from thresholds.errors import StormlaneError
 
@@ -100,7 +102,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         if progress is not None:
             progress(f.size_bytes)
         return skipped_counts(f.path, f.format, done["file_id"])
-    info = None
+    info = group_dir = None
     t_stage = time.perf_counter()
     try:
         if plain is None and wants_plain_copy(f):
@@ -112,7 +114,15 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
             # A gzip file's fingerprint reads the whole stream, which proves it complete: started
             # at once, beside the staging (whose gzip reading is single-threaded).
             full = pool.submit(content_fingerprint)
-        if plain is not None:
+        source = plain if plain is not None else f
+        if wants_groups(source):
+            # A large plain CSV file: split into groups of whole vessels, each staged and
+            # committed in turn inside the file's one transaction (pipelines.ingest_groups).
+            group_dir, groups = split_file(source, _scratch_folder(ws))
+            info = {"ignored": 0, "staging": "groups", "timings": {"split": time.perf_counter() - t_stage}}
+            if progress is not None:
+                progress(f.size_bytes // 2)
+        elif plain is not None:
             info = stage_file(ws, plain)
             if progress is not None:
                 progress(f.size_bytes // 2)
@@ -125,7 +135,8 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
                 "size_bytes": f.size_bytes, "ignored": info["ignored"], "line_index": info.get("line_index"),
                 "scan_fixes": info.pop("scan_fixes", None)}
         info.pop("scan_table", None)  # held by the stage while it is registered, no longer
-        counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit)
+        counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit,
+                                           groups=None if group_dir is None else installers(ws, source, groups, group_dir))
     except store.AlreadyLoaded as same:
         # the same content under another name or compression (x.csv and x.csv.gz), found by
         # its fingerprint only now: nothing was committed
@@ -143,6 +154,8 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
             info["line_index"].close()
         if plain is not None:
             plain.path.unlink(missing_ok=True)
+        if group_dir is not None:
+            shutil.rmtree(group_dir, ignore_errors=True)
     if progress is not None:
         progress(f.size_bytes - f.size_bytes // 2)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", f.path, f.format, counts["read"],

@@ -170,7 +170,14 @@ def fingerprint(path: str | Path, algo: str = FINGERPRINT_ALGOS[0], chunk: int =
         if is_compressed(path):
             inflate_into(path, h.update, chunk)
         else:
-            h.update_mmap(str(path))  # releases the GIL
+            # Read in blocks, not through update_mmap: a map of the whole file made the process's
+            # resident memory grow with the file (1.9 GB for a 1.9 GB file), at the same speed
+            # (0.78 against 0.82 s here). The hash releases the GIL on such blocks.
+            buf = bytearray(16 << 20)
+            view = memoryview(buf)
+            with open(path, "rb", buffering=0) as fh:
+                while n := fh.readinto(buf):
+                    h.update(view[:n])
         return "blake3:" + h.hexdigest()
     if algo != "sha256":
         raise ValueError(f"unknown fingerprint algorithm {algo!r} (known: {', '.join(FINGERPRINT_ALGOS)})")

@@ -216,7 +216,8 @@ def _line_index(con, meta: dict):
 def _drop_temp(con) -> None:
     con.execute("DROP VIEW IF EXISTS temp.ais_stage_fb")
     con.execute("DROP VIEW IF EXISTS temp.ais_stage")
-    for name in ("ais_scan_src", "ais_spot_fast", "ais_fast_pos", "ais_fast_skip", "ais_raw_df", "ais_latest_raw", "ais_lines_df", "ais_spot_rows"):
+    for name in ("ais_scan_src", "ais_spot_fast", "ais_fast_pos", "ais_fast_skip", "ais_raw_df", "ais_latest_raw", "ais_lines_df", "ais_spot_rows",
+                 "ais_new", "ais_group_rows"):
         try:
             con.unregister(name)
         except Exception:  # noqa: BLE001 - not registered

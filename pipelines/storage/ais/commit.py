@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import time
 from concurrent.futures import Future
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -295,10 +296,18 @@ class AlreadyLoaded(Exception):
         self.record = record
 
 
+def _has_positions(con) -> bool:
+    return bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
+
+
 def _rules_7_8(con, meta: dict, max_speed_kn: float) -> None:
     """Rules 7-8 (repeated keys, speed jumps) of the staged rows into the temp table ``ais_out``
-    (line, reason): the streaming pass on a first load, else with the stored fixes as context."""
-    has_old = bool(con.execute("SELECT EXISTS (SELECT 1 FROM ais_positions)").fetchone()[0])
+    (line, reason): the streaming pass on a first load, else with the stored fixes as context.
+    ``meta["has_old"]``: whether positions were stored before the file (a group of a file split
+    by MMSI is a first load when the file is: the groups hold other vessels)."""
+    has_old = meta.get("has_old")
+    if has_old is None:
+        has_old = _has_positions(con)
     out_lines, out_reasons = [], []
     scan_fixes = meta.get("scan_fixes") if _stage_kind(con)[0] == "csvfast" else None
     if has_old and scan_fixes is not None:
@@ -334,8 +343,9 @@ def _rules_7_8(con, meta: dict, max_speed_kn: float) -> None:
 
 
 def _write_quarantine(con, meta: dict, file_id: int) -> tuple[dict, int, int, int]:
-    """Every staged row not loaded into ``ais_quarantine`` (with its raw text); returns the
-    reason counts and the read, static and ignored counts of the file."""
+    """Every staged row not loaded into ``ais_quarantine`` (with its raw text, under the input's
+    line: :func:`_line_source`); returns the reason counts and the read, static and ignored
+    counts of the stage."""
     con.execute(
         """CREATE OR REPLACE TEMP TABLE ais_q AS
         SELECT s.line, coalesce(s.reason0, o.reason) AS reason, s.raw,
@@ -346,7 +356,9 @@ def _write_quarantine(con, meta: dict, file_id: int) -> tuple[dict, int, int, in
         [C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
     )
     _fill_raw(con, meta)
-    con.execute("INSERT INTO ais_quarantine SELECT ?, line, reason, raw, mmsi, time_utc FROM ais_q", [file_id])
+    line, join = _line_source(meta)
+    con.execute(f"INSERT INTO ais_quarantine SELECT ?, {line}, reason, raw, mmsi, time_utc FROM ais_q {join}",
+                [file_id])
     reasons = dict(con.execute("SELECT reason, count(*) FROM ais_q GROUP BY reason ORDER BY reason").fetchall())
     read, static = con.execute(
         "SELECT count(*) FILTER (WHERE kind = ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",
@@ -405,28 +417,131 @@ def _next_file_id(con) -> int:
         "(SELECT max(file_id) FROM ais_parquet_parts), 0) + 1").fetchone()[0])
 
 
-def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None) -> dict:
+def _line_source(meta: dict) -> tuple[str, str]:
+    """(SQL of a stage row's line in the input, the join it needs): the stage's own line, or for
+    a group of a file split by MMSI (``meta["line_map"]``, registered as ``ais_line_map`` by
+    :func:`_commit_groups`) the input's line of the group's line."""
+    if meta.get("line_map") is None:
+        return "line", ""
+    return "ais_line_map.orig", "JOIN ais_line_map USING (line)"
+
+
+class _Laps:
+    """Wall seconds of each step, summed over a file's groups (``meta["timings"]``)."""
+
+    def __init__(self, meta: dict):
+        self.timings = meta.setdefault("timings", {})
+        self.clock = time.perf_counter()
+
+    def __call__(self, name: str) -> None:
+        now = time.perf_counter()
+        self.timings[name] = self.timings.get(name, 0.0) + now - self.clock
+        self.clock = now
+
+
+def _commit_rows(ws, meta: dict, file_id: int, max_speed_kn: float, laps: _Laps, start_parts) -> tuple[dict, object]:
+    """Inside the file's transaction: rules 7-8 of the installed stage, then its positions (with
+    the track ends), quarantine and vessels. ``start_parts()`` is called once the rows to
+    insert are in ``ais_new`` (the Parquet parts are written from them). Returns the stage's
+    counts and what ``start_parts`` returned."""
+    con = ws.con
+    _rules_7_8(con, meta, max_speed_kn)
+    laps("rules_7_8")
+    # The rows once, in a temporary table: inserted, then read again for the track ends and the
+    # Parquet parts without scanning the stored positions (issue 23: that scan grew with the
+    # workspace).
+    line, join = _line_source(meta)
+    rows = (f"SELECT mmsi, make_timestamptz(epoch_us(time_utc)) AS time_utc, {_norm()}, "
+            f"CAST(? AS INTEGER) AS file_id, {line} AS source_line "
+            f"FROM ais_stage ANTI JOIN ais_out USING (line) {join} WHERE {_OK}")
+    if meta.get("line_map") is None:
+        con.execute(f"CREATE OR REPLACE TEMP TABLE ais_new AS {rows}", [file_id])
+    else:
+        # A group's rows as a memory-mapped file: DuckDB keeps a temporary table (or a registered
+        # object) dropped inside a transaction until the commit (measured: +125 MB per 1.1 M-row
+        # group as a table, the file's groups adding up).
+        from pipelines.storage.ais import spool
+
+        path = Path(meta["folder"]) / f"{meta['name']}.new.arrow"
+        spool.write_ipc(parquet._fetch_arrow(con, rows, [file_id]), path)
+        con.register("ais_new", spool.read_ipc(path))
+    pending = start_parts()
+    loaded = con.execute("INSERT INTO ais_positions SELECT * FROM ais_new").fetchone()[0]
+    _update_track_ends(con, file_id)
+    laps("insert")
+    reasons, read, static, ignored = _write_quarantine(con, meta, file_id)
+    laps("quarantine")
+    _upsert_vessels(con, file_id, meta)
+    laps("vessels")
+    return {"loaded": int(loaded), "reasons": reasons, "read": read, "static": static, "ignored": ignored}, pending
+
+
+def _commit_groups(ws, meta: dict, groups, file_id: int, max_speed_kn: float, laps: _Laps, sink) -> list[dict]:
+    """:func:`_commit_rows` of each group of a file split by MMSI, one after the other inside the
+    file's transaction; each ``install()`` of ``groups`` puts its group's stage in place and
+    returns its meta: ``line_map`` (an Arrow table of the group's ``line`` and the input's
+    ``orig``), ``ignored``, ``folder`` and ``name`` (where its rows to insert are mapped from),
+    and a scan stage's ``line_index`` and ``scan_fixes``. Every group
+    is a first load when the file is (the groups hold other vessels)."""
+    con = ws.con
+    has_old = _has_positions(con)
+    out = []
+    for install in groups:
+        gmeta = {"path": meta["path"], "format": meta["format"], "timings": laps.timings, "has_old": has_old,
+                 **install()}
+        laps("stage")
+        con.register("ais_line_map", gmeta["line_map"])
+        try:
+            counts, _ = _commit_rows(ws, gmeta, file_id, max_speed_kn, laps,
+                                     lambda: sink.add(con, "ais_new") if sink is not None else None)
+        finally:
+            con.unregister("ais_line_map")
+            if gmeta.get("line_index") is not None:
+                gmeta["line_index"].close()
+            _drop_temp(con)
+            if gmeta.get("release") is not None:
+                gmeta["release"]()
+        out.append(counts)
+    return out
+
+
+def _file_counts(file_id: int, parts: list[dict], meta: dict) -> dict:
+    """The file's counts from those of its stage (or groups); checks read = loaded + quarantined
+    + duplicates."""
+    reasons: dict = {}
+    for p in parts:
+        for k, v in p["reasons"].items():
+            reasons[str(k)] = reasons.get(str(k), 0) + int(v)
+    reasons = dict(sorted(reasons.items()))
+    dups = int(sum(v for k, v in reasons.items() if k in C.DUPLICATE_CODES))
+    counts = {"file_id": file_id, "read": sum(int(p["read"]) for p in parts),
+              "loaded": sum(p["loaded"] for p in parts), "quarantined": int(sum(reasons.values())) - dups,
+              "duplicates": dups, "static": sum(int(p["static"]) for p in parts),
+              "ignored": sum(int(p["ignored"]) for p in parts), "reasons": reasons}
+    if counts["read"] != counts["loaded"] + counts["quarantined"] + counts["duplicates"]:
+        raise AssertionError(f"{meta['path']}: counts do not add up: {counts}")
+    return counts
+
+
+def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEED_KN, before_commit=None,
+                        groups=None) -> dict:
     """Clean ``ais_stage`` and write positions, quarantine, vessels and the file row in ONE
     transaction. ``meta``: ``fingerprint``, ``path``, ``format``, ``size_bytes``, ``ignored``.
     ``fingerprint`` may be a future (a hash still running in a thread): it is awaited only when
-    the file's row is written, at the end of the transaction.
+    the file's row is written, at the end of the transaction. ``groups`` (a large CSV file split
+    by MMSI, :mod:`ais.io.csv_buckets`): instead of one installed stage, functions installing
+    each group's stage in turn (:func:`_commit_groups`), all committed in this transaction.
 
     Returns the file's counts: ``read``, ``loaded``, ``quarantined``, ``duplicates``,
     ``static``, ``ignored``, ``reasons``, ``file_id``. ``before_commit`` (tests only) is called
     inside the transaction just before the commit (to kill the process there, or to look at
     the workspace from another cursor).
     """
+    from pipelines.storage.ais.parquet_groups import GroupParts
+
     con = ws.con
     _prepare(con)
-    # Wall seconds of each step, for the benchmark's breakdown (``meta["timings"]``).
-    timings = meta.setdefault("timings", {})
-    clock = [time.perf_counter()]
-
-    def lap(name: str) -> None:
-        now = time.perf_counter()
-        timings[name] = now - clock[0]
-        clock[0] = now
-
+    laps = _Laps(meta)
     # The transaction by hand (not ws.transaction()): the Parquet parts written inside it are
     # published after its commit, or removed after its rollback.
     parts: list = []
@@ -434,47 +549,22 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     con.execute("BEGIN TRANSACTION")
     try:
         file_id = _next_file_id(con)
-        _rules_7_8(con, meta, max_speed_kn)
-        lap("rules_7_8")
-        # The file's rows once, in a temporary table: inserted, then read again for the track
-        # ends and the Parquet parts without scanning the stored positions (issue 23: that
-        # scan grew with the workspace).
-        con.execute(
-            f"""CREATE OR REPLACE TEMP TABLE ais_new AS
-            SELECT mmsi, make_timestamptz(epoch_us(time_utc)) AS time_utc, {_norm()},
-                   CAST(? AS INTEGER) AS file_id, line AS source_line
-            FROM ais_stage ANTI JOIN ais_out USING (line) WHERE {_OK}""",
-            [file_id],
-        )
-        pending = parquet.start_file_parts(ws, file_id, source="ais_new")
-        loaded = con.execute("INSERT INTO ais_positions SELECT * FROM ais_new").fetchone()[0]
-        _update_track_ends(con, file_id)
-        lap("insert")
-        reasons, read, static, ignored = _write_quarantine(con, meta, file_id)
-        lap("quarantine")
-        _upsert_vessels(con, file_id, meta)
-        lap("vessels")
-        dups = int(sum(v for k, v in reasons.items() if k in C.DUPLICATE_CODES))
-        counts = {
-            "file_id": file_id,
-            "read": read,
-            "loaded": int(loaded),
-            "quarantined": int(sum(reasons.values())) - dups,
-            "duplicates": dups,
-            "static": static,
-            "ignored": ignored,
-            "reasons": {str(k): int(v) for k, v in reasons.items()},
-        }
-        if counts["read"] != counts["loaded"] + counts["quarantined"] + counts["duplicates"]:
-            raise AssertionError(f"{meta['path']}: counts do not add up: {counts}")
+        if groups is None:
+            got, pending = _commit_rows(ws, meta, file_id, max_speed_kn, laps,
+                                        lambda: parquet.start_file_parts(ws, file_id, source="ais_new"))
+            per_stage = [got]
+        else:
+            pending = GroupParts.start(ws, file_id)
+            per_stage = _commit_groups(ws, meta, groups, file_id, max_speed_kn, laps, pending)
+        counts = _file_counts(file_id, per_stage, meta)
         fingerprint = meta["fingerprint"]
         if isinstance(fingerprint, Future):
             fingerprint = fingerprint.result()
-        lap("fingerprint_wait")
+        laps("fingerprint_wait")
         _write_file_row(ws, meta, fingerprint, file_id, counts, max_speed_kn)
         parts = pending.finish() if pending is not None else []
         pending = None
-        lap("parquet_wait")
+        laps("parquet_wait")
         if before_commit is not None:
             before_commit()
     except BaseException:
@@ -489,10 +579,10 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
         parquet.discard(parts)
         raise
     parquet.publish(parts)
-    lap("commit")
+    laps("commit")
     _drop_temp(con)
     _checkpoint(con)
-    lap("checkpoint")
+    laps("checkpoint")
     return counts
 
 

@@ -102,10 +102,11 @@ def _bbox_bounds(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo.astype(np.float32), hi.astype(np.float32)
 
 
-def geoparquet_table(table):
+def geoparquet_table(table, extent: list | None = None):
     """Canonical positions (an Arrow table with :data:`CANONICAL_COLUMNS`) as the dataset's
     GeoParquet table: ``geometry`` and ``bbox`` instead of ``lat_deg``/``lon_deg``, the ``geo``
-    metadata with the table's bounding box."""
+    metadata with the table's bounding box (``extent``, [xmin, ymin, xmax, ymax], when the table
+    is one slice of a part written in slices)."""
     import pyarrow as pa
 
     lat = table.column("lat_deg").to_numpy()
@@ -120,7 +121,8 @@ def geoparquet_table(table):
     # written again by :func:`sync_positions_parquet` are then byte-identical
     k = out.schema.get_field_index("time_utc")
     out = out.set_column(k, "time_utc", out.column(k).cast(pa.timestamp("us", tz="UTC")))
-    extent = ([float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max())] if len(lat) else [])
+    if extent is None:
+        extent = [float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max())] if len(lat) else []
     geo = {
         "version": GEOPARQUET_VERSION,
         "primary_column": "geometry",
@@ -136,16 +138,20 @@ def geoparquet_table(table):
     return out.replace_schema_metadata({b"geo": json.dumps(geo, separators=(",", ":")).encode()})
 
 
+def writer_options() -> dict:
+    """The dataset's Parquet writer options (module docstring: encodings, zstd)."""
+    floats = ["geometry.x", "geometry.y", "bbox.xmin", "bbox.ymin", "bbox.xmax", "bbox.ymax"]
+    encodings = {c: "BYTE_STREAM_SPLIT" for c in floats}
+    encodings.update({"time_utc": "DELTA_BINARY_PACKED", "source_line": "DELTA_BINARY_PACKED"})
+    return {"compression": "zstd", "use_dictionary": ["mmsi", "file_id", "sog_kn", "cog_deg", "heading_deg",
+                                                      "nav_status"], "column_encoding": encodings}
+
+
 def write_geoparquet(table, path: Path) -> None:
     """Write a :func:`geoparquet_table` with the dataset's encodings (module docstring)."""
     import pyarrow.parquet as pq
 
-    floats = ["geometry.x", "geometry.y", "bbox.xmin", "bbox.ymin", "bbox.xmax", "bbox.ymax"]
-    encodings = {c: "BYTE_STREAM_SPLIT" for c in floats}
-    encodings.update({"time_utc": "DELTA_BINARY_PACKED", "source_line": "DELTA_BINARY_PACKED"})
-    pq.write_table(table, str(path), compression="zstd", row_group_size=ROW_GROUP_ROWS,
-                   use_dictionary=["mmsi", "file_id", "sog_kn", "cog_deg", "heading_deg", "nav_status"],
-                   column_encoding=encodings)
+    pq.write_table(table, str(path), row_group_size=ROW_GROUP_ROWS, **writer_options())
 
 
 def _file_rows_sql(source: str = "ais_positions") -> str:

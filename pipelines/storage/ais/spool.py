@@ -64,14 +64,14 @@ def remove_run_leftovers(spool_dir, run_tag: str) -> list[Path]:
     return gone
 
 
-def _write_ipc(tbl, path: Path) -> None:
+def write_ipc(tbl, path: Path) -> None:
     import pyarrow as pa
 
     with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, tbl.schema) as writer:
         writer.write_table(tbl)
 
 
-def _read_ipc(path: Path):
+def read_ipc(path: Path):
     """The table of an IPC file, memory-mapped (its buffers are the file's pages)."""
     import pyarrow as pa
 
@@ -87,9 +87,9 @@ def write_scan(con, info: dict, folder: Path, name: str) -> Path:
 
     from pipelines.storage.ais._sql import _stage_kind
 
-    _write_ipc(info["scan_table"], folder / SCAN_ARROW)
-    _write_ipc(con.execute("SELECT * FROM ais_exact").to_arrow_table(), folder / EXACT_ARROW)
-    _write_ipc(pa.table({k: np.ascontiguousarray(v) for k, v in info["scan_fixes"].items()}), folder / FIXES_ARROW)
+    write_ipc(info["scan_table"], folder / SCAN_ARROW)
+    write_ipc(con.execute("SELECT * FROM ais_exact").to_arrow_table(), folder / EXACT_ARROW)
+    write_ipc(pa.table({k: np.ascontiguousarray(v) for k, v in info["scan_fixes"].items()}), folder / FIXES_ARROW)
     ix = info["line_index"]
     np.savez(folder / LINES_NPZ, starts=ix.starts, ends=ix.ends, quote_lines=ix.quote_lines,
              stray_cr=np.asarray(bool(ix.stray_cr)))
@@ -124,14 +124,14 @@ def install_scan(ws, folder) -> dict:
     try:
         con = ws.con
         _prepare(con)
-        con.register("ais_exact_df", _read_ipc(folder / EXACT_ARROW))
+        con.register("ais_exact_df", read_ipc(folder / EXACT_ARROW))
         try:
             con.execute("CREATE OR REPLACE TEMP TABLE ais_exact AS SELECT * FROM ais_exact_df")
         finally:
             con.unregister("ais_exact_df")
         extra.pop("path")
-        install_scan_stage(con, _read_ipc(folder / SCAN_ARROW), plain, extra)
-        fix = _read_ipc(folder / FIXES_ARROW)
+        install_scan_stage(con, read_ipc(folder / SCAN_ARROW), plain, extra)
+        fix = read_ipc(folder / FIXES_ARROW)
         fixes = {name: fix.column(name).to_numpy() for name in fix.column_names}
     except BaseException:
         ix.close()

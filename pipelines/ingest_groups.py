@@ -1,0 +1,125 @@
+"""A large DMA/NOAA CSV file ingested in groups of whole vessels, with the memory of one group.
+
+The ingest's peak memory grew with the rows of its largest file (about 0.37 GB plus 0.69 KB per
+row, measured on 0.26-2.94 M-row files; issue 23): a file is staged and committed whole. A
+plain CSV file above :data:`GROUP_BYTES` is now split into MMSI ranges of about
+:data:`GROUP_BYTES` each (:func:`ais.io.csv_buckets.split_by_mmsi`, in a scratch folder beside
+the workspace), and each group is staged like a file of its own (the same readers, on a private
+DuckDB) and committed in turn inside the file's one transaction
+(:func:`pipelines.storage.ais.classify_and_commit` with ``groups``). Every cross-row rule works
+within one vessel's rows, so the tables are those of the whole file's commit; the quarantine
+and ``source_line`` name the input's lines; the file's row, fingerprint and counts are the
+file's.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+#: Plain CSV bytes per group: files above it are split (about 2 M DMA rows: the staged and
+#: committed group then peaks near 1.7 GB on the measured 0.37 GB + 0.69 KB per row).
+GROUP_BYTES = 256 << 20
+
+
+def wants_groups(f) -> bool:
+    """Whether the plain DMA/NOAA CSV file ``f`` (an :class:`ais.io.files.AisFile`) is split."""
+    return f.format in ("dma", "noaa") and not f.compressed and f.size_bytes > GROUP_BYTES
+
+
+def split_file(f, scratch) -> tuple[Path, list]:
+    """Split ``f`` into groups in a new folder under ``scratch`` (None: the temporary folder);
+    returns (folder, groups). The caller removes the folder."""
+    from ais.io.csv_buckets import split_by_mmsi
+    from pipelines.ingest_stage import csv_layout
+
+    _, _, _, index = csv_layout(f)
+    folder = Path(tempfile.mkdtemp(prefix=".stormlane-groups-", dir=scratch))
+    try:
+        n = -(-int(f.size_bytes) // GROUP_BYTES)
+        return folder, split_by_mmsi(f.path, index["mmsi"], n, folder)
+    except BaseException:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise
+
+
+def installers(ws, f, groups: list, folder: Path):
+    """One function per group: stage the group's file on a private DuckDB and install that stage
+    as ``ws``'s ``ais_stage`` (inside the caller's transaction: a reader's failed attempt on the
+    private connection cannot abort it); returns the group's commit meta."""
+    for group in groups:
+        yield lambda group=group: _install(ws, f, group, folder)
+
+
+def _install(ws, f, group, folder: Path) -> dict:
+    """Stage one group and install it in ``ws`` through files memory-mapped from ``folder``.
+
+    Why files: DuckDB keeps an object registered and then dropped inside a transaction alive
+    until the commit (measured: every group's scanned rows stayed in memory, +250 MB per
+    1.1 M-row group). Memory-mapped, what stays is file pages the kernel can drop."""
+    import duckdb
+
+    from ais.io.files import inspect
+    from pipelines.ingest_stage import _Scratch, stage_file
+    from pipelines.storage.ais import spool
+
+    gf = inspect(group.csv, f.format, with_fingerprint=False)
+    mem = _Scratch(duckdb.connect(config={"threads": os.cpu_count() or 1}))
+    info: dict = {}
+    got: dict = {}
+    try:
+        info = stage_file(mem, gf)
+        if info.get("staging") == "scan":
+            out = spool.write_scan(mem.con, info, spool.new_folder(folder), group.csv.stem)
+            info.pop("scan_table")
+            info.pop("scan_fixes")
+            got = spool.install_scan(ws, out)
+        else:
+            _hand_over_table(mem.con, ws.con, folder / f"{group.csv.stem}.stage.arrow")
+    finally:
+        if info.get("line_index") is not None:
+            info["line_index"].close()
+        mem.con.close()
+    return {"ignored": int(info["ignored"]), "line_map": _line_map(group, folder), "folder": str(folder),
+            "name": group.csv.stem, "release": lambda: _release(folder, group.csv.stem), **got}
+
+
+def _release(folder: Path, stem: str) -> None:
+    """After a group's commit steps: empty and remove its files. Truncating first returns the
+    pages of the files DuckDB still maps (its dropped views keep their objects until the
+    commit, but never read them again) to the kernel and their space to the disk."""
+    for path in sorted(Path(folder).glob(f"{stem}*")):
+        files = sorted(path.iterdir()) if path.is_dir() else [path]
+        for p in files:
+            os.truncate(p, 0)
+            p.unlink()
+        if path.is_dir():
+            path.rmdir()
+
+
+def _line_map(group, folder: Path):
+    """The group's (line, input line) table, memory-mapped."""
+    import numpy as np
+    import pyarrow as pa
+
+    from pipelines.storage.ais import spool
+
+    orig = group.line_numbers()
+    path = folder / f"{group.csv.stem}.lines.arrow"
+    spool.write_ipc(pa.table({"line": np.arange(1, len(orig) + 1, dtype=np.int64), "orig": orig}), path)
+    return spool.read_ipc(path)
+
+
+def _hand_over_table(src, con, path: Path) -> None:
+    """A stage the scan did not make: its rows (with their line and raw text) moved to ``con``
+    through the memory-mapped file ``path``, with the stage's kind."""
+    from pipelines.storage.ais import spool
+    from pipelines.storage.ais._sql import _set_stage_kind, _stage_kind
+
+    kind, extra = _stage_kind(src)
+    spool.write_ipc(src.execute("SELECT * FROM ais_stage").to_arrow_table(), path)
+    con.register("ais_group_rows", spool.read_ipc(path))
+    con.execute("CREATE OR REPLACE TEMP VIEW ais_stage AS SELECT * FROM ais_group_rows")
+    _set_stage_kind(con, kind, extra)
