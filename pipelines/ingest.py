@@ -19,7 +19,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-import shutil
 import time
 import uuid
 from pathlib import Path
@@ -28,10 +27,10 @@ from typing import Callable, Iterable, Optional
 from ais.clean import DEFAULT_MAX_SPEED_KN
 from ais.io.files import expand_paths, inspect
 from pipelines.ingest_stage import (
-    PlainCopiesAhead, check_inputs, done_future, loaded_record, plain_copy, skipped_counts, stage_file,
-    stage_or_gzip_error, wants_plain_copy,
+    PlainCopiesAhead, check_inputs, done_future, loaded_record, plain_copy, scratch_folder, skipped_counts,
+    stage_file, stage_or_gzip_error, wants_plain_copy,
 )
-from pipelines.ingest_groups import installers, split_file, wants_groups
+from pipelines.ingest_groups import commit_in_groups, wants_groups
 from pipelines.runners import retry_transient
 from thresholds.errors import StormlaneError
 
@@ -102,26 +101,24 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         if progress is not None:
             progress(f.size_bytes)
         return skipped_counts(f.path, f.format, done["file_id"])
-    info = group_dir = None
+    info = None
     t_stage = time.perf_counter()
     try:
         if plain is None and wants_plain_copy(f):
             # A large gzip CSV file, or a zip archive's or zstd file: decompressed once into a plain copy
             # beside the workspace (hashed on the way: its fingerprint), which the stage reads.
-            plain, fp = plain_copy(f, _scratch_folder(ws))
+            plain, fp = plain_copy(f, scratch_folder(ws))
             full = done_future(fp + suffix)
         elif full is None and f.compressed:
             # A gzip file's fingerprint reads the whole stream, which proves it complete: started
             # at once, beside the staging (whose gzip reading is single-threaded).
             full = pool.submit(content_fingerprint)
         source = plain if plain is not None else f
-        if wants_groups(source):
+        grouped = wants_groups(source)
+        if grouped:
             # A large plain CSV file: split into groups of whole vessels, each staged and
             # committed in turn inside the file's one transaction (pipelines.ingest_groups).
-            group_dir, groups = split_file(source, _scratch_folder(ws))
-            info = {"ignored": 0, "staging": "groups", "timings": {"split": time.perf_counter() - t_stage}}
-            if progress is not None:
-                progress(f.size_bytes // 2)
+            info = {"ignored": 0, "staging": "groups"}
         elif plain is not None:
             info = stage_file(ws, plain)
             if progress is not None:
@@ -135,8 +132,10 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
                 "size_bytes": f.size_bytes, "ignored": info["ignored"], "line_index": info.get("line_index"),
                 "scan_fixes": info.pop("scan_fixes", None)}
         info.pop("scan_table", None)  # held by the stage while it is registered, no longer
-        counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit,
-                                           groups=None if group_dir is None else installers(ws, source, groups, group_dir))
+        if grouped:
+            counts = commit_in_groups(ws, source, meta, max_speed_kn, before_commit, scratch_folder(ws))
+        else:
+            counts = store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit)
     except store.AlreadyLoaded as same:
         # the same content under another name or compression (x.csv and x.csv.gz), found by
         # its fingerprint only now: nothing was committed
@@ -154,8 +153,6 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
             info["line_index"].close()
         if plain is not None:
             plain.path.unlink(missing_ok=True)
-        if group_dir is not None:
-            shutil.rmtree(group_dir, ignore_errors=True)
     if progress is not None:
         progress(f.size_bytes - f.size_bytes // 2)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", f.path, f.format, counts["read"],
@@ -170,13 +167,6 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
 def _remove(plain) -> None:
     if plain is not None:
         plain.path.unlink(missing_ok=True)
-
-
-def _scratch_folder(ws):
-    """Where temporary copies of inputs go: beside the workspace file (on disk, not in a RAM
-    temporary folder), else the temporary folder."""
-    path = getattr(ws, "path", None)
-    return None if path is None or str(path) in ("", ":memory:") else Path(path).parent
 
 
 def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: float = DEFAULT_MAX_SPEED_KN,
@@ -213,7 +203,7 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
     with open_workspace(db) as ws:
         limit_ingest_memory(ws)
         sync_positions_parquet(ws)  # the positions dataset as the workspace says (after a crash)
-        ahead = PlainCopiesAhead(files, fmt, _scratch_folder(ws), lambda quick: store.quick_key_known(ws, quick))
+        ahead = PlainCopiesAhead(files, fmt, scratch_folder(ws), lambda quick: store.quick_key_known(ws, quick))
         try:
             for i, p in enumerate(files):
                 try:

@@ -2,7 +2,7 @@
 
 The ingest's peak memory grew with the rows of its largest file (about 0.37 GB plus 0.69 KB per
 row, measured on 0.26-2.94 M-row files; issue 23): a file is staged and committed whole. A
-plain CSV file above :data:`GROUP_BYTES` is now split into MMSI ranges of about
+plain CSV file above :data:`GROUP_MIN_BYTES` is now split into MMSI ranges of about
 :data:`GROUP_BYTES` each (:func:`ais.io.csv_buckets.split_by_mmsi`, in a scratch folder beside
 the workspace), and each group is staged like a file of its own (the same readers, on a private
 DuckDB) and committed in turn inside the file's one transaction
@@ -19,14 +19,19 @@ import shutil
 import tempfile
 from pathlib import Path
 
-#: Plain CSV bytes per group: files above it are split (about 2 M DMA rows: the staged and
-#: committed group then peaks near 1.7 GB on the measured 0.37 GB + 0.69 KB per row).
+#: Plain CSV files above this size are split. A file up to it is committed whole, which is
+#: faster (bench/ingest_large.py, 9.7 M rows in one file: 14.5 s whole against 28.6 s in
+#: groups) but holds the whole file: about 0.37 GB + 0.69 KB per row (measured, 0.26-2.94 M
+#: rows), so about 5 GB at 1 GiB of 169-byte rows (6.4 M), under issue 23's 6 GB.
+GROUP_MIN_BYTES = 1 << 30
+#: Plain CSV bytes per group (about 1.2-1.9 M DMA rows): the grouped ingest of one 9.7 M-row
+#: file peaked at 1.54 GB resident (0.97 GB of its own; 6.75 GB whole), bench/ingest_large.py.
 GROUP_BYTES = 256 << 20
 
 
 def wants_groups(f) -> bool:
     """Whether the plain DMA/NOAA CSV file ``f`` (an :class:`ais.io.files.AisFile`) is split."""
-    return f.format in ("dma", "noaa") and not f.compressed and f.size_bytes > GROUP_BYTES
+    return f.format in ("dma", "noaa") and not f.compressed and f.size_bytes > GROUP_MIN_BYTES
 
 
 def split_file(f, scratch) -> tuple[Path, list]:
@@ -43,6 +48,25 @@ def split_file(f, scratch) -> tuple[Path, list]:
     except BaseException:
         shutil.rmtree(folder, ignore_errors=True)
         raise
+
+
+def commit_in_groups(ws, source, meta: dict, max_speed_kn: float, before_commit=None, scratch=None) -> dict:
+    """Split the plain CSV file ``source`` (an :class:`ais.io.files.AisFile`) in ``scratch`` and
+    commit its groups in one transaction; ``meta`` as for
+    :func:`pipelines.storage.ais.classify_and_commit` (the file's fingerprint, path, format, size).
+    Returns the file's counts; the groups' folder is removed."""
+    import time
+
+    from pipelines.storage import ais as store
+
+    t0 = time.perf_counter()
+    folder, groups = split_file(source, scratch)
+    meta.setdefault("timings", {})["split"] = time.perf_counter() - t0
+    try:
+        return store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit,
+                                         groups=installers(ws, source, groups, folder))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def installers(ws, f, groups: list, folder: Path):

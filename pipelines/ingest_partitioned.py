@@ -31,9 +31,10 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from ais.clean import DEFAULT_MAX_SPEED_KN
+from pipelines.ingest_groups import wants_groups
 from pipelines.ingest_stage import (
-    _Scratch, done_future, loaded_record, plain_copy, skipped_counts, stage_file, stage_or_gzip_error,
-    wants_plain_copy,
+    _Scratch, done_future, loaded_record, plain_copy, scratch_folder, skipped_counts, stage_file,
+    stage_or_gzip_error, wants_plain_copy,
 )
 
 log = logging.getLogger(__name__)
@@ -82,6 +83,9 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = ""
                 full = done_future(fp + suffix)
             else:  # the hash releases the GIL: it overlaps the staging
                 full = pool.submit(lambda: fingerprint(f.path) + suffix)
+            source = plain if plain is not None else f
+            if wants_groups(source):  # split and committed in groups where the workspace is
+                return _plain_to_spool(f, source, full.result(), folder, spool_dir, suffix)
             mem = _Scratch(duckdb.connect(config={"threads": _stage_threads()}))  # temporary: no workspace tables
             info, raw_from = {}, None
             try:
@@ -112,6 +116,29 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = ""
             "raw_from": raw_from}
 
 
+def _plain_to_spool(f, source, fp: str, folder: Path, spool_dir, suffix: str) -> dict:
+    """A file above ``pipelines.ingest_groups.GROUP_MIN_BYTES``: the worker only inflates and
+    hashes it; the committing process splits it and commits its groups
+    (:func:`pipelines.ingest_groups.commit_in_groups`), whose memory is one group's. Spooled as
+    the plain file: the input itself, or its inflated copy moved to ``<spool>/<name>.plain/``."""
+    from ais.io.files import quick_key
+    from pipelines.storage.ais import spool
+
+    path = str(Path(f.path).resolve())
+    if source is not f:
+        os.replace(source.path, folder / spool.PLAIN_CSV)
+        final = Path(spool_dir) / f"{fp.replace(':', '-').replace('#', '-')}.plain"
+        try:
+            folder.rename(final)
+        except OSError:  # the same bytes spooled by another stage: keep that one
+            if not (final / spool.PLAIN_CSV).exists():
+                raise
+        path = str(final / spool.PLAIN_CSV)
+    return {"path": str(f.path), "format": f.format, "fingerprint": fp, "quick_key": quick_key(f.path) + suffix,
+            "size_bytes": f.size_bytes, "ignored": 0, "spool": path, "spool_kind": "plain", "staging": "groups",
+            "line_mapping": None, "raw_from": None}
+
+
 def _raw_from_file(con) -> dict | None:
     """Where the commit reads the ``raw`` text of a Parquet input's quarantined rows (its path and
     columns), when the stage holds none; None for any other stage. Spooling every row's text
@@ -133,6 +160,9 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
     if done is not None:  # the same content twice in one batch: the first commit wins
         _remove_spool(staged)
         return skipped_counts(staged["path"], staged["format"], done["file_id"])
+    meta = {k: staged[k] for k in ("fingerprint", "quick_key", "path", "format", "size_bytes", "ignored")}
+    if staged.get("spool_kind") == "plain":
+        return _commit_plain(ws, staged, meta, max_speed_kn)
     got = {"line_index": None}
     try:
         if staged.get("spool_kind") == "scan":
@@ -143,7 +173,6 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
                 from pipelines.storage.ais._sql import _set_stage_kind
 
                 _set_stage_kind(ws.con, "typed", staged["raw_from"])
-        meta = {k: staged[k] for k in ("fingerprint", "quick_key", "path", "format", "size_bytes", "ignored")}
         counts = store.classify_and_commit(ws, {**meta, **got}, max_speed_kn=max_speed_kn)
     except BaseException:
         store.discard_stage(ws)
@@ -151,6 +180,11 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
     finally:
         if got["line_index"] is not None:
             got["line_index"].close()
+    return _committed(staged, counts)
+
+
+def _committed(staged: dict, counts: dict) -> dict:
+    """After a spooled file's commit: its spool removed, its counts logged and returned."""
     _remove_spool(staged)
     log.info("%s (%s): read %d, loaded %d, quarantined %d, duplicates %d", staged["path"], staged["format"],
              counts["read"], counts["loaded"], counts["quarantined"], counts["duplicates"])
@@ -158,10 +192,23 @@ def commit_spooled(ws, staged: dict, max_speed_kn: float = DEFAULT_MAX_SPEED_KN)
             "staging": staged["staging"], "line_mapping": staged["line_mapping"]}
 
 
+def _commit_plain(ws, staged: dict, meta: dict, max_speed_kn: float) -> dict:
+    """Commit a file spooled as its plain copy (:func:`_plain_to_spool`) in groups."""
+    from ais.io.files import inspect
+    from pipelines.ingest_groups import commit_in_groups
+
+    source = inspect(staged["spool"], staged["format"], with_fingerprint=False)
+    return _committed(staged, commit_in_groups(ws, source, meta, max_speed_kn, scratch=scratch_folder(ws)))
+
+
 def _remove_spool(staged: dict) -> None:
     from pipelines.storage.ais import spool
 
-    if staged.get("spool_kind") == "scan":
+    if staged.get("spool_kind") == "plain":
+        folder = Path(staged["spool"]).parent
+        if folder.name.endswith(".plain"):  # an inflated copy; an input stays
+            spool.remove(folder)
+    elif staged.get("spool_kind") == "scan":
         spool.remove(staged["spool"])
     else:
         Path(staged["spool"]).unlink(missing_ok=True)

@@ -142,6 +142,13 @@ class _Scratch:
         self.con = con
 
 
+def scratch_folder(ws):
+    """Where temporary copies of inputs go: beside the workspace file (on disk, not in a RAM
+    temporary folder), else the temporary folder."""
+    path = getattr(ws, "path", None)
+    return None if path is None or str(path) in ("", ":memory:") else Path(path).parent
+
+
 def skipped_counts(path, fmt: str, file_id: int) -> dict:
     """Per-file counts of a file whose bytes are already loaded (nothing read, nothing added)."""
     return {"path": str(path), "format": fmt, "read": 0, "loaded": 0, "quarantined": 0, "duplicates": 0,

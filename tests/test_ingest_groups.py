@@ -1,0 +1,228 @@
+"""A large CSV file ingested in groups of whole vessels gives the whole file's workspace.
+
+``pipelines.ingest_groups`` splits a plain DMA/NOAA file above ``GROUP_BYTES`` into MMSI ranges
+(``ais.io.csv_buckets``) and commits the groups one after the other in the file's one
+transaction. The reference is the same files ingested whole: every table, the line numbers, the
+counts and the positions dataset's bytes must be the same, whatever the rows (the multi-file
+property test's fleets: dirty rows, quoted lines, repeated keys, jumps, files continuing,
+overlapping and going back in time) and whatever the groups' staging path.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import shutil
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import pipelines.ingest_groups as groups_mod
+from ais.io import csv_buckets
+from ais.io.csv_formats import MMSI_RE
+from ais_fixtures import DMA_HEADER, dma_row
+from pipelines import ingest_stage as stage_mod
+from pipelines.ingest import ingest_file
+from pipelines.storage import open_workspace
+from pipelines.storage.ais import parquet as P
+from pipelines.storage.ais import read_stage, stage_csv, sync_positions_parquet
+from pipelines.ingest_stage import csv_layout
+from ais.io.files import inspect
+from test_ais_fast_csv import _snapshot
+from test_ais_multifile_property import _attribution, _files
+
+
+def _dataset(db):
+    root = P.positions_root(db)
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _state(db):
+    with open_workspace(db) as ws:
+        con = ws.con
+        extra = (con.execute("SELECT * FROM ais_track_ends ORDER BY mmsi").fetchall(),
+                 con.execute("SELECT * FROM ais_parquet_parts ORDER BY ALL").fetchall(),
+                 con.execute("SELECT file_id, fingerprint, format, size_bytes FROM ais_files ORDER BY 1").fetchall())
+    # _snapshot orders by line only, and lines repeat over files: its tables as multisets
+    return [sorted(map(repr, t)) for t in _snapshot(db)], _attribution(db), extra, _dataset(db)
+
+
+def _size(path) -> int:
+    from pathlib import Path
+
+    return Path(path).stat().st_size
+
+
+def _ingest(d, label, files, group_bytes, monkeypatch):
+    monkeypatch.setattr(groups_mod, "GROUP_BYTES", group_bytes)
+    monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", group_bytes)
+    db = d / f"{label}.duckdb"
+    counts = []
+    for k, (limit, rows) in enumerate(files):
+        path = d / f"{label}-{k}.csv"
+        path.write_bytes(("\n".join([DMA_HEADER] + rows) + "\n").encode())
+        with open_workspace(db) as ws:
+            counts.append(ingest_file(ws, path, fmt="dma", max_speed_kn=limit))
+    return db, counts
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                  HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(files=_files(), group_bytes=st.sampled_from([300, 900, 4000]), scan=st.booleans())
+def test_groups_give_the_whole_files_workspace(tmp_path_factory, monkeypatch, files, group_bytes, scan):
+    d = tmp_path_factory.mktemp("groups")
+    # the groups' files (a few hundred bytes) take the compiled scan, or the exact raw-lines path
+    monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0 if scan else 1 << 62)
+    monkeypatch.setattr(stage_mod, "FAST_CSV_ENGINES", ("scan",) if scan else ())
+    monkeypatch.setattr(P, "ROW_GROUP_ROWS", 3)  # the streamed parts carry rows over the groups
+    whole_db, whole = _ingest(d, "whole", files, 1 << 62, monkeypatch)
+    split_db, split = _ingest(d, "split", files, group_bytes, monkeypatch)
+    for a, b in zip(whole, split):
+        assert a["already_loaded"] == b["already_loaded"]
+        if not b["already_loaded"]:
+            assert a["staging"] != "groups"
+            assert (b["staging"] == "groups") == (len(a["path"]) > 0 and _size(b["path"]) > group_bytes)
+        for key in ("read", "loaded", "quarantined", "duplicates", "static", "ignored", "reasons"):
+            assert a[key] == b[key], (key, a[key], b[key])
+    for name, x, y in zip(("tables", "attribution", "track ends, parts, files", "dataset"), _state(split_db),
+                          _state(whole_db)):
+        assert x == y, name
+    # Written again from the workspace (a deleted dataset), the parts are the streamed ones.
+    streamed = _dataset(split_db)
+    shutil.rmtree(P.positions_root(split_db))
+    with open_workspace(split_db) as ws:
+        sync_positions_parquet(ws)
+    assert _dataset(split_db) == streamed
+    assert not list(d.glob("**/.stormlane-groups-*")) and not list(d.glob("**/.groups-*"))
+
+
+def _typed_mmsi(tmp_path, path):
+    """(line, MMSI) of the rows the ingest's exact path types with a valid MMSI and no bad_line."""
+    f = inspect(path, "dma", with_fingerprint=False)
+    spec, first, header, index = csv_layout(f)
+    with open_workspace(tmp_path / "typed.duckdb") as ws:
+        stage_csv(ws, f.path, False, spec, index, len(header), header=first)
+        df = read_stage(ws)
+    ok = df["mmsi"].notna() & (df["parse_error"].astype(object) != "bad_line")
+    return dict(zip(df.loc[ok, "line"].astype(int), df.loc[ok, "mmsi"].astype(int)))
+
+
+def test_split_keeps_every_line_once_and_each_vessel_in_one_range(tmp_path):
+    rng = np.random.default_rng(7)
+    lines = [DMA_HEADER]
+    for i in range(3000):
+        m = int(rng.choice([219000001, 219000002, 230000017, 244000321, 265111222, 311000999]))
+        ts = f"01/03/2025 {i // 3600 % 24:02d}:{i // 60 % 60:02d}:{i % 60:02d}"
+        row = dma_row(ts, str(m), "55.000000", f"{10 + i * 1e-4:.6f}")
+        style = i % 17
+        if style == 1:  # the MMSI quoted: the exact parse reads it
+            row = row.replace(f",{m},", f',"{m}",')
+        elif style == 2:  # white space around it
+            row = row.replace(f",{m},", f", {m}\t,")
+        elif style == 3:  # a comma inside a quoted name: the MMSI column is still the third
+            row = row.replace("Class A", '"Class, A"')
+        elif style == 4:
+            row = ""
+        elif style == 5:
+            row = DMA_HEADER
+        elif style == 6:
+            row = row + "\r"
+        elif style == 7:  # too few fields
+            row = ",".join(row.split(",")[:5])
+        lines.append(row)
+    path = tmp_path / "in.csv"
+    path.write_bytes("\n".join(lines).encode())  # no newline after the last line
+    groups = csv_buckets.split_by_mmsi(path, 2, 4, tmp_path)
+    original = path.read_bytes().split(b"\n")
+    seen = []
+    typed = _typed_mmsi(tmp_path, path)
+    ranges = []
+    for g in groups:
+        body = g.csv.read_bytes()
+        assert body.endswith(b"\n")
+        got = body[:-1].split(b"\n")
+        nums = g.line_numbers()
+        assert len(got) == len(nums) == g.n_lines and nums[0] == 1 and got[0] == original[0]
+        assert (np.diff(nums) > 0).all()  # the input's order
+        assert [original[n - 1] for n in nums] == got
+        seen += nums[1:].tolist()
+        ranges.append({typed[n] for n in nums[1:] if n in typed})
+    assert sorted(seen) == list(range(2, len(original) + 1))
+    assert len(groups) == 4
+    for a, b in zip(ranges, ranges[1:]):  # ascending MMSI ranges, no vessel in two groups
+        assert a and b and max(a) < min(b)
+    assert all(re.fullmatch(MMSI_RE, str(m)) for r in ranges for m in r)
+
+
+def test_a_failed_commit_leaves_nothing_of_the_groups(tmp_path, monkeypatch):
+    monkeypatch.setattr(groups_mod, "GROUP_BYTES", 2000)
+    monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", 2000)
+    rows = [dma_row(f"01/03/2025 00:{i // 60:02d}:{i % 60:02d}", str(219000000 + i % 7), "55.000000",
+                    f"{10 + i * 1e-4:.6f}") for i in range(300)]
+    path = tmp_path / "day.csv"
+    path.write_text("\n".join([DMA_HEADER] + rows) + "\n")
+    db = tmp_path / "w.duckdb"
+
+    def boom():
+        raise RuntimeError("killed inside the transaction")
+
+    with open_workspace(db) as ws:
+        with pytest.raises(RuntimeError, match="killed"):
+            ingest_file(ws, path, fmt="dma", before_commit=boom)
+        assert ws.con.execute("SELECT count(*) FROM ais_positions").fetchone()[0] == 0
+        assert ws.con.execute("SELECT count(*) FROM ais_files").fetchone()[0] == 0
+        assert ws.con.execute("SELECT count(*) FROM ais_parquet_parts").fetchone()[0] == 0
+    assert not [p for p in tmp_path.rglob("*") if p.is_file() and p.suffix in (".parquet", ".tmp", ".arrow")]
+    assert not list(tmp_path.glob(".stormlane-groups-*"))
+    with open_workspace(db) as ws:  # and the file loads afterwards, in groups
+        counts = ingest_file(ws, path, fmt="dma")
+    assert counts["staging"] == "groups" and counts["loaded"] == 300
+
+
+@pytest.mark.parametrize("gz", [False, True], ids=["plain", "gzip"])
+def test_partitioned_ingest_commits_a_large_file_in_groups(tmp_path, monkeypatch, gz):
+    """On the partitioned path a large file is only inflated and hashed where it is staged; the
+    committing process splits it and commits its groups: the sequential whole-file workspace."""
+    import gzip
+
+    from ais_fixtures import DMA_LINES, write_dma
+    from pipelines.ingest_partitioned import commit_spooled, plan_files, stage_to_spool
+
+    rows = [dma_row(f"02/01/2025 00:{m:02d}:{s:02d}", str(219300000 + v * 7919), f"{54 + v * 0.05 + m * 1e-3:.6f}",
+                    f"{8 + s * 1e-4:.6f}", name=f"SHIP {v}") for m in range(20) for s in range(0, 60, 10)
+            for v in range(9)]
+    rows[40:40] = DMA_LINES[1:]  # dirty rows of every kind, a quoted name, a blank line
+    path = write_dma(tmp_path / "big.csv", [DMA_HEADER] + rows)
+    if gz:
+        path.with_suffix(".csv.gz").write_bytes(gzip.compress(path.read_bytes()))
+        path.unlink()
+        path = path.with_suffix(".csv.gz")
+    monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0)
+    whole_db, _ = _ingest_paths(tmp_path / "whole", path, 1 << 62, monkeypatch)
+    monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", 5000)
+    monkeypatch.setattr(groups_mod, "GROUP_BYTES", 5000)
+    spool = tmp_path / "spool"
+    spool.mkdir()
+    part_db = tmp_path / "part" / "w.duckdb"
+    part_db.parent.mkdir()
+    with open_workspace(part_db) as ws:
+        todo, _ = plan_files(ws, [str(path)], None)
+        staged = stage_to_spool(todo[0], None, str(spool))
+        assert staged["spool_kind"] == "plain"
+        counts = commit_spooled(ws, staged)
+    assert counts["staging"] == "groups" and counts["loaded"] > 0
+    assert _state(part_db) == _state(whole_db)
+    assert list(spool.iterdir()) == [] and path.exists()
+    assert not list(part_db.parent.glob(".stormlane-groups-*"))
+
+
+def _ingest_paths(folder, path, group_min_bytes, monkeypatch):
+    from pipelines.ingest import ingest_paths
+
+    monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", group_min_bytes)
+    folder.mkdir()
+    db = folder / "w.duckdb"
+    return db, ingest_paths([path], db)
