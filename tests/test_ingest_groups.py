@@ -157,7 +157,10 @@ def test_split_keeps_every_line_once_and_each_vessel_in_one_range(tmp_path):
     assert all(re.fullmatch(MMSI_RE, str(m)) for r in ranges for m in r)
 
 
-def test_a_failed_commit_leaves_nothing_of_the_groups(tmp_path, monkeypatch):
+@pytest.mark.parametrize("where", ["before the commit", "in the second group"])
+def test_a_failed_commit_leaves_nothing_of_the_groups(tmp_path, monkeypatch, where):
+    import pipelines.storage.ais.commit as commit
+
     monkeypatch.setattr(groups_mod, "GROUP_BYTES", 2000)
     monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", 2000)
     rows = [dma_row(f"01/03/2025 00:{i // 60:02d}:{i % 60:02d}", str(219000000 + i % 7), "55.000000",
@@ -169,14 +172,25 @@ def test_a_failed_commit_leaves_nothing_of_the_groups(tmp_path, monkeypatch):
     def boom():
         raise RuntimeError("killed inside the transaction")
 
+    upsert, calls = commit._upsert_vessels, []
+
+    def second_group_fails(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            boom()
+        return upsert(*a, **k)
+
+    if where != "before the commit":
+        monkeypatch.setattr(commit, "_upsert_vessels", second_group_fails)
     with open_workspace(db) as ws:
         with pytest.raises(RuntimeError, match="killed"):
-            ingest_file(ws, path, fmt="dma", before_commit=boom)
+            ingest_file(ws, path, fmt="dma", before_commit=boom if where == "before the commit" else None)
         assert ws.con.execute("SELECT count(*) FROM ais_positions").fetchone()[0] == 0
         assert ws.con.execute("SELECT count(*) FROM ais_files").fetchone()[0] == 0
         assert ws.con.execute("SELECT count(*) FROM ais_parquet_parts").fetchone()[0] == 0
     assert not [p for p in tmp_path.rglob("*") if p.is_file() and p.suffix in (".parquet", ".tmp", ".arrow")]
-    assert not list(tmp_path.glob(".stormlane-groups-*"))
+    assert not list(tmp_path.glob(".stormlane-groups-*")) and not list(tmp_path.rglob(".groups-*"))
+    monkeypatch.setattr(commit, "_upsert_vessels", upsert)
     with open_workspace(db) as ws:  # and the file loads afterwards, in groups
         counts = ingest_file(ws, path, fmt="dma")
     assert counts["staging"] == "groups" and counts["loaded"] == 300
@@ -226,3 +240,15 @@ def _ingest_paths(folder, path, group_min_bytes, monkeypatch):
     folder.mkdir()
     db = folder / "w.duckdb"
     return db, ingest_paths([path], db)
+
+
+def test_a_killed_grouped_commits_spill_is_removed_by_the_next_sync(tmp_path):
+    db = tmp_path / "w.duckdb"
+    with open_workspace(db) as ws:
+        sync_positions_parquet(ws)
+    spill = P.dataset_root(db) / ".groups-000000001-4242.tmp"
+    spill.mkdir(parents=True)
+    (spill / "2025-03-01-0000.arrow").write_bytes(b"x")
+    with open_workspace(db) as ws:
+        assert sync_positions_parquet(ws)["removed"] == 1
+    assert not spill.exists()

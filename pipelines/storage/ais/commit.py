@@ -550,9 +550,12 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     try:
         file_id = _next_file_id(con)
         if groups is None:
-            got, pending = _commit_rows(ws, meta, file_id, max_speed_kn, laps,
-                                        lambda: parquet.start_file_parts(ws, file_id, source="ais_new"))
-            per_stage = [got]
+            def start_parts():
+                nonlocal pending  # known to the rollback below as soon as the writer runs
+                pending = parquet.start_file_parts(ws, file_id, source="ais_new")
+                return pending
+
+            per_stage = [_commit_rows(ws, meta, file_id, max_speed_kn, laps, start_parts)[0]]
         else:
             pending = GroupParts.start(ws, file_id)
             per_stage = _commit_groups(ws, meta, groups, file_id, max_speed_kn, laps, pending)

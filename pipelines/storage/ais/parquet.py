@@ -50,6 +50,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -300,7 +301,7 @@ def sync_positions_parquet(ws) -> dict:
 
     Returns counts: ``parts`` (recorded), ``published`` (renamed from a temporary file),
     ``written`` (written again from the workspace), ``removed`` (temporary files of loads that
-    did not commit, parts that are not recorded)."""
+    did not commit, parts that are not recorded, a grouped commit's spill folder)."""
     root = positions_root(getattr(ws, "path", None))
     out = {"parts": 0, "published": 0, "written": 0, "removed": 0}
     if root is None:
@@ -331,6 +332,9 @@ def sync_positions_parquet(ws) -> dict:
         for path in paths:
             path.unlink(missing_ok=True)
             out["removed"] += 1
+    for spill in root.parent.glob(".groups-*.tmp"):  # a grouped commit's spill (parquet_groups) left by a kill
+        shutil.rmtree(spill, ignore_errors=True)
+        out["removed"] += 1
     return out
 
 
