@@ -27,10 +27,12 @@ README_END = "<!-- bench-table:end -->"
 #: here (a new ``bench/<name>.py``) runs after these, in alphabetical order (:func:`scripts`).
 SCRIPT_ORDER = ("ingest", "ingest_dask", "lanes", "weather", "routing", "evaluate", "report", "nightly")
 #: Scripts run apart from ``make bench``: ``scale.py`` (issue 23: one 100 M-row run takes hours on
-#: 2 cores; its own file bench/results-scale.json, docs/scale.md) and ``fuel_savings.py`` (issue 20:
-#: not a timing but the demo month's distribution of fuel savings, 4-9 min of routing; its section
-#: is merged into bench/results.json by ``python -m bench --only fuel_savings``).
-APART = ("scale", "fuel_savings")
+#: 2 cores; its own file bench/results-scale.json, docs/scale.md), ``ingest_large.py`` (issue 23:
+#: one file of millions of rows in groups and whole, 1-4 min per size; printed, its figures in
+#: docs/scale.md) and ``fuel_savings.py`` (issue 20: not a timing but the demo month's
+#: distribution of fuel savings, 4-9 min of routing; its section is merged into
+#: bench/results.json by ``python -m bench --only fuel_savings``).
+APART = ("scale", "ingest_large", "fuel_savings")
 #: The scripts of :data:`APART` that ``python -m bench --only NAME`` runs into bench/results.json.
 APART_SECTIONS = ("fuel_savings",)
 

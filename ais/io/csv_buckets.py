@@ -9,8 +9,9 @@ group in their input order; beside it the input's line number of each of its lin
 the header), so that quarantine lines and ``source_line`` name the input's lines.
 
 A line's group is decided by the MMSI the ingest would read from it (:mod:`ais.io.csv_formats`:
-the MMSI field, split on commas, or by an RFC 4180 parse when the line holds a double quote,
-matching ``MMSI_RE``: nine ASCII digits between white space). Lines without such an MMSI (bad
+the MMSI field, split on commas, or by an RFC 4180 parse when the line holds a double quote up
+to that field, matching ``MMSI_RE``: nine ASCII digits between white space; a quote in a later
+field cannot move it, and a line whose quotes make it a bad line has no cross-row rule). Lines without such an MMSI (bad
 lines, blank lines, repeated headers) have no cross-row rule and go to the first group. The
 groups are MMSI ranges, so a day's positions of the groups, one after the other, are in the
 (MMSI, time) order of the whole file (the positions dataset's parts are written that way).
@@ -31,7 +32,8 @@ import numpy as np
 
 from ais.io.csv_formats import MMSI_RE, split_csv_line
 
-#: Key of a line without an MMSI, and of a line holding a double quote (decided in Python).
+#: Key of a line without an MMSI, and of a line with a double quote up to its MMSI field (decided
+#: in Python by the ingest's own splitter).
 NO_KEY, QUOTED = -1, -2
 #: Bytes of the input per step of the split (bounded temporary memory).
 _STEP_BYTES = 64 << 20
@@ -49,7 +51,9 @@ def _is_ws(c):
 def _line_keys(buf, pos, end, col, starts, stops, keys):
     """From ``pos`` (a line start) to ``end``: each line's start, stop (one past its newline, or
     ``end``) and MMSI key (the nine-digit number of field ``col``, :data:`NO_KEY`, or
-    :data:`QUOTED`), at most ``len(keys)`` lines. Returns (lines, next position)."""
+    :data:`QUOTED` when a double quote stands before the field's end: only then can the
+    quoted-field parse read another field there), at most ``len(keys)`` lines. Returns (lines,
+    next position)."""
     n = 0
     cap = len(keys)
     while pos < end and n < cap:
@@ -61,7 +65,7 @@ def _line_keys(buf, pos, end, col, starts, stops, keys):
         i = pos
         while i < end and buf[i] != 10:
             c = buf[i]
-            if c == 34:
+            if c == 34 and b < 0:  # a quote after the MMSI field cannot move it
                 quoted = True
             elif c == 44:
                 if field == col:
@@ -137,7 +141,8 @@ _MMSI = re.compile(MMSI_RE)
 
 
 def quoted_key(text: bytes, col: int) -> int:
-    """The MMSI key of a line holding a double quote: its fields by the ingest's own splitter."""
+    """The MMSI key of a line with a double quote up to its MMSI field: its fields by the
+    ingest's own splitter."""
     line = text.decode("utf-8", "replace").rstrip("\n")
     if line.endswith("\r"):
         line = line[:-1]

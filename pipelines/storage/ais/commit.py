@@ -439,17 +439,17 @@ class _Laps:
         self.clock = now
 
 
-def _commit_rows(ws, meta: dict, file_id: int, max_speed_kn: float, laps: _Laps, start_parts) -> tuple[dict, object]:
+def _commit_rows(ws, meta: dict, file_id: int, max_speed_kn: float, laps: _Laps, start_parts) -> dict:
     """Inside the file's transaction: rules 7-8 of the installed stage, then its positions (with
     the track ends), quarantine and vessels. ``start_parts()`` is called once the rows to
     insert are in ``ais_new`` (the Parquet parts are written from them). Returns the stage's
-    counts and what ``start_parts`` returned."""
+    counts."""
     con = ws.con
     _rules_7_8(con, meta, max_speed_kn)
     laps("rules_7_8")
-    # The rows once, in a temporary table: inserted, then read again for the track ends and the
-    # Parquet parts without scanning the stored positions (issue 23: that scan grew with the
-    # workspace).
+    # The rows once, in a temporary table (a group's: a mapped file, below): inserted, then read
+    # again for the track ends and the Parquet parts without scanning the stored positions
+    # (issue 23: that scan grew with the workspace).
     line, join = _line_source(meta)
     rows = (f"SELECT mmsi, make_timestamptz(epoch_us(time_utc)) AS time_utc, {_norm()}, "
             f"CAST(? AS INTEGER) AS file_id, {line} AS source_line "
@@ -465,7 +465,7 @@ def _commit_rows(ws, meta: dict, file_id: int, max_speed_kn: float, laps: _Laps,
         path = Path(meta["folder"]) / f"{meta['name']}.new.arrow"
         spool.write_ipc(parquet._fetch_arrow(con, rows, [file_id]), path)
         con.register("ais_new", spool.read_ipc(path))
-    pending = start_parts()
+    start_parts()
     loaded = con.execute("INSERT INTO ais_positions SELECT * FROM ais_new").fetchone()[0]
     _update_track_ends(con, file_id)
     laps("insert")
@@ -473,7 +473,7 @@ def _commit_rows(ws, meta: dict, file_id: int, max_speed_kn: float, laps: _Laps,
     laps("quarantine")
     _upsert_vessels(con, file_id, meta)
     laps("vessels")
-    return {"loaded": int(loaded), "reasons": reasons, "read": read, "static": static, "ignored": ignored}, pending
+    return {"loaded": int(loaded), "reasons": reasons, "read": read, "static": static, "ignored": ignored}
 
 
 def _commit_groups(ws, meta: dict, groups, file_id: int, max_speed_kn: float, laps: _Laps, sink) -> list[dict]:
@@ -492,8 +492,8 @@ def _commit_groups(ws, meta: dict, groups, file_id: int, max_speed_kn: float, la
         laps("stage")
         con.register("ais_line_map", gmeta["line_map"])
         try:
-            counts, _ = _commit_rows(ws, gmeta, file_id, max_speed_kn, laps,
-                                     lambda: sink.add(con, "ais_new") if sink is not None else None)
+            counts = _commit_rows(ws, gmeta, file_id, max_speed_kn, laps,
+                                  lambda: sink.add(con, "ais_new") if sink is not None else None)
         finally:
             con.unregister("ais_line_map")
             if gmeta.get("line_index") is not None:
@@ -550,12 +550,11 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     try:
         file_id = _next_file_id(con)
         if groups is None:
-            def start_parts():
+            def start_parts() -> None:
                 nonlocal pending  # known to the rollback below as soon as the writer runs
                 pending = parquet.start_file_parts(ws, file_id, source="ais_new")
-                return pending
 
-            per_stage = [_commit_rows(ws, meta, file_id, max_speed_kn, laps, start_parts)[0]]
+            per_stage = [_commit_rows(ws, meta, file_id, max_speed_kn, laps, start_parts)]
         else:
             pending = GroupParts.start(ws, file_id)
             per_stage = _commit_groups(ws, meta, groups, file_id, max_speed_kn, laps, pending)

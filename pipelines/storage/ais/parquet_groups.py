@@ -21,8 +21,6 @@ import os
 import shutil
 from pathlib import Path
 
-import numpy as np
-
 from pipelines.storage.ais import parquet as P
 
 
@@ -75,42 +73,38 @@ class GroupParts:
         (still inside the transaction); returns the parts (published after the commit)."""
         try:
             for day in sorted(self._days):
-                self._parts.append(self._write_day(day, self._days[day]))
-                self._ws.con.execute("INSERT INTO ais_parquet_parts VALUES (?, ?, ?)",
-                                     [self._file_id, day, self._days[day]["rows"]])
+                d = self._days[day]
+                folder = self._root / f"day={day}"
+                folder.mkdir(parents=True, exist_ok=True)
+                final = folder / P.part_name(self._file_id)
+                self._parts.append(P.Part(final, folder / f".{final.name}.{os.getpid()}.tmp", d["rows"]))
+                self._write_day(self._parts[-1].tmp, d)  # listed first: abandon() removes a partial write
+                self._ws.con.execute("INSERT INTO ais_parquet_parts VALUES (?, ?, ?)", [self._file_id, day, d["rows"]])
         finally:
             shutil.rmtree(self._spill, ignore_errors=True)
         return self._parts
 
-    def _write_day(self, day: str, d: dict) -> P.Part:
+    def _write_day(self, path: Path, d: dict) -> None:
+        """Stream the day's group slices into ``path`` in slices of whole row groups."""
         import pyarrow as pa
-        import pyarrow.parquet as pq
 
-        folder = self._root / f"day={day}"
-        folder.mkdir(parents=True, exist_ok=True)
-        final = folder / P.part_name(self._file_id)
-        part = P.Part(final, folder / f".{final.name}.{os.getpid()}.tmp", d["rows"])
-        self._parts.append(part)  # removed by abandon() if the write fails
         rows = P.ROW_GROUP_ROWS
-        writer = None
-        carry = None
+        writer = carry = None
         try:
-            for path in d["files"]:
-                with pa.memory_map(str(path), "r") as src:
+            for spilled in d["files"]:
+                with pa.memory_map(str(spilled), "r") as src:
                     table = pa.ipc.open_file(src).read_all()
                 table = table if carry is None else pa.concat_tables([carry, table])
                 full = table.num_rows // rows * rows
                 if full:
-                    writer = self._write(writer, part.tmp, table.slice(0, full), d["box"])
+                    writer = self._write(writer, path, table.slice(0, full), d["box"])
                 carry = table.slice(full)
-                path.unlink()
+                spilled.unlink()
             if carry is not None and carry.num_rows:
-                writer = self._write(writer, part.tmp, carry, d["box"])
+                writer = self._write(writer, path, carry, d["box"])
         finally:
             if writer is not None:
                 writer.close()
-        self._parts.pop()
-        return part
 
     @staticmethod
     def _write(writer, path: Path, table, box: list):
