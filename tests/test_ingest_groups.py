@@ -31,7 +31,7 @@ from pipelines.storage.ais import read_stage, stage_csv, sync_positions_parquet
 from pipelines.ingest_stage import csv_layout
 from ais.io.files import inspect
 from test_ais_fast_csv import _snapshot
-from test_ais_multifile_property import _attribution, _files
+from test_ais_multifile_property import _attribution, _files, _ingest_all
 
 
 def _dataset(db):
@@ -56,17 +56,13 @@ def _size(path) -> int:
     return Path(path).stat().st_size
 
 
-def _ingest(d, label, files, group_bytes, monkeypatch):
+def _ingest(d, side, files, group_bytes, scan: bool, monkeypatch):
+    """The multi-file test's ingest of ``files`` into ``d/side/``, the groups' files through the
+    compiled scan or the exact raw-lines path."""
     monkeypatch.setattr(groups_mod, "GROUP_BYTES", group_bytes)
     monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", group_bytes)
-    db = d / f"{label}.duckdb"
-    counts = []
-    for k, (limit, rows) in enumerate(files):
-        path = d / f"{label}-{k}.csv"
-        path.write_bytes(("\n".join([DMA_HEADER] + rows) + "\n").encode())
-        with open_workspace(db) as ws:
-            counts.append(ingest_file(ws, path, fmt="dma", max_speed_kn=limit))
-    return db, counts
+    (d / side).mkdir()
+    return _ingest_all(d / side, "scan" if scan else "exact", files, monkeypatch)
 
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
@@ -74,17 +70,14 @@ def _ingest(d, label, files, group_bytes, monkeypatch):
 @given(files=_files(), group_bytes=st.sampled_from([300, 900, 4000]), scan=st.booleans())
 def test_groups_give_the_whole_files_workspace(tmp_path_factory, monkeypatch, files, group_bytes, scan):
     d = tmp_path_factory.mktemp("groups")
-    # the groups' files (a few hundred bytes) take the compiled scan, or the exact raw-lines path
-    monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0 if scan else 1 << 62)
-    monkeypatch.setattr(stage_mod, "FAST_CSV_ENGINES", ("scan",) if scan else ())
     monkeypatch.setattr(P, "ROW_GROUP_ROWS", 3)  # the streamed parts carry rows over the groups
-    whole_db, whole = _ingest(d, "whole", files, 1 << 62, monkeypatch)
-    split_db, split = _ingest(d, "split", files, group_bytes, monkeypatch)
+    whole_db, whole = _ingest(d, "whole", files, 1 << 62, scan, monkeypatch)
+    split_db, split = _ingest(d, "split", files, group_bytes, scan, monkeypatch)
     for a, b in zip(whole, split):
         assert a["already_loaded"] == b["already_loaded"]
         if not b["already_loaded"]:
             assert a["staging"] != "groups"
-            assert (b["staging"] == "groups") == (len(a["path"]) > 0 and _size(b["path"]) > group_bytes)
+            assert (b["staging"] == "groups") == (_size(b["path"]) > group_bytes)
         for key in ("read", "loaded", "quarantined", "duplicates", "static", "ignored", "reasons"):
             assert a[key] == b[key], (key, a[key], b[key])
     for name, x, y in zip(("tables", "attribution", "track ends, parts, files", "dataset"), _state(split_db),
@@ -200,20 +193,10 @@ def test_a_failed_commit_leaves_nothing_of_the_groups(tmp_path, monkeypatch, whe
 def test_partitioned_ingest_commits_a_large_file_in_groups(tmp_path, monkeypatch, gz):
     """On the partitioned path a large file is only inflated and hashed where it is staged; the
     committing process splits it and commits its groups: the sequential whole-file workspace."""
-    import gzip
-
-    from ais_fixtures import DMA_LINES, write_dma
     from pipelines.ingest_partitioned import commit_spooled, plan_files, stage_to_spool
+    from test_ingest_partitioned import dirty_dma_file
 
-    rows = [dma_row(f"02/01/2025 00:{m:02d}:{s:02d}", str(219300000 + v * 7919), f"{54 + v * 0.05 + m * 1e-3:.6f}",
-                    f"{8 + s * 1e-4:.6f}", name=f"SHIP {v}") for m in range(20) for s in range(0, 60, 10)
-            for v in range(9)]
-    rows[40:40] = DMA_LINES[1:]  # dirty rows of every kind, a quoted name, a blank line
-    path = write_dma(tmp_path / "big.csv", [DMA_HEADER] + rows)
-    if gz:
-        path.with_suffix(".csv.gz").write_bytes(gzip.compress(path.read_bytes()))
-        path.unlink()
-        path = path.with_suffix(".csv.gz")
+    path = dirty_dma_file(tmp_path, gz, vessels=9, mmsi_step=7919)
     monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0)
     whole_db, _ = _ingest_paths(tmp_path / "whole", path, 1 << 62, monkeypatch)
     monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", 5000)

@@ -105,22 +105,30 @@ def test_partitioned_ingest_equals_the_sequential_one(tmp_path, batch):
     assert todo == [] and set(skipped) == set(batch)
 
 
-@pytest.mark.parametrize("gz", [False, True], ids=["plain", "gzip"])
-def test_partitioned_fast_csv_staging_equals_sequential(tmp_path, monkeypatch, gz):
-    """Large-file staging (scanner split + line index) through the spool: raw text from the index.
-    A large gzip file is inflated into a plain copy on the staging side too (removed after)."""
+def dirty_dma_file(folder, gz: bool, vessels: int = 5, mmsi_step: int = 1):
+    """``folder/big.csv`` (or ``.csv.gz``): 20 minutes of ``vessels`` ships every 10 s, with the
+    dirty rows of every kind, a quoted name and a blank line."""
     import gzip
-    import tempfile
 
-    rows = [dma_row(f"02/01/2025 00:{m:02d}:{s:02d}", str(219300000 + v), f"{54 + v * 0.05 + m * 1e-3:.6f}",
-                    f"{8 + s * 1e-4:.6f}", name=f"SHIP {v}") for m in range(20) for s in range(0, 60, 10)
-            for v in range(5)]
-    rows[40:40] = DMA_LINES[1:]  # dirty rows of every kind, a quoted name, a blank line
-    path = write_dma(tmp_path / "big.csv", [DMA_HEADER] + rows)
+    rows = [dma_row(f"02/01/2025 00:{m:02d}:{s:02d}", str(219300000 + v * mmsi_step),
+                    f"{54 + v * 0.05 + m * 1e-3:.6f}", f"{8 + s * 1e-4:.6f}", name=f"SHIP {v}")
+            for m in range(20) for s in range(0, 60, 10) for v in range(vessels)]
+    rows[40:40] = DMA_LINES[1:]
+    path = write_dma(folder / "big.csv", [DMA_HEADER] + rows)
     if gz:
         path.with_suffix(".csv.gz").write_bytes(gzip.compress(path.read_bytes()))
         path.unlink()
         path = path.with_suffix(".csv.gz")
+    return path
+
+
+@pytest.mark.parametrize("gz", [False, True], ids=["plain", "gzip"])
+def test_partitioned_fast_csv_staging_equals_sequential(tmp_path, monkeypatch, gz):
+    """Large-file staging (scanner split + line index) through the spool: raw text from the index.
+    A large gzip file is inflated into a plain copy on the staging side too (removed after)."""
+    import tempfile
+
+    path = dirty_dma_file(tmp_path, gz)
     monkeypatch.setattr(stage_mod, "FAST_CSV_MIN_BYTES", 0)
     monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0)
     (scratch := tmp_path / "tmp").mkdir()
