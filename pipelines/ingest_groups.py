@@ -14,10 +14,13 @@ file's.
 
 from __future__ import annotations
 
+import logging
 import os
 import shutil
 import tempfile
 from pathlib import Path
+
+log = logging.getLogger(__name__)
 
 #: Plain CSV files above this size are split. A file up to it is committed whole, which is
 #: faster (bench/ingest_large.py, 9.7 M rows in one file: 14.5 s whole against 28.6 s in
@@ -34,14 +37,35 @@ def wants_groups(f) -> bool:
     return f.format in ("dma", "noaa") and not f.compressed and f.size_bytes > GROUP_MIN_BYTES
 
 
-def split_file(f, scratch) -> tuple[Path, list]:
-    """Split ``f`` into groups in a new folder under ``scratch`` (None: the temporary folder);
-    returns (folder, groups). The caller removes the folder."""
+def _prefix(ws) -> str:
+    """The name prefix of the workspace's group folders (its file's stem: one writer per file)."""
+    path = getattr(ws, "path", None)
+    stem = Path(path).stem if path is not None and str(path) not in ("", ":memory:") else "memory"
+    return f".stormlane-groups-{stem}-"
+
+
+def remove_leftovers(ws, scratch) -> list[Path]:
+    """Remove the group folders a killed ingest into this workspace left in ``scratch`` (about
+    the size of its file). Safe: only the process holding the workspace's write lock makes
+    them, one at a time. Returns what was removed."""
+    if scratch is None:
+        return []
+    prefix = _prefix(ws)
+    # the rest of the name is mkdtemp's random part, which holds no "-": not workspace w-2's
+    gone = sorted(p for p in Path(scratch).glob(prefix + "*") if p.is_dir() and "-" not in p.name[len(prefix):])
+    for p in gone:
+        shutil.rmtree(p, ignore_errors=True)
+    return gone
+
+
+def split_file(f, scratch, prefix: str = ".stormlane-groups-") -> tuple[Path, list]:
+    """Split ``f`` into groups in a new folder (named ``prefix...``) under ``scratch`` (None: the
+    temporary folder); returns (folder, groups). The caller removes the folder."""
     from ais.io.csv_buckets import split_by_mmsi
     from pipelines.ingest_stage import csv_layout
 
     _, _, _, index = csv_layout(f)
-    folder = Path(tempfile.mkdtemp(prefix=".stormlane-groups-", dir=scratch))
+    folder = Path(tempfile.mkdtemp(prefix=prefix, dir=scratch))
     try:
         n = -(-int(f.size_bytes) // GROUP_BYTES)
         return folder, split_by_mmsi(f.path, index["mmsi"], n, folder)
@@ -60,7 +84,9 @@ def commit_in_groups(ws, source, meta: dict, max_speed_kn: float, before_commit=
     from pipelines.storage import ais as store
 
     t0 = time.perf_counter()
-    folder, groups = split_file(source, scratch)
+    for p in remove_leftovers(ws, scratch):
+        log.warning("removed %s, left by an ingest into this workspace that did not finish", p)
+    folder, groups = split_file(source, scratch, _prefix(ws))
     meta.setdefault("timings", {})["split"] = time.perf_counter() - t0
     try:
         return store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit,

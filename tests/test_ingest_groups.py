@@ -235,3 +235,22 @@ def test_a_killed_grouped_commits_spill_is_removed_by_the_next_sync(tmp_path):
     with open_workspace(db) as ws:
         assert sync_positions_parquet(ws)["removed"] == 1
     assert not spill.exists()
+
+
+def test_a_killed_ingests_group_folder_is_removed_by_the_next_grouped_ingest(tmp_path, monkeypatch):
+    monkeypatch.setattr(groups_mod, "GROUP_BYTES", 2000)
+    monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", 2000)
+    rows = [dma_row(f"01/03/2025 00:{i // 60:02d}:{i % 60:02d}", str(219000000 + i % 7), "55.000000",
+                    f"{10 + i * 1e-4:.6f}") for i in range(300)]
+    path = tmp_path / "in" / "day.csv"
+    path.parent.mkdir()
+    path.write_text("\n".join([DMA_HEADER] + rows) + "\n")
+    mine = tmp_path / ".stormlane-groups-w-dead1"  # a killed ingest into w.duckdb left it
+    other = tmp_path / ".stormlane-groups-w-2-live"  # workspace w-2's, beside it
+    for d in (mine, other):
+        d.mkdir()
+        (d / "group-0000.csv").write_text("x")
+    with open_workspace(tmp_path / "w.duckdb") as ws:
+        assert ingest_file(ws, path, fmt="dma")["staging"] == "groups"
+    assert not mine.exists() and other.exists()
+    assert [p.name for p in tmp_path.glob(".stormlane-groups-*")] == [other.name]
