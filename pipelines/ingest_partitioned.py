@@ -90,7 +90,7 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = ""
             info, raw_from = {}, None
             try:
                 info = stage_file(mem, plain) if plain is not None else stage_or_gzip_error(mem, f, full)
-                name = full.result().replace(":", "-").replace("#", "-")
+                name = spool.spool_name(full.result())
                 if info.get("staging") == "scan":
                     if plain is not None:
                         os.replace(plain.path, folder / spool.PLAIN_CSV)
@@ -127,12 +127,7 @@ def _plain_to_spool(f, source, fp: str, folder: Path, spool_dir, suffix: str) ->
     path = str(Path(f.path).resolve())
     if source is not f:
         os.replace(source.path, folder / spool.PLAIN_CSV)
-        final = Path(spool_dir) / f"{fp.replace(':', '-').replace('#', '-')}.plain"
-        try:
-            folder.rename(final)
-        except OSError:  # the same bytes spooled by another stage: keep that one
-            if not (final / spool.PLAIN_CSV).exists():
-                raise
+        final = spool.claim(folder, Path(spool_dir) / f"{spool.spool_name(fp)}.plain", spool.PLAIN_CSV)
         path = str(final / spool.PLAIN_CSV)
     return {"path": str(f.path), "format": f.format, "fingerprint": fp, "quick_key": quick_key(f.path) + suffix,
             "size_bytes": f.size_bytes, "ignored": 0, "spool": path, "spool_kind": "plain", "staging": "groups",

@@ -173,19 +173,22 @@ def fingerprint(path: str | Path, algo: str = FINGERPRINT_ALGOS[0], chunk: int =
             # Read in blocks, not through update_mmap: a map of the whole file made the process's
             # resident memory grow with the file (1.9 GB for a 1.9 GB file), at the same speed
             # (0.78 against 0.82 s here). The hash releases the GIL on such blocks.
-            buf = bytearray(16 << 20)
-            view = memoryview(buf)
-            with open(path, "rb", buffering=0) as fh:
-                while n := fh.readinto(buf):
-                    h.update(view[:n])
+            _read_blocks(path, h.update, 16 << 20)
         return "blake3:" + h.hexdigest()
     if algo != "sha256":
         raise ValueError(f"unknown fingerprint algorithm {algo!r} (known: {', '.join(FINGERPRINT_ALGOS)})")
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while block := fh.read(chunk):
-            h.update(block)
+    _read_blocks(path, h.update, chunk)
     return "sha256:" + h.hexdigest()
+
+
+def _read_blocks(path, sink, chunk: int) -> None:
+    """Pass a plain file's bytes to ``sink`` in blocks of ``chunk`` bytes (one reused buffer)."""
+    buf = bytearray(chunk)
+    view = memoryview(buf)
+    with open(path, "rb", buffering=0) as fh:
+        while n := fh.readinto(buf):
+            sink(view[:n])
 
 
 def gunzip_into(path: str | Path, sink, chunk: int = 1 << 22) -> int:

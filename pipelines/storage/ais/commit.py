@@ -441,9 +441,9 @@ class _Laps:
 
 def _commit_rows(ws, meta: dict, file_id: int, max_speed_kn: float, laps: _Laps, start_parts) -> dict:
     """Inside the file's transaction: rules 7-8 of the installed stage, then its positions (with
-    the track ends), quarantine and vessels. ``start_parts()`` is called once the rows to
-    insert are in ``ais_new`` (the Parquet parts are written from them). Returns the stage's
-    counts."""
+    the track ends), quarantine and vessels. ``start_parts(new)`` is called once the rows to
+    insert are in ``ais_new`` (the Parquet parts are written from them; ``new``: those rows as
+    an Arrow table when they are one, a group's, else None). Returns the stage's counts."""
     con = ws.con
     _rules_7_8(con, meta, max_speed_kn)
     laps("rules_7_8")
@@ -454,6 +454,7 @@ def _commit_rows(ws, meta: dict, file_id: int, max_speed_kn: float, laps: _Laps,
     rows = (f"SELECT mmsi, make_timestamptz(epoch_us(time_utc)) AS time_utc, {_norm()}, "
             f"CAST(? AS INTEGER) AS file_id, {line} AS source_line "
             f"FROM ais_stage ANTI JOIN ais_out USING (line) {join} WHERE {_OK}")
+    new = None
     if meta.get("line_map") is None:
         con.execute(f"CREATE OR REPLACE TEMP TABLE ais_new AS {rows}", [file_id])
     else:
@@ -464,8 +465,9 @@ def _commit_rows(ws, meta: dict, file_id: int, max_speed_kn: float, laps: _Laps,
 
         path = Path(meta["folder"]) / f"{meta['name']}.new.arrow"
         spool.write_ipc(parquet._fetch_arrow(con, rows, [file_id]), path)
-        con.register("ais_new", spool.read_ipc(path))
-    start_parts()
+        new = spool.read_ipc(path)
+        con.register("ais_new", new)
+    start_parts(new)
     loaded = con.execute("INSERT INTO ais_positions SELECT * FROM ais_new").fetchone()[0]
     _update_track_ends(con, file_id)
     laps("insert")
@@ -493,7 +495,7 @@ def _commit_groups(ws, meta: dict, groups, file_id: int, max_speed_kn: float, la
         con.register("ais_line_map", gmeta["line_map"])
         try:
             counts = _commit_rows(ws, gmeta, file_id, max_speed_kn, laps,
-                                  lambda: sink.add(con, "ais_new") if sink is not None else None)
+                                  lambda new: sink.add(new) if sink is not None else None)
         finally:
             con.unregister("ais_line_map")
             if gmeta.get("line_index") is not None:
@@ -550,7 +552,7 @@ def classify_and_commit(ws, meta: dict, max_speed_kn: float = C.DEFAULT_MAX_SPEE
     try:
         file_id = _next_file_id(con)
         if groups is None:
-            def start_parts() -> None:
+            def start_parts(_new) -> None:
                 nonlocal pending  # known to the rollback below as soon as the writer runs
                 pending = parquet.start_file_parts(ws, file_id, source="ais_new")
 

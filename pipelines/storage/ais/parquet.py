@@ -103,6 +103,11 @@ def _bbox_bounds(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo.astype(np.float32), hi.astype(np.float32)
 
 
+def bbox_of(lon: np.ndarray, lat: np.ndarray) -> list[float]:
+    """[xmin, ymin, xmax, ymax] of points (at least one)."""
+    return [float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max())]
+
+
 def geoparquet_table(table, extent: list | None = None):
     """Canonical positions (an Arrow table with :data:`CANONICAL_COLUMNS`) as the dataset's
     GeoParquet table: ``geometry`` and ``bbox`` instead of ``lat_deg``/``lon_deg``, the ``geo``
@@ -123,7 +128,7 @@ def geoparquet_table(table, extent: list | None = None):
     k = out.schema.get_field_index("time_utc")
     out = out.set_column(k, "time_utc", out.column(k).cast(pa.timestamp("us", tz="UTC")))
     if extent is None:
-        extent = [float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max())] if len(lat) else []
+        extent = bbox_of(lon, lat) if len(lat) else []
     geo = {
         "version": GEOPARQUET_VERSION,
         "primary_column": "geometry",
@@ -193,6 +198,20 @@ def _write_parts(con, root: Path, file_id: int, tmp: bool, days: set | None = No
     return _write_table_parts(_fetch_arrow(con, _file_rows_sql(source), [int(file_id)]), root, file_id, tmp, days)
 
 
+def new_part(root: Path, day: str, file_id: int, rows: int) -> Part:
+    """The part of (``file_id``, ``day``): its final path, its temporary one (its day's folder made)."""
+    folder = root / f"day={day}"
+    folder.mkdir(parents=True, exist_ok=True)
+    final = folder / part_name(file_id)
+    return Part(final, folder / f".{final.name}.{os.getpid()}.tmp", rows)
+
+
+def record_parts(con, file_id: int, parts: list[Part]) -> None:
+    """Record written parts in ``ais_parquet_parts`` (inside the file's transaction)."""
+    for p in parts:
+        con.execute("INSERT INTO ais_parquet_parts VALUES (?, ?, ?)", [int(file_id), p.path.parent.name[4:], p.rows])
+
+
 def _write_table_parts(table, root: Path, file_id: int, tmp: bool, days: set | None = None) -> list[Part]:
     """Sort an Arrow table of one file's rows and write its parts (numpy, pyarrow and the file
     system only: safe in a thread while the caller's DuckDB connection works on)."""
@@ -204,14 +223,10 @@ def _write_table_parts(table, root: Path, file_id: int, tmp: bool, days: set | N
         for day, start, n in slices:
             if days is not None and day not in days:
                 continue
-            folder = root / f"day={day}"
-            folder.mkdir(parents=True, exist_ok=True)
-            final = folder / part_name(file_id)
-            target = folder / f".{final.name}.{os.getpid()}.tmp"
-            parts.append(Part(final, target, n))
-            write_geoparquet(geoparquet_table(table.slice(start, n)), target)
+            parts.append(new_part(root, day, file_id, n))
+            write_geoparquet(geoparquet_table(table.slice(start, n)), parts[-1].tmp)
             if not tmp:
-                os.replace(target, final)
+                os.replace(parts[-1].tmp, parts[-1].path)
     except BaseException:
         if tmp:
             discard(parts)
@@ -241,9 +256,7 @@ class PendingParts:
             parts = self._future.result()
         finally:
             self._pool.shutdown(wait=True)
-        for p in parts:
-            self._ws.con.execute("INSERT INTO ais_parquet_parts VALUES (?, ?, ?)",
-                                 [self._file_id, p.path.parent.name[4:], p.rows])
+        record_parts(self._ws.con, self._file_id, parts)
         return parts
 
     def abandon(self) -> None:

@@ -44,11 +44,10 @@ class GroupParts:
         spill.mkdir(parents=True)
         return cls(ws, file_id, root, spill)
 
-    def add(self, con, source: str) -> None:
-        """Spill the group's rows in ``source`` (the canonical columns) by day."""
+    def add(self, table) -> None:
+        """Spill the group's new rows (an Arrow table in the canonical columns) by day."""
         import pyarrow as pa
 
-        table = P._fetch_arrow(con, P._file_rows_sql(source), [self._file_id])
         k = self._n_groups
         self._n_groups += 1
         if table.num_rows == 0:
@@ -57,8 +56,7 @@ class GroupParts:
         options = pa.ipc.IpcWriteOptions(compression="lz4")
         for day, start, n in slices:
             part = table.slice(start, n)
-            lon, lat = part.column("lon_deg").to_numpy(), part.column("lat_deg").to_numpy()
-            box = [float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max())]
+            box = P.bbox_of(part.column("lon_deg").to_numpy(), part.column("lat_deg").to_numpy())
             d = self._days.setdefault(day, {"rows": 0, "box": box, "files": []})
             d["rows"] += n
             d["box"] = [min(d["box"][0], box[0]), min(d["box"][1], box[1]),
@@ -74,12 +72,9 @@ class GroupParts:
         try:
             for day in sorted(self._days):
                 d = self._days[day]
-                folder = self._root / f"day={day}"
-                folder.mkdir(parents=True, exist_ok=True)
-                final = folder / P.part_name(self._file_id)
-                self._parts.append(P.Part(final, folder / f".{final.name}.{os.getpid()}.tmp", d["rows"]))
+                self._parts.append(P.new_part(self._root, day, self._file_id, d["rows"]))
                 self._write_day(self._parts[-1].tmp, d)  # listed first: abandon() removes a partial write
-                self._ws.con.execute("INSERT INTO ais_parquet_parts VALUES (?, ?, ?)", [self._file_id, day, d["rows"]])
+            P.record_parts(self._ws.con, self._file_id, self._parts)
         finally:
             shutil.rmtree(self._spill, ignore_errors=True)
         return self._parts

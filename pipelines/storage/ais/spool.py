@@ -97,11 +97,22 @@ def write_scan(con, info: dict, folder: Path, name: str) -> Path:
     plain = folder / PLAIN_CSV
     extra = {**extra, "path": PLAIN_CSV if plain.exists() else str(Path(extra["path"]).resolve())}
     (folder / META_JSON).write_text(json.dumps({"kind": kind, "extra": extra}))
-    final = folder.parent / f"{name}.scan"
+    return claim(folder, folder.parent / f"{name}.scan", META_JSON)
+
+
+def spool_name(fingerprint: str) -> str:
+    """A spooled stage's file name from its input's fingerprint (no ``:`` or ``#``)."""
+    return fingerprint.replace(":", "-").replace("#", "-")
+
+
+def claim(folder: Path, final: Path, marker: str) -> Path:
+    """Rename the complete ``folder`` to ``final``; returns ``final``. Another complete folder of
+    that name (``marker`` in it: a retried or concurrent stage of the same bytes) is kept and
+    this one removed."""
     try:
         folder.rename(final)
     except OSError:
-        if not (final / META_JSON).exists():
+        if not (final / marker).exists():
             raise
         shutil.rmtree(folder, ignore_errors=True)
     return final
