@@ -216,3 +216,46 @@ def test_a_wkb_point_is_written_as_duckdbs_st_astext_writes_it():
     got = [geometry_text(b) for b in blobs]
     assert got == want
     assert got[-1] == "POINT (0.1 0.1)" and "POINT (-nan -inf)" in got and "POINT EMPTY" in got
+
+
+def test_dma_status_words_are_statuses_in_parquet_as_in_csv(tmp_path):
+    """A DMA CSV file converted to Parquet keeps its status words (``Under way using engine``):
+    they are the statuses the CSV readers take (ITU-R M.1371-5 codes), in the SQL stage and the
+    pure reader alike; a number as text is a number; a word not known is ``bad_nav_status``.
+    Every row was quarantined as ``bad_nav_status`` before."""
+    from ais.io.parquet import read_parquet_stage
+
+    status = ["Under way using engine", " moored ", "At anchor", "5", None, "Sailing along"]
+    src = _three_vessels(tmp_path / "words.parquet", nav_status=status)
+    want = [0.0, 5.0, 1.0, 5.0, None, None]
+    ingest_paths([src], tmp_path / "w.duckdb")
+    with open_workspace(tmp_path / "w.duckdb") as ws:
+        loaded = dict(ws.con.execute("SELECT lat_deg, nav_status FROM ais_positions").fetchall())
+        bad = ws.con.execute("SELECT line, reason FROM ais_quarantine").fetchall()
+    assert [loaded.get(55.0 + i * 1e-4) for i in range(5)] == want[:5]
+    assert bad == [(6, "bad_nav_status")]
+    stage = read_parquet_stage(src)[0]
+    assert [None if pd.isna(v) else v for v in stage["nav_status"]] == want
+    assert list(stage["parse_error"].fillna("")) == ["", "", "", "", "", "bad_nav_status"]
+
+
+def test_a_parquet_file_of_quarantined_rows_stays_within_duckdbs_memory(tmp_path, monkeypatch):
+    """Every row quarantined, each with its text read back from the file at the commit: joined
+    into the quarantine's insert, not updated into a temporary table first (that ``UPDATE`` ran
+    out of DuckDB's 1 GB on a 2.9 M-row file; here 300,000 rows under a 72 MB limit, where it needed more than 80 MB)."""
+    from pipelines.storage.ais import commit
+
+    monkeypatch.setattr(commit, "INGEST_MEMORY_LIMIT_MB", 72)
+    n = 300_000
+    pq.write_table(pa.table({
+        "mmsi": pa.array(np.arange(n) % 500 + 219000000),
+        "time_utc": pa.array(pd.Timestamp("2025-01-01") + pd.to_timedelta(np.arange(n), "s")),
+        "lat": pa.array(np.full(n, 55.0)), "lon": pa.array(np.full(n, 12.0)),
+        "nav_status": pa.array(["Under way, and more words than any status has"] * n),
+    }), tmp_path / "bad.parquet")
+    s = ingest_paths([tmp_path / "bad.parquet"], tmp_path / "w.duckdb")
+    assert (s["loaded"], s["quarantined"]) == (0, n)
+    with open_workspace(tmp_path / "w.duckdb") as ws:
+        assert ws.con.execute("SELECT count(*), count(DISTINCT line), min(line), max(line), "
+                              "count(*) FILTER (WHERE raw LIKE '219000499,2025-01-0_ %,55.0,12.0,Under way, and more words than any status has') "
+                              "FROM ais_quarantine").fetchone() == (n, n, 1, n, n // 500)

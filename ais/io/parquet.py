@@ -31,7 +31,7 @@ import pandas as pd
 
 from ais.clean import BAD_COG, BAD_HEADING, BAD_LAT, BAD_LON, BAD_NAV_STATUS, BAD_SOG, KIND_POSITION, conform_stage
 from ais.errors import AisFormatError
-from ais.io.csv_formats import type_static
+from ais.io.csv_formats import NAV_STATUS_WORDS, WS, type_static
 
 #: stage field -> accepted source names, canonical first.
 ALIASES = {
@@ -147,6 +147,9 @@ def read_parquet_stage(path) -> tuple[pd.DataFrame, dict]:
                 vals = pd.Series(widen_float32(col.to_numpy()), index=df.index)
             else:
                 vals = pd.to_numeric(col, errors="coerce").astype(float)
+            if fld == "nav_status" and not pd.api.types.is_numeric_dtype(col):  # a number or a DMA word
+                words = col.astype("string").str.strip(WS).str.lower().map(NAV_STATUS_WORDS)
+                vals = vals.where(vals.notna(), pd.to_numeric(words, errors="coerce").astype(float))
             bad = col.notna() & vals.isna()
             perr[bad.to_numpy() & np.equal(perr, None)] = _FIELD_CODES[fld]
             out[fld] = vals

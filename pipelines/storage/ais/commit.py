@@ -265,25 +265,29 @@ def _outcomes_with_stored(con, max_speed_kn: float, scan_fixes: dict) -> tuple[n
     return lines, reasons
 
 
-def _fill_raw(con, meta: dict) -> None:
-    """Raw text for the quarantined rows staged without it: from the line index (fast CSV
-    path) or from the Parquet file (:func:`stage_tables.parquet_raw_lines`)."""
+def _insert_quarantine(con, meta: dict, file_id: int) -> None:
+    """``ais_q`` into ``ais_quarantine`` under the input's lines (:func:`_line_source`), with the
+    raw text of the rows staged without it: from the Parquet file
+    (:func:`stage_tables.parquet_raw_lines`) or from the line index (fast CSV path).
+
+    Joined in the insert, not updated into ``ais_q`` first: a Parquet file of 2.9 M rows all
+    quarantined (DMA status words in its status column) ran out of DuckDB's 1 GB memory in that
+    ``UPDATE`` (issue 23)."""
     import pyarrow as pa
 
+    line, join = _line_source(meta)
+    insert = (f"INSERT INTO ais_quarantine SELECT ?, {line}, q.reason, coalesce(q.raw, r.raw), q.mmsi, q.time_utc "
+              "FROM ais_q q LEFT JOIN {raw} r USING (line) " + join)
     extra = _stage_kind(con)[1]
     if "raw_path" in extra:
-        con.execute(f"UPDATE ais_q SET raw = r.raw FROM "
-                    f"{parquet_raw_lines(extra, 'SELECT line FROM ais_q WHERE raw IS NULL')} r "
-                    f"WHERE ais_q.line = r.line")
+        con.execute(insert.format(raw=parquet_raw_lines(extra, "SELECT line FROM ais_q WHERE raw IS NULL")), [file_id])
         return
     need = np.asarray(con.execute("SELECT line FROM ais_q WHERE raw IS NULL ORDER BY line").fetchnumpy()["line"],
                       dtype=np.int64)
-    if len(need) == 0:
-        return
-    ix = _line_index(con, meta)
-    con.register("ais_raw_df", pa.table({"line": need, "raw": pa.array(ix.text(need), pa.string())}))
+    texts = _line_index(con, meta).text(need) if len(need) else []
+    con.register("ais_raw_df", pa.table({"line": need, "raw": pa.array(texts, pa.string())}))
     try:
-        con.execute("UPDATE ais_q SET raw = r.raw FROM ais_raw_df r WHERE ais_q.line = r.line")
+        con.execute(insert.format(raw="ais_raw_df"), [file_id])
     finally:
         con.unregister("ais_raw_df")
 
@@ -355,10 +359,7 @@ def _write_quarantine(con, meta: dict, file_id: int) -> tuple[dict, int, int, in
         WHERE s.kind = ? AND (s.reason0 IS NOT NULL OR o.reason IS NOT NULL)""",
         [C.BAD_LINE, C.BAD_LINE, C.KIND_POSITION],
     )
-    _fill_raw(con, meta)
-    line, join = _line_source(meta)
-    con.execute(f"INSERT INTO ais_quarantine SELECT ?, {line}, reason, raw, mmsi, time_utc FROM ais_q {join}",
-                [file_id])
+    _insert_quarantine(con, meta, file_id)
     reasons = dict(con.execute("SELECT reason, count(*) FROM ais_q GROUP BY reason ORDER BY reason").fetchall())
     read, static = con.execute(
         "SELECT count(*) FILTER (WHERE kind = ?), count(*) FILTER (WHERE kind = ?) FROM ais_stage",

@@ -66,6 +66,10 @@ def stage_parquet(ws, path: Path, mapping: dict[str, str], raw_from_file: bool =
             value = f"TRY_CAST({src(fld)}.{axis} AS DOUBLE)"  # GeoArrow's point struct
         elif fld in f32:
             value = f"{_F32_PREFIX}{fld}"  # widened in numpy and joined by row (_side_table)
+        elif fld == "nav_status" and cols.get(mapping[fld], "") == "VARCHAR":
+            # text: a number, or a DMA status word as the CSV readers take it (a DMA CSV file
+            # converted to Parquet keeps its words: every row was quarantined as bad_nav_status)
+            value = f"coalesce({value}, MAP($nav_k::VARCHAR[], $nav_v::INTEGER[])[lower(trim({src(fld)}, $ws))])"
         return f"CASE WHEN isnan({value}) THEN NULL ELSE {value} END"
 
     def unreadable(fld):
