@@ -4,11 +4,13 @@
 (``bench/scale.py``'s generator: daily gzip files in the DMA layout), joins its days into ONE
 plain DMA CSV file (one header: a real DMA daily file holds about 20 M rows), and ingests it
 into a new workspace twice, each in a fresh process, in alternating order over ``--repeat``
-rounds so that both sides see the same machine load:
+rounds so that both sides see the same machine load. With ``--format parquet`` the one file is
+that CSV file written as Parquet (:func:`to_parquet`), split by rows instead of bytes:
 
 * ``groups``: the product's ingest (``pipelines.ingest.ingest_paths``) of a file above
-  ``pipelines.ingest_groups.GROUP_MIN_BYTES`` (forced whatever the file's size): split into MMSI
-  ranges of ``GROUP_BYTES``, committed one after the other in the file's transaction;
+  ``pipelines.ingest_groups.GROUP_MIN_BYTES`` (Parquet: ``PARQUET_GROUP_MIN_ROWS``; forced
+  whatever the file's size): split into MMSI ranges of ``GROUP_BYTES`` (``PARQUET_GROUP_ROWS``),
+  committed one after the other in the file's transaction;
 * ``whole`` (the baseline): the same call with the file staged and committed whole (what the
   ingest does with files up to ``GROUP_MIN_BYTES``, and did with every file before the groups).
 
@@ -55,6 +57,30 @@ def join_days(folder: Path, out: Path) -> int:
     return rows
 
 
+def to_parquet(csv: Path, out: Path) -> None:
+    """The joined DMA file as one Parquet file of typed columns under the canonical names (what
+    a user converting DMA's CSV files would write): numbers as DOUBLE, the MMSI as BIGINT, the
+    time as TIMESTAMP, the status and ship type as DMA's words; a value that does not type is
+    missing (DuckDB's ``TRY_CAST``). Row groups of 122,880 rows, zstd."""
+    import duckdb
+
+    num = "TRY_CAST({} AS DOUBLE)"
+    cols = {"time_utc": "try_strptime(\"# Timestamp\", '%d/%m/%Y %H:%M:%S')", "mmsi": "TRY_CAST(MMSI AS BIGINT)",
+            "lat_deg": num.format("Latitude"), "lon_deg": num.format("Longitude"), "sog_kn": num.format("SOG"),
+            "cog_deg": num.format("COG"), "heading_deg": num.format("Heading"),
+            "nav_status": "\"Navigational status\"", "imo": "IMO", "name": "Name", "callsign": "Callsign",
+            "ship_type": "\"Ship type\"", "length_m": num.format("Length"), "beam_m": num.format("Width"),
+            "draught_m": num.format("Draught"), "destination": "Destination"}
+    select = ", ".join(f"{v} AS {k}" for k, v in cols.items())
+    con = duckdb.connect(config={"memory_limit": "2GB", "preserve_insertion_order": True})
+    try:
+        con.execute(f"COPY (SELECT {select} FROM read_csv($src, all_varchar = true, delim = ',', header = true, "
+                    f"quote = '\"', strict_mode = false, ignore_errors = true)) TO $out "
+                    "(FORMAT parquet, ROW_GROUP_SIZE 122880, COMPRESSION zstd)", {"src": str(csv), "out": str(out)})
+    finally:
+        con.close()
+
+
 def ingest_side(path: str, db: str, grouped: bool) -> dict:
     """One ingest in this (fresh) process, sampling its anonymous memory; ``grouped``: the file
     is split whatever its size (else committed whole)."""
@@ -64,6 +90,7 @@ def ingest_side(path: str, db: str, grouped: bool) -> dict:
     from pipelines.ingest import ingest_paths
 
     groups.GROUP_MIN_BYTES = 0 if grouped else 1 << 62
+    groups.PARQUET_GROUP_MIN_ROWS = 0 if grouped else 1 << 62
     peak = {"anon_mb": 0.0}
     done = threading.Event()
 
@@ -92,7 +119,7 @@ def _dataset_digest(db: Path) -> str:
     return h.hexdigest()
 
 
-def run(rows: int, workdir: Path, vessels: int = 300, repeat: int = 3) -> dict:
+def run(rows: int, workdir: Path, vessels: int = 300, repeat: int = 3, fmt: str = "dma") -> dict:
     from bench.scale import ROWS_PER_SHIP_DAY, generate, table_digests
 
     workdir.mkdir(parents=True, exist_ok=True)
@@ -101,6 +128,10 @@ def run(rows: int, workdir: Path, vessels: int = 300, repeat: int = 3) -> dict:
     one = workdir / "one.csv"
     if not one.exists():
         join_days(workdir / "scenario", one)
+    if fmt == "parquet":
+        one, csv = workdir / "one.parquet", one
+        if not one.exists():
+            to_parquet(csv, one)
     size = one.stat().st_size
     cfg = Config(timeout_s=7200)
     tmp = Path(tempfile.mkdtemp(prefix="bench-large-"))
@@ -119,7 +150,7 @@ def run(rows: int, workdir: Path, vessels: int = 300, repeat: int = 3) -> dict:
             results[side].append({"wall_s": r["wall_s"], "peak_mb": rec["peak_mb"], **r["info"]})
             digests[side] = (table_digests(db, TABLES), _dataset_digest(db))
     shutil.rmtree(tmp, ignore_errors=True)
-    summary = {"rows": results["whole"][0]["work"], "file_mb": size / 1e6, "generated_rows": gen["work"],
+    summary = {"format": fmt, "rows": results["whole"][0]["work"], "file_mb": size / 1e6, "generated_rows": gen["work"],
                "same_tables": digests["groups"][0] == digests["whole"][0],
                "same_dataset": digests["groups"][1] == digests["whole"][1]}
     for side, runs in results.items():
@@ -129,7 +160,8 @@ def run(rows: int, workdir: Path, vessels: int = 300, repeat: int = 3) -> dict:
 
 
 def print_summary(s: dict) -> None:
-    print(f"one plain DMA file: {s['rows']:,} rows, {s['file_mb']:,.0f} MB; medians of the rounds")
+    kind = "Parquet" if s.get("format") == "parquet" else "plain DMA"
+    print(f"one {kind} file: {s['rows']:,} rows, {s['file_mb']:,.0f} MB; medians of the rounds")
     print(f"{'side':<8}{'staging':<9}{'wall s':>9}{'rows/s':>11}{'peak MB':>9}{'anon MB':>9}"
           f"{'x wall':>8}{'x peak':>8}{'x anon':>8}")
     base = s["whole"]
@@ -148,11 +180,13 @@ def main(argv=None) -> dict:
     ap.add_argument("--rows", type=int, required=True, help="AIS rows of the one file (about)")
     ap.add_argument("--vessels", type=int, default=300)
     ap.add_argument("--repeat", type=int, default=3, help="rounds of both sides (medians are printed)")
+    ap.add_argument("--format", choices=("dma", "parquet"), default="dma",
+                    help="the one file: the joined DMA CSV, or that file as Parquet (bench.ingest_large.to_parquet)")
     ap.add_argument("--workdir", type=Path, default=None, help="default: $TMPDIR/stormlane-large-ROWS")
     a = ap.parse_args(argv)
     workdir = a.workdir or Path(tempfile.gettempdir()) / f"stormlane-large-{a.rows}"
     t = time.perf_counter()
-    s = run(a.rows, workdir, a.vessels, a.repeat)
+    s = run(a.rows, workdir, a.vessels, a.repeat, a.format)
     print_summary(s)
     print(f"({time.perf_counter() - t:.0f} s)")
     return s

@@ -1,15 +1,16 @@
-"""A large DMA/NOAA CSV file ingested in groups of whole vessels, with the memory of one group.
+"""A large AIS file ingested in groups of whole vessels, with the memory of one group.
 
 The ingest's peak memory grew with the rows of its largest file (about 0.37 GB plus 0.69 KB per
-row, measured on 0.26-2.94 M-row files; issue 23): a file is staged and committed whole. A
-plain CSV file above :data:`GROUP_MIN_BYTES` is now split into MMSI ranges of about
-:data:`GROUP_BYTES` each (:func:`ais.io.csv_buckets.split_by_mmsi`, in a scratch folder beside
-the workspace), and each group is staged like a file of its own (the same readers, on a private
-DuckDB) and committed in turn inside the file's one transaction
-(:func:`pipelines.storage.ais.classify_and_commit` with ``groups``). Every cross-row rule works
-within one vessel's rows, so the tables are those of the whole file's commit; the quarantine
-and ``source_line`` name the input's lines; the file's row, fingerprint and counts are the
-file's.
+row of CSV, measured on 0.26-2.94 M-row files; issue 23): a file is staged and committed whole.
+A plain DMA/NOAA CSV file above :data:`GROUP_MIN_BYTES` is now split into MMSI ranges of about
+:data:`GROUP_BYTES` each (:func:`ais.io.csv_buckets.split_by_mmsi`), and a Parquet file above
+:data:`PARQUET_GROUP_MIN_ROWS` rows into ranges of about :data:`PARQUET_GROUP_ROWS` rows
+(:func:`ais.io.parquet_buckets.split_by_keys`), in a scratch folder beside the workspace. Each
+group is staged like a file of its own (the same readers, on a private DuckDB) and committed in
+turn inside the file's one transaction (:func:`pipelines.storage.ais.classify_and_commit` with
+``groups``). Every cross-row rule works within one vessel's rows, so the tables are those of
+the whole file's commit; the quarantine and ``source_line`` name the input's lines; the file's
+row, fingerprint and counts are the file's. NMEA files are committed whole.
 """
 
 from __future__ import annotations
@@ -30,11 +31,34 @@ GROUP_MIN_BYTES = 1 << 30
 #: Plain CSV bytes per group (about 1.2-1.9 M DMA rows): the grouped ingest of one 9.7 M-row
 #: file peaked at 1.54 GB resident (0.97 GB of its own; 6.75 GB whole), bench/ingest_large.py.
 GROUP_BYTES = 256 << 20
+#: Parquet files above this many rows are split (:mod:`ais.io.parquet_buckets`): their bytes
+#: say little of their rows (a 82 MB file held 2.93 M rows). Committed whole, a Parquet file
+#: peaked at 1.94 GB at 2.93 M rows (about 0.37 GB + 0.54 KB per row, bench/ingest_large.py
+#: --format parquet), so about 3.6 GB at this size, about the CSV threshold's 6.4 M rows.
+PARQUET_GROUP_MIN_ROWS = 6_000_000
+#: Parquet rows per group: about a CSV group's (256 MiB of 169-byte DMA rows is 1.6 M).
+PARQUET_GROUP_ROWS = 1_500_000
 
 
 def wants_groups(f) -> bool:
-    """Whether the plain DMA/NOAA CSV file ``f`` (an :class:`ais.io.files.AisFile`) is split."""
-    return f.format in ("dma", "noaa") and not f.compressed and f.size_bytes > GROUP_MIN_BYTES
+    """Whether the file ``f`` (an :class:`ais.io.files.AisFile`) is split: a plain DMA/NOAA CSV
+    file above :data:`GROUP_MIN_BYTES`, a plain Parquet file above :data:`PARQUET_GROUP_MIN_ROWS`."""
+    if f.compressed:
+        return False
+    if f.format == "parquet":
+        return parquet_rows(f.path) > PARQUET_GROUP_MIN_ROWS
+    return f.format in ("dma", "noaa") and f.size_bytes > GROUP_MIN_BYTES
+
+
+def parquet_rows(path) -> int:
+    """The rows of a Parquet file by its footer; 0 when pyarrow cannot read it (the stage then
+    reads it whole, and names what is wrong with it)."""
+    import pyarrow.parquet as pq
+
+    try:
+        return int(pq.ParquetFile(str(path)).metadata.num_rows)
+    except Exception:
+        return 0
 
 
 def _prefix(ws) -> str:
@@ -59,19 +83,57 @@ def remove_leftovers(ws, scratch) -> list[Path]:
 
 
 def split_file(f, scratch, prefix: str = ".stormlane-groups-") -> tuple[Path, list]:
-    """Split ``f`` into groups in a new folder (named ``prefix...``) under ``scratch`` (None: the
-    temporary folder); returns (folder, groups). The caller removes the folder."""
+    """Split ``f`` (a DMA/NOAA CSV file, or a Parquet file) into groups in a new folder (named
+    ``prefix...``) under ``scratch`` (None: the temporary folder); returns (folder, groups). The
+    caller removes the folder."""
     from ais.io.csv_buckets import split_by_mmsi
     from pipelines.ingest_stage import csv_layout
 
-    _, _, _, index = csv_layout(f)
     folder = Path(tempfile.mkdtemp(prefix=prefix, dir=scratch))
     try:
+        if f.format == "parquet":
+            from ais.io.parquet_buckets import split_by_keys
+
+            keys = parquet_keys(f.path, folder / "keys.npy")
+            n = -(-len(keys) // PARQUET_GROUP_ROWS)
+            return folder, split_by_keys(f.path, keys, n, folder)
+        _, _, _, index = csv_layout(f)
         n = -(-int(f.size_bytes) // GROUP_BYTES)
         return folder, split_by_mmsi(f.path, index["mmsi"], n, folder)
     except BaseException:
         shutil.rmtree(folder, ignore_errors=True)
         raise
+
+
+def parquet_keys(path, out: Path):
+    """Each row's MMSI as the Parquet stage reads it (its own SQL,
+    :func:`pipelines.storage.ais.stage_tables._mmsi_sql`; -1 where it reads none), in file
+    order, in the memory-mapped file ``out``: 8 bytes per row on disk, streamed by DuckDB."""
+    import duckdb
+    import numpy as np
+
+    from ais.io.csv_formats import MMSI_RE
+    from ais.io.parquet import column_mapping
+    from pipelines.ingest_stage import _Scratch
+    from pipelines.storage import ais as store
+    from pipelines.storage.ais._sql import _q, _used
+    from pipelines.storage.ais.stage_tables import _mmsi_sql
+
+    con = duckdb.connect(config={"threads": os.cpu_count() or 1})
+    try:
+        cols = dict(store.parquet_columns(_Scratch(con), path))
+        column = column_mapping(list(cols), path, types=cols)["mmsi"]
+        n = int(con.execute("SELECT count(*) FROM read_parquet($path)", {"path": str(path)}).fetchone()[0])
+        keys = np.lib.format.open_memmap(out, mode="w+", dtype=np.int64, shape=(n,))
+        sql = (f"SELECT file_row_number AS row, coalesce({_mmsi_sql(_q(column), cols[column])}, -1) AS key "
+               "FROM read_parquet($path, file_row_number = true)")
+        reader = con.execute(sql, _used(sql, {"path": str(path), "mmsi_re": MMSI_RE})).to_arrow_reader(1 << 20)
+        for batch in reader:
+            keys[batch.column(0).to_numpy()] = batch.column(1).to_numpy()
+        keys.flush()
+        return keys
+    finally:
+        con.close()
 
 
 def commit_in_groups(ws, source, meta: dict, max_speed_kn: float, before_commit=None, scratch=None) -> dict:
@@ -115,25 +177,25 @@ def _install(ws, f, group, folder: Path) -> dict:
     from pipelines.ingest_stage import _Scratch, stage_file
     from pipelines.storage.ais import spool
 
-    gf = inspect(group.csv, f.format, with_fingerprint=False)
+    gf = inspect(group.path, f.format, with_fingerprint=False)
     mem = _Scratch(duckdb.connect(config={"threads": os.cpu_count() or 1}))
     info: dict = {}
     got: dict = {}
     try:
         info = stage_file(mem, gf)
         if info.get("staging") == "scan":
-            out = spool.write_scan(mem.con, info, spool.new_folder(folder), group.csv.stem)
+            out = spool.write_scan(mem.con, info, spool.new_folder(folder), group.path.stem)
             info.pop("scan_table")
             info.pop("scan_fixes")
             got = spool.install_scan(ws, out)
         else:
-            _hand_over_table(mem.con, ws.con, folder / f"{group.csv.stem}.stage.arrow")
+            _hand_over_table(mem.con, ws.con, folder / f"{group.path.stem}.stage.arrow")
     finally:
         if info.get("line_index") is not None:
             info["line_index"].close()
         mem.con.close()
     return {"ignored": int(info["ignored"]), "line_map": _line_map(group, folder), "folder": str(folder),
-            "name": group.csv.stem, "release": lambda: _release(folder, group.csv.stem), **got}
+            "name": group.path.stem, "release": lambda: _release(folder, group.path.stem), **got}
 
 
 def _release(folder: Path, stem: str) -> None:
@@ -157,7 +219,7 @@ def _line_map(group, folder: Path):
     from pipelines.storage.ais import spool
 
     orig = group.line_numbers()
-    path = folder / f"{group.csv.stem}.lines.arrow"
+    path = folder / f"{group.path.stem}.lines.arrow"
     spool.write_ipc(pa.table({"line": np.arange(1, len(orig) + 1, dtype=np.int64), "orig": orig}), path)
     return spool.read_ipc(path)
 

@@ -134,7 +134,7 @@ def test_split_keeps_every_line_once_and_each_vessel_in_one_range(tmp_path):
     typed = _typed_mmsi(tmp_path, path)
     ranges = []
     for g in groups:
-        body = g.csv.read_bytes()
+        body = g.path.read_bytes()
         assert body.endswith(b"\n")
         got = body[:-1].split(b"\n")
         nums = g.line_numbers()

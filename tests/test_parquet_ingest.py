@@ -259,3 +259,25 @@ def test_a_parquet_file_of_quarantined_rows_stays_within_duckdbs_memory(tmp_path
         assert ws.con.execute("SELECT count(*), count(DISTINCT line), min(line), max(line), "
                               "count(*) FILTER (WHERE raw LIKE '219000499,2025-01-0_ %,55.0,12.0,Under way, and more words than any status has') "
                               "FROM ais_quarantine").fetchone() == (n, n, 1, n, n // 500)
+
+
+def test_a_geoparquet_file_with_a_value_that_is_no_wkb_loads_its_other_rows(tmp_path):
+    """DuckDB 1.5 reads a GeoParquet file's WKB column (``geo`` metadata) as its GEOMETRY type:
+    one value that is no WKB failed the whole file ("Unexpected end of binary data"), and a
+    quarantined row's text could not be built. The column is read as the bytes it stores: the
+    points load, the other value is a bad position with its bytes as text (as DuckDB casts a
+    BLOB), a point out of range is quarantined with its WKT."""
+    points = [struct.pack("<BIdd", 1, 1, 12.0 + k * 1e-3, 55.0) for k in range(4)]
+    points[2] = b"xx"
+    points[3] = struct.pack("<BIdd", 1, 1, 12.0, 95.0)
+    geo = (b'{"version":"1.1.0","primary_column":"geometry","columns":{"geometry":'
+           b'{"encoding":"WKB","geometry_types":["Point"]}}}')
+    table = pa.table({"mmsi": pa.array([219000001] * 4),
+                      "time_utc": pa.array(pd.date_range("2025-01-01", periods=4, freq="min").to_numpy()),
+                      "geometry": pa.array(points)}).replace_schema_metadata({b"geo": geo})
+    pq.write_table(table, tmp_path / "geo.parquet")
+    s = ingest_paths([tmp_path / "geo.parquet"], tmp_path / "w.duckdb")
+    assert (s["loaded"], s["quarantined"]) == (2, 2)
+    assert _quarantine(tmp_path / "w.duckdb") == [
+        (3, "bad_lat", "219000001,2025-01-01 00:02:00,xx"),
+        (4, "bad_lat", "219000001,2025-01-01 00:03:00,POINT (12 95)")]

@@ -245,9 +245,10 @@ def _add_counts(mmsi: np.ndarray, rows: np.ndarray, keys: np.ndarray) -> tuple[n
 
 @dataclass(frozen=True)
 class Group:
-    """One group's CSV file, the input's line numbers of its lines (``.npy``) and its lines."""
+    """One group's file (CSV, or Parquet: :mod:`ais.io.parquet_buckets`), the input's line
+    numbers of its lines (``.npy``; a Parquet row's line is its 1-based row number) and its lines."""
 
-    csv: Path
+    path: Path
     lines: Path
     n_lines: int
 

@@ -26,11 +26,21 @@ def _q(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
 
+def parquet_as_stored(con: duckdb.DuckDBPyConnection) -> None:
+    """Read a GeoParquet file's WKB column as the bytes it stores. DuckDB 1.5 reads it as its
+    ``GEOMETRY`` type by default: one value that is no valid WKB then failed the whole file's
+    read ("Unexpected end of binary data"), and the quarantined rows' text could not be built
+    (``octet_length`` takes no ``GEOMETRY``). The stage decodes the points itself
+    (:func:`ais.io.parquet.wkb_point_xy`; a value that is no point is a bad position)."""
+    con.execute("SET enable_geoparquet_conversion = false")
+
+
 def _prepare(con: duckdb.DuckDBPyConnection) -> None:
     """Session settings and helpers of the ingest SQL (idempotent per connection)."""
     con.execute("SET TimeZone = 'UTC'")
     # DuckDB's own progress bar would print to stdout (and break --json); ours is on stderr.
     con.execute("SET enable_progress_bar = false")
+    parquet_as_stored(con)
     con.execute("CREATE OR REPLACE TEMP MACRO ais_num(x) AS nullif(TRY_CAST(x AS DOUBLE), 'nan'::DOUBLE)")
     # A parsed time outside pandas' nanosecond range is no time (as in the pure path).
     con.execute(f"CREATE OR REPLACE TEMP MACRO ais_time(t) AS CASE WHEN t BETWEEN TIMESTAMP '{_PD_TMIN}' "

@@ -13,7 +13,7 @@ from ais.io.csv_formats import MMSI_RE
 from ais.io.parquet import WKB_POINT_HEADS, _blob_text, is_geometry
 from pipelines.storage.ais._sql import (
     _NUM_FIELDS, _STATIC_TYPES, _TEXT_STATIC, _create_stage, _params, _prepare, _q, _set_stage_kind,
-    _stage_kind, _typed_static_select, _used,
+    _stage_kind, _typed_static_select, _used, parquet_as_stored,
 )
 
 
@@ -21,6 +21,7 @@ def parquet_columns(ws, path: Path, shown=None) -> list[tuple[str, str]]:
     """(name, DuckDB type) of the columns of a Parquet file; :class:`AisFormatError` (naming
     ``shown``, default ``path``) when it is not one (e.g. ``--format parquet`` forced on a CSV
     file)."""
+    parquet_as_stored(ws.con)
     try:
         rows = ws.con.execute("DESCRIBE SELECT * FROM read_parquet(?)", [str(path)]).fetchall()
     except (duckdb.InvalidInputException, duckdb.IOException) as err:
