@@ -32,9 +32,10 @@ GROUP_MIN_BYTES = 1 << 30
 #: file peaked at 1.54 GB resident (0.97 GB of its own; 6.75 GB whole), bench/ingest_large.py.
 GROUP_BYTES = 256 << 20
 #: Parquet files above this many rows are split (:mod:`ais.io.parquet_buckets`): their bytes
-#: say little of their rows (a 82 MB file held 2.93 M rows). Committed whole, a Parquet file
-#: peaked at 1.94 GB at 2.93 M rows (about 0.37 GB + 0.54 KB per row, bench/ingest_large.py
-#: --format parquet), so about 3.6 GB at this size, about the CSV threshold's 6.4 M rows.
+#: say little of their rows (241 MB held 10.5 M rows). Committed whole, a Parquet file peaked
+#: at 3.97 GB at 10.5 M rows of typed columns (bench/ingest_large.py --format parquet; 1.78 GB
+#: in groups, 1.49 x the time) and at 1.94 GB at 2.93 M rows of text columns: about 0.37 GB +
+#: 0.3-0.54 KB per row, so 2.2-3.6 GB at this size, about the CSV threshold's 6.4 M rows.
 PARQUET_GROUP_MIN_ROWS = 6_000_000
 #: Parquet rows per group: about a CSV group's (256 MiB of 169-byte DMA rows is 1.6 M).
 PARQUET_GROUP_ROWS = 1_500_000
