@@ -10,7 +10,8 @@ group is staged like a file of its own (the same readers, on a private DuckDB) a
 turn inside the file's one transaction (:func:`pipelines.storage.ais.classify_and_commit` with
 ``groups``). Every cross-row rule works within one vessel's rows, so the tables are those of
 the whole file's commit; the quarantine and ``source_line`` name the input's lines; the file's
-row, fingerprint and counts are the file's. NMEA files are committed whole.
+row, fingerprint and counts are the file's. A plain NMEA file above :data:`NMEA_GROUP_MIN_BYTES` is
+decoded in chunks and its stage rows dealt into groups (:mod:`ais.io.nmea_chunks`).
 """
 
 from __future__ import annotations
@@ -39,13 +40,23 @@ GROUP_BYTES = 256 << 20
 PARQUET_GROUP_MIN_ROWS = 6_000_000
 #: Parquet rows per group: about a CSV group's (256 MiB of 169-byte DMA rows is 1.6 M).
 PARQUET_GROUP_ROWS = 1_500_000
+#: Plain NMEA files above this size are decoded in chunks and committed in groups
+#: (:mod:`ais.io.nmea_chunks`). Read whole, an NMEA file took about 17 bytes of memory per byte
+#: (DMA's framing, 111 bytes per message: 2.3 GB at 111 MB, 6.1 GB at 333 MB, measured for
+#: issue 23), so about 2.4 GB at this size.
+NMEA_GROUP_MIN_BYTES = 128 << 20
+#: NMEA stage rows per group.
+NMEA_GROUP_ROWS = 1_500_000
 
 
 def wants_groups(f) -> bool:
     """Whether the file ``f`` (an :class:`ais.io.files.AisFile`) is split: a plain DMA/NOAA CSV
-    file above :data:`GROUP_MIN_BYTES`, a plain Parquet file above :data:`PARQUET_GROUP_MIN_ROWS`."""
+    file above :data:`GROUP_MIN_BYTES`, a plain Parquet file above :data:`PARQUET_GROUP_MIN_ROWS`,
+    a plain NMEA file above :data:`NMEA_GROUP_MIN_BYTES`."""
     if f.compressed:
         return False
+    if f.format == "nmea":
+        return f.size_bytes > NMEA_GROUP_MIN_BYTES
     if f.format == "parquet":
         return parquet_rows(f.path) > PARQUET_GROUP_MIN_ROWS
     return f.format in ("dma", "noaa") and f.size_bytes > GROUP_MIN_BYTES
@@ -92,6 +103,10 @@ def split_file(f, scratch, prefix: str = ".stormlane-groups-") -> tuple[Path, li
 
     folder = Path(tempfile.mkdtemp(prefix=prefix, dir=scratch))
     try:
+        if f.format == "nmea":
+            from ais.io.nmea_chunks import split_nmea
+
+            return folder, split_nmea(f.path, NMEA_GROUP_ROWS, folder)
         if f.format == "parquet":
             from ais.io.parquet_buckets import split_by_keys
 
@@ -176,14 +191,20 @@ def _install(ws, f, group, folder: Path) -> dict:
 
     from ais.io.files import inspect
     from pipelines.ingest_stage import _Scratch, stage_file
+    from pipelines.storage import ais as store
     from pipelines.storage.ais import spool
 
-    gf = inspect(group.path, f.format, with_fingerprint=False)
+    gf = inspect(group.path, f.format, with_fingerprint=False) if f.format != "nmea" else None
     mem = _Scratch(duckdb.connect(config={"threads": os.cpu_count() or 1}))
     info: dict = {}
     got: dict = {}
     try:
-        info = stage_file(mem, gf)
+        if f.format == "nmea":  # decoded already: the group's stage rows
+            from ais.io.nmea_chunks import read_group
+
+            info = {**store.stage_frame(mem, read_group(group)), "ignored": group.ignored}
+        else:
+            info = stage_file(mem, gf)
         if info.get("staging") == "scan":
             out = spool.write_scan(mem.con, info, spool.new_folder(folder), group.path.stem)
             info.pop("scan_table")

@@ -268,8 +268,22 @@ def parse_lines(lines, progress=None) -> tuple[pd.DataFrame, dict]:
     return stage, meta
 
 
-def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
-    """Vectorised parser with the same result as :func:`parse_lines` (see the module docstring)."""
+class Carry:
+    """What :func:`parse_fast` carries from one chunk of a file's lines to the next
+    (:mod:`ais.io.nmea_chunks`): the first line's number, the multipart groups still open, the
+    time context waiting for the next AIS sentence, and whether this chunk is the last."""
+
+    def __init__(self):
+        self.first_line = 1
+        self.buffers: dict = {}
+        self.ctx_t = _NAT
+        self.last = False
+
+
+def parse_fast(lines: list[str], carry: Carry | None = None) -> tuple[pd.DataFrame, dict]:
+    """Vectorised parser with the same result as :func:`parse_lines` (see the module docstring).
+    With ``carry`` the lines are one chunk of a file (updated for the next; duplicates not
+    marked: :func:`_decode_columns` without ``dedupe``)."""
     # Long by design: one column-wise pass (pyarrow kernels) over the lines whose steps share
     # the same masks; its plain-loop twin :func:`parse_lines` is the readable reference.
     import pyarrow as pa
@@ -277,9 +291,10 @@ def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
 
     n = len(lines)
     items = _Items()
-    if n == 0:
+    if n == 0 and carry is None:
         stage, counts = _decode_items(items)
         return stage, {"ignored": 0, "blank_lines": 0, "other_sentences": 0, **counts}
+    base = 0 if carry is None else carry.first_line - 1
     s = pc.utf8_trim(pa.array(lines, pa.string()), characters=WS)
     blank = pc.equal(pc.utf8_length(s), 0).to_numpy(zero_copy_only=False)
     is_tag = pc.starts_with(s, "\\").to_numpy(zero_copy_only=False)
@@ -327,6 +342,12 @@ def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
     use = (prev_ctx >= 0) & (prev_ctx > prev_reset)
     t_line = np.full(n, _NAT, dtype="datetime64[ns]")
     t_line[use] = ctx_t[prev_ctx[use]]
+    if carry is not None:  # the context left by the chunk before
+        t_line[(prev_ctx < 0) & (prev_reset < 0)] = carry.ctx_t
+        if n and last_ctx[-1] > last_reset[-1]:
+            carry.ctx_t = ctx_t[last_ctx[-1]]
+        elif n and last_reset[-1] >= 0:
+            carry.ctx_t = _NAT
     inline = matched & ~standalone & has_tag_t
     t_line[inline] = tag_t[inline]
 
@@ -344,11 +365,13 @@ def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
         payload_single = payload_all.filter(pa.array(sing))
     idx_s = np.flatnonzero(single)
     irregular = np.flatnonzero(junk | other_bang | (ais & ~single))
+    multi = _Multipart(items)
+    if carry is not None:
+        multi.buffers = carry.buffers
     if len(irregular):
-        multi = _Multipart(items)
         bodies = body.take(pa.array(irregular)).to_pylist()
         for i, b in zip(irregular, bodies):
-            lineno = int(i) + 1
+            lineno = int(i) + 1 + base
             if junk[i]:
                 items.add(lineno, b if not bad_tag[i] else b, BAD_SENTENCE)
                 continue
@@ -358,6 +381,7 @@ def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
                     items.add(lineno, b, BAD_SENTENCE)
                 continue
             multi.add(lineno, b, f, None if np.isnat(t_line[i]) else t_line[i])
+    if carry is None or carry.last:
         multi.finish()
     ignored_other = int(np.sum(dollar & ~pghp)) + sum(
         1 for i in np.flatnonzero(other_bang) if _other_bang_ignored(*_split_once(body, i)))
@@ -365,7 +389,7 @@ def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
 
     # Merge the vectorised singles with the loop's items, in line order.
     k = len(idx_s)
-    line = np.concatenate([idx_s + 1, np.asarray(items.line, dtype=np.int64)])
+    line = np.concatenate([idx_s + 1 + base, np.asarray(items.line, dtype=np.int64)])
     raw = body.take(pa.array(idx_s)).to_pylist() + items.raw if k else list(items.raw)
     perr = [None] * k + items.perr
     t = np.concatenate([t_line[idx_s], np.array([_NAT if x is None else x for x in items.t], dtype="datetime64[ns]")])
@@ -380,7 +404,10 @@ def parse_fast(lines: list[str]) -> tuple[pd.DataFrame, dict]:
         perr = [perr[i] for i in order]
         payload = [payload[i] for i in order]
         sentences = [sentences[i] for i in order]
-    stage, counts = _decode_columns(line[order], raw, perr, t[order], payload, sentences, single_flag[order])
+    stage, counts = _decode_columns(line[order], raw, perr, t[order], payload, sentences, single_flag[order],
+                                    dedupe=carry is None)
+    if carry is not None:
+        carry.first_line += n
     meta = {"ignored": ignored_other + n_blank, "blank_lines": n_blank, "other_sentences": ignored_other, **counts}
     return stage, meta
 
@@ -392,8 +419,27 @@ def _decode_items(items: _Items) -> tuple[pd.DataFrame, dict]:
                            items.sentences, np.asarray(items.single, dtype=bool))
 
 
-def _decode_columns(line, raw, perr, t, payloads, sentences, single) -> tuple[pd.DataFrame, dict]:
-    """Checksums of single sentences, message types, duplicates, decoding; the typed stage."""
+def duplicate_mask(payloads: list[str], t: np.ndarray) -> np.ndarray:
+    """Which of the position payloads ``payloads`` (in line order, received at ``t``) are the
+    same transmission heard twice: identical to the payload's previous occurrence, within
+    :data:`DUPLICATE_WINDOW_S` of it or with either time unknown."""
+    codes, _ = pd.factorize(np.asarray(payloads, dtype=object))
+    order = np.lexsort((np.arange(len(payloads)), codes))
+    same = np.zeros(len(payloads), dtype=bool)
+    same[1:] = codes[order][1:] == codes[order][:-1]
+    tc = np.asarray(t)[order]
+    prev = np.concatenate([[_NAT], tc[:-1]]).astype(tc.dtype)
+    gap = np.abs((tc - prev) / np.timedelta64(1, "s"))
+    dup_sorted = same & (np.isnat(tc) | np.isnat(prev) | (gap <= DUPLICATE_WINDOW_S))
+    dup = np.zeros(len(payloads), dtype=bool)
+    dup[order] = dup_sorted
+    return dup
+
+
+def _decode_columns(line, raw, perr, t, payloads, sentences, single, dedupe: bool = True) -> tuple[pd.DataFrame, dict]:
+    """Checksums of single sentences, message types, duplicates, decoding; the typed stage.
+    Without ``dedupe`` no payload is marked a duplicate: the stage has a ``dup_payload`` column
+    (each duplicate candidate's payload) for :func:`ais.io.nmea_chunks.mark_duplicates`."""
     # Long by design: the typed stage built column by column from the assembled messages (each
     # block fills one group of stage columns for the same rows).
     n = len(line)
@@ -423,17 +469,12 @@ def _decode_columns(line, raw, perr, t, payloads, sentences, single) -> tuple[pd
     # A position payload identical to its previous occurrence, heard within the window (or with
     # an unknown time): the same transmission received twice.
     cand = np.flatnonzero(open_ & np.isin(mtype, list(POSITION_TYPES)))
-    if len(cand):
-        codes, _ = pd.factorize(np.asarray([payloads[i] for i in cand], dtype=object))
-        order = np.lexsort((np.arange(len(cand)), codes))
-        same = np.zeros(len(cand), dtype=bool)
-        same[1:] = codes[order][1:] == codes[order][:-1]
-        tc = t[cand][order]
-        prev = np.concatenate([[_NAT], tc[:-1]])
-        gap = np.abs((tc - prev) / np.timedelta64(1, "s"))
-        dup_sorted = same & (np.isnat(tc) | np.isnat(prev) | (gap <= DUPLICATE_WINDOW_S))
-        dup = np.zeros(len(cand), dtype=bool)
-        dup[order] = dup_sorted
+    dup_payload = None
+    if not dedupe:  # left to the caller, which holds every row of the payloads' vessels
+        dup_payload = np.full(n, None, dtype=object)
+        dup_payload[cand] = [payloads[i] for i in cand]
+    elif len(cand):
+        dup = duplicate_mask([payloads[i] for i in cand], t[cand])
         perr[cand[dup]] = DUPLICATE_PAYLOAD
         open_[cand[dup]] = False
 
@@ -496,7 +537,10 @@ def _decode_columns(line, raw, perr, t, payloads, sentences, single) -> tuple[pd
               "position_messages": int(np.sum(assembled & np.isin(mtype, list(POSITION_TYPES)))),
               "msg_types": {int(k): int(v) for k, v in zip(types, freq)},
               "static": n_static}
-    return conform_stage(df), counts
+    df = conform_stage(df)
+    if dup_payload is not None:
+        df["dup_payload"] = dup_payload
+    return df, counts
 
 
 def iter_lines(path) -> list[str]:
@@ -522,10 +566,15 @@ def read_nmea(path, progress=None, fast: bool = True) -> tuple[pd.DataFrame, dic
     stage, meta = parse_fast(lines) if fast else parse_lines(lines, progress=progress)
     if progress is not None and fast:
         progress(len(lines))
-    # A static message (5, 24) with no valid ship MMSI can be joined to no vessel: it is a
-    # message like any position report, quarantined as bad_mmsi, rather than lost.
+    stage, meta = orphan_statics(stage, meta)
+    return stage, {"format": "nmea", "path": str(Path(path)), **meta}
+
+
+def orphan_statics(stage: pd.DataFrame, meta: dict) -> tuple[pd.DataFrame, dict]:
+    """A static message (5, 24) with no valid ship MMSI can be joined to no vessel: it is a
+    message like any position report, quarantined as bad_mmsi, rather than lost."""
     orphan = (stage["kind"].to_numpy() == KIND_STATIC) & ~valid_mmsi(stage["mmsi"])
     if orphan.any():
         stage.loc[orphan, "kind"] = KIND_POSITION
         meta = {**meta, "static": int(meta["static"]) - int(orphan.sum())}
-    return stage, {"format": "nmea", "path": str(Path(path)), **meta}
+    return stage, meta
