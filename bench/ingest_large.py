@@ -5,7 +5,8 @@
 plain DMA CSV file (one header: a real DMA daily file holds about 20 M rows), and ingests it
 into a new workspace twice, each in a fresh process, in alternating order over ``--repeat``
 rounds so that both sides see the same machine load. With ``--format parquet`` the one file is
-that CSV file written as Parquet (:func:`to_parquet`), split by rows instead of bytes:
+that CSV file written as Parquet (:func:`to_parquet`), split by rows instead of bytes; with
+``--format nmea`` it is an NMEA file of N messages in DMA's framing (:func:`nmea_file`):
 
 * ``groups``: the product's ingest (``pipelines.ingest.ingest_paths``) of a file above
   ``pipelines.ingest_groups.GROUP_MIN_BYTES`` (Parquet: ``PARQUET_GROUP_MIN_ROWS``; forced
@@ -81,6 +82,20 @@ def to_parquet(csv: Path, out: Path) -> None:
         con.close()
 
 
+def nmea_file(out: Path, messages: int, block: int = 1_000_000) -> None:
+    """An NMEA file of about ``messages`` messages in DMA's framing (a tag block, a ``$PGHP``
+    time line, the sentence: ``bench._ingest_data.generate_nmea``), written in blocks of
+    ``block`` messages (seeds 1, 2, ...; each block its own 1,500 vessels and 6 hours)."""
+    from bench._ingest_data import generate_nmea
+
+    with open(out, "wb") as dst:
+        for k in range(-(-messages // block)):
+            part = out.with_suffix(f".part{k}")
+            generate_nmea(part, min(block, messages - k * block), seed=k + 1)
+            dst.write(part.read_bytes())
+            part.unlink()
+
+
 def ingest_side(path: str, db: str, grouped: bool) -> dict:
     """One ingest in this (fresh) process, sampling its anonymous memory; ``grouped``: the file
     is split whatever its size (else committed whole)."""
@@ -91,6 +106,7 @@ def ingest_side(path: str, db: str, grouped: bool) -> dict:
 
     groups.GROUP_MIN_BYTES = 0 if grouped else 1 << 62
     groups.PARQUET_GROUP_MIN_ROWS = 0 if grouped else 1 << 62
+    groups.NMEA_GROUP_MIN_BYTES = 0 if grouped else 1 << 62
     peak = {"anon_mb": 0.0}
     done = threading.Event()
 
@@ -123,11 +139,16 @@ def run(rows: int, workdir: Path, vessels: int = 300, repeat: int = 3, fmt: str 
     from bench.scale import ROWS_PER_SHIP_DAY, generate, table_digests
 
     workdir.mkdir(parents=True, exist_ok=True)
-    days = max(1.0, round(rows / (vessels * ROWS_PER_SHIP_DAY), 2))
-    gen = generate(str(workdir / "scenario"), vessels, days, 23, 2)
-    one = workdir / "one.csv"
-    if not one.exists():
-        join_days(workdir / "scenario", one)
+    if fmt == "nmea":
+        one, gen = workdir / "one.nmea", {"work": rows}
+        if not one.exists():
+            nmea_file(one, rows)
+    else:
+        days = max(1.0, round(rows / (vessels * ROWS_PER_SHIP_DAY), 2))
+        gen = generate(str(workdir / "scenario"), vessels, days, 23, 2)
+        one = workdir / "one.csv"
+        if not one.exists():
+            join_days(workdir / "scenario", one)
     if fmt == "parquet":
         one, csv = workdir / "one.parquet", one
         if not one.exists():
@@ -160,7 +181,7 @@ def run(rows: int, workdir: Path, vessels: int = 300, repeat: int = 3, fmt: str 
 
 
 def print_summary(s: dict) -> None:
-    kind = "Parquet" if s.get("format") == "parquet" else "plain DMA"
+    kind = {"parquet": "Parquet", "nmea": "NMEA"}.get(s.get("format"), "plain DMA")
     print(f"one {kind} file: {s['rows']:,} rows, {s['file_mb']:,.0f} MB; medians of the rounds")
     print(f"{'side':<8}{'staging':<9}{'wall s':>9}{'rows/s':>11}{'peak MB':>9}{'anon MB':>9}"
           f"{'x wall':>8}{'x peak':>8}{'x anon':>8}")
@@ -180,8 +201,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--rows", type=int, required=True, help="AIS rows of the one file (about)")
     ap.add_argument("--vessels", type=int, default=300)
     ap.add_argument("--repeat", type=int, default=3, help="rounds of both sides (medians are printed)")
-    ap.add_argument("--format", choices=("dma", "parquet"), default="dma",
-                    help="the one file: the joined DMA CSV, or that file as Parquet (bench.ingest_large.to_parquet)")
+    ap.add_argument("--format", choices=("dma", "parquet", "nmea"), default="dma",
+                    help="the one file: the joined DMA CSV, that file as Parquet (bench.ingest_large.to_parquet), "
+                         "or NMEA messages (bench.ingest_large.nmea_file; --rows messages)")
     ap.add_argument("--workdir", type=Path, default=None, help="default: $TMPDIR/stormlane-large-ROWS")
     a = ap.parse_args(argv)
     workdir = a.workdir or Path(tempfile.gettempdir()) / f"stormlane-large-{a.rows}"

@@ -142,3 +142,38 @@ def test_which_nmea_files_are_read_in_groups(tmp_path, monkeypatch, size, gz):
         counts = ingest_file(ws, path)
     assert counts["staging"] == "groups" and counts["read"] > 0
     assert np.isfinite(counts["loaded"])
+
+
+@pytest.mark.parametrize("gz", [False, True], ids=["plain", "gzip"])
+def test_partitioned_ingest_commits_a_large_nmea_file_in_groups(tmp_path, monkeypatch, gz):
+    """The worker only inflates (gzip) and hashes the file; the committing process decodes it in
+    chunks and commits its groups: the sequential whole-file workspace, the input kept."""
+    import gzip
+
+    from pipelines import ingest_stage
+    from pipelines.ingest_partitioned import commit_spooled, plan_files, stage_to_spool
+
+    rng = np.random.default_rng(5)
+    lines = [ln for k in rng.integers(0, len(POOL), 400) for ln in POOL[k].split("\n")]
+    data = ("\n".join(lines) + "\n").encode()
+    path = tmp_path / ("in.nmea.gz" if gz else "in.nmea")
+    path.write_bytes(gzip.compress(data) if gz else data)
+    monkeypatch.setattr(ingest_stage, "GZIP_PLAIN_MIN_BYTES", 0)
+    monkeypatch.setattr(P, "ROW_GROUP_ROWS", 20)
+    monkeypatch.setattr(nmea_chunks, "CHUNK_BYTES", 3000)
+    monkeypatch.setattr(groups_mod, "NMEA_GROUP_ROWS", 60)
+    dbs = {}
+    for side, min_bytes in (("whole", 1 << 62), ("part", 1000)):
+        monkeypatch.setattr(groups_mod, "NMEA_GROUP_MIN_BYTES", min_bytes)
+        dbs[side] = tmp_path / side / "w.duckdb"
+        dbs[side].parent.mkdir()
+        spool = tmp_path / side / "spool"
+        spool.mkdir()
+        with open_workspace(dbs[side]) as ws:
+            todo, _ = plan_files(ws, [str(path)], None)
+            staged = stage_to_spool(todo[0], None, str(spool))
+            counts = commit_spooled(ws, staged)
+        assert (counts["staging"] == "groups") == (side == "part") and counts["loaded"] > 0
+        assert list(spool.iterdir()) == [] and path.exists()
+    assert _state(dbs["part"]) == _state(dbs["whole"])
+    assert not list(tmp_path.glob("**/.stormlane-groups-*"))
