@@ -27,8 +27,8 @@ from typing import Callable, Iterable, Optional
 from ais.clean import DEFAULT_MAX_SPEED_KN
 from ais.io.files import expand_paths, inspect
 from pipelines.ingest_stage import (
-    PlainCopiesAhead, check_inputs, done_future, loaded_record, plain_copy, scratch_folder, skipped_counts,
-    stage_file, stage_or_gzip_error, wants_plain_copy,
+    PlainCopiesAhead, check_inputs, done_future, leftover_prefix, loaded_record, plain_copy, remove_leftovers,
+    scratch_folder, skipped_counts, stage_file, stage_or_gzip_error, wants_plain_copy,
 )
 from pipelines.ingest_groups import commit_in_groups, wants_groups
 from pipelines.runners import retry_transient
@@ -107,7 +107,7 @@ def ingest_file(ws, path, fmt: str | None = None, max_speed_kn: float = DEFAULT_
         if plain is None and wants_plain_copy(f):
             # A large gzip CSV file, or a zip archive's or zstd file: decompressed once into a plain copy
             # beside the workspace (hashed on the way: its fingerprint), which the stage reads.
-            plain, fp = plain_copy(f, scratch_folder(ws))
+            plain, fp = plain_copy(f, scratch_folder(ws), leftover_prefix(ws, "gunzip"))
             full = done_future(fp + suffix)
         elif full is None and f.compressed:
             # A gzip file's fingerprint reads the whole stream, which proves it complete: started
@@ -203,7 +203,10 @@ def ingest_paths(paths: Iterable, db, fmt: str | None = None, max_speed_kn: floa
     with open_workspace(db) as ws:
         limit_ingest_memory(ws)
         sync_positions_parquet(ws)  # the positions dataset as the workspace says (after a crash)
-        ahead = PlainCopiesAhead(files, fmt, scratch_folder(ws), lambda quick: store.quick_key_known(ws, quick))
+        for p in remove_leftovers(ws, "gunzip"):
+            log.warning("removed %s, left by an ingest into this workspace that did not finish", p)
+        ahead = PlainCopiesAhead(files, fmt, scratch_folder(ws), lambda quick: store.quick_key_known(ws, quick),
+                                 leftover_prefix(ws, "gunzip"))
         try:
             for i, p in enumerate(files):
                 try:

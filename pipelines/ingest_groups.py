@@ -75,27 +75,6 @@ def parquet_rows(path) -> int:
         return 0
 
 
-def _prefix(ws) -> str:
-    """The name prefix of the workspace's group folders (its file's stem: one writer per file)."""
-    path = getattr(ws, "path", None)
-    stem = Path(path).stem if path is not None and str(path) not in ("", ":memory:") else "memory"
-    return f".stormlane-groups-{stem}-"
-
-
-def remove_leftovers(ws, scratch) -> list[Path]:
-    """Remove the group folders a killed ingest into this workspace left in ``scratch`` (about
-    the size of its file). Safe: only the process holding the workspace's write lock makes
-    them, one at a time. Returns what was removed."""
-    if scratch is None:
-        return []
-    prefix = _prefix(ws)
-    # the rest of the name is mkdtemp's random part, which holds no "-": not workspace w-2's
-    gone = sorted(p for p in Path(scratch).glob(prefix + "*") if p.is_dir() and "-" not in p.name[len(prefix):])
-    for p in gone:
-        shutil.rmtree(p, ignore_errors=True)
-    return gone
-
-
 def split_file(f, scratch, prefix: str = ".stormlane-groups-") -> tuple[Path, list]:
     """Split ``f`` (a DMA/NOAA CSV file, or a Parquet file) into groups in a new folder (named
     ``prefix...``) under ``scratch`` (None: the temporary folder); returns (folder, groups). The
@@ -164,9 +143,11 @@ def commit_in_groups(ws, source, meta: dict, max_speed_kn: float, before_commit=
     from pipelines.storage import ais as store
 
     t0 = time.perf_counter()
-    for p in remove_leftovers(ws, scratch):
+    from pipelines.ingest_stage import leftover_prefix, remove_leftovers
+
+    for p in remove_leftovers(ws, "groups"):
         log.warning("removed %s, left by an ingest into this workspace that did not finish", p)
-    folder, groups = split_file(source, scratch, _prefix(ws))
+    folder, groups = split_file(source, scratch, leftover_prefix(ws, "groups"))
     meta.setdefault("timings", {})["split"] = time.perf_counter() - t0
     try:
         return store.classify_and_commit(ws, meta, max_speed_kn=max_speed_kn, before_commit=before_commit,

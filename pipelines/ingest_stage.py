@@ -58,7 +58,7 @@ def done_future(value):
     return fut
 
 
-def plain_copy(f: AisFile, folder=None) -> tuple[AisFile, str]:
+def plain_copy(f: AisFile, folder=None, prefix: str = ".stormlane-gunzip-") -> tuple[AisFile, str]:
     """Decompress the gzip, zstd or zip file ``f`` into a temporary plain file in ``folder`` (default: the
     temporary folder) and hash the content on the way: returns the plain file (its
     :class:`AisFile`; the caller removes it) and the content's fingerprint, the same
@@ -72,7 +72,7 @@ def plain_copy(f: AisFile, folder=None) -> tuple[AisFile, str]:
 
     from ais.io.files import inflate_into
 
-    fd, tmp = tempfile.mkstemp(prefix=".stormlane-gunzip-", suffix=".csv", dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".csv", dir=folder)
     h = blake3.blake3(max_threads=1)
     try:
         with os.fdopen(fd, "wb") as out:
@@ -99,10 +99,12 @@ class PlainCopiesAhead:
     hash alone, as without copies ahead. The caller owns a taken copy (removes it); copies not
     taken are removed by :meth:`close`."""
 
-    def __init__(self, files: list, fmt: str | None, folder, known: Callable[[str], bool]):
+    def __init__(self, files: list, fmt: str | None, folder, known: Callable[[str], bool],
+                 prefix: str = ".stormlane-gunzip-"):
         from concurrent.futures import ThreadPoolExecutor
 
         self._files, self._fmt, self._folder, self._known = [Path(p) for p in files], fmt, folder, known
+        self._prefix = prefix
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plain-copy")
         self._ahead: dict = {}
 
@@ -125,7 +127,7 @@ class PlainCopiesAhead:
                 return None
         except Exception:  # the file's own turn meets the same problem and names it, in order
             return None
-        return self._pool.submit(plain_copy, f, self._folder)
+        return self._pool.submit(plain_copy, f, self._folder, self._prefix)
 
     def close(self) -> None:
         """Wait for the copy under way and remove every copy not taken."""
@@ -149,6 +151,34 @@ def scratch_folder(ws):
     temporary folder), else the temporary folder."""
     path = getattr(ws, "path", None)
     return None if path is None or str(path) in ("", ":memory:") else Path(path).parent
+
+
+def leftover_prefix(ws, kind: str) -> str:
+    """The name prefix of the temporary copies (``kind`` "gunzip") or folders ("groups") an
+    ingest into ``ws`` makes in :func:`scratch_folder`: the workspace file's stem in it, so that
+    the next ingest into the same workspace can tell its own leftovers (:func:`remove_leftovers`)."""
+    stem = Path(ws.path).stem if scratch_folder(ws) is not None else "memory"
+    return f".stormlane-{kind}-{stem}-"
+
+
+def remove_leftovers(ws, kind: str) -> list[Path]:
+    """Remove what a killed ingest into ``ws`` left beside it (:func:`leftover_prefix`: a plain
+    copy or a group folder, about the size of its input). Safe: only the process holding the
+    workspace's write lock makes them. Returns what was removed."""
+    import shutil
+
+    scratch = scratch_folder(ws)
+    if scratch is None:
+        return []
+    prefix = leftover_prefix(ws, kind)
+    # the rest of the name is tempfile's random part (no "-"): not workspace w-2's beside w
+    gone = sorted(p for p in Path(scratch).glob(prefix + "*") if "-" not in p.name[len(prefix):])
+    for p in gone:
+        if p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
+    return gone
 
 
 def skipped_counts(path, fmt: str, file_id: int) -> dict:

@@ -254,3 +254,29 @@ def test_a_killed_ingests_group_folder_is_removed_by_the_next_grouped_ingest(tmp
         assert ingest_file(ws, path, fmt="dma")["staging"] == "groups"
     assert not mine.exists() and other.exists()
     assert [p.name for p in tmp_path.glob(".stormlane-groups-*")] == [other.name]
+
+
+def test_a_killed_ingests_plain_copy_is_removed_by_the_next_ingest(tmp_path, monkeypatch, caplog):
+    """A gzip file's plain copy beside the workspace (about its inflated size) is named by the
+    workspace's stem; one a killed ingest into this workspace left is removed, with a warning,
+    by the next ingest into it, never workspace w-2's, nor a copy of an older version (no stem)."""
+    import gzip
+    import logging
+
+    monkeypatch.setattr(stage_mod, "GZIP_PLAIN_MIN_BYTES", 0)
+    rows = [dma_row(f"01/03/2025 00:{i // 60:02d}:{i % 60:02d}", str(219000000 + i % 7), "55.000000",
+                    f"{10 + i * 1e-4:.6f}") for i in range(50)]
+    path = tmp_path / "in" / "day.csv.gz"
+    path.parent.mkdir()
+    path.write_bytes(gzip.compress(("\n".join([DMA_HEADER] + rows) + "\n").encode()))
+    mine = tmp_path / ".stormlane-gunzip-w-k2j4x_9q.csv"
+    others = [tmp_path / ".stormlane-gunzip-w-2-abcdefgh.csv", tmp_path / ".stormlane-gunzip-zz1abcde.csv"]
+    for p in (mine, *others):
+        p.write_text("x")
+    from pipelines.ingest import ingest_paths
+
+    with caplog.at_level(logging.WARNING):
+        assert ingest_paths([path], tmp_path / "w.duckdb")["loaded"] == 50
+    assert not mine.exists() and all(p.exists() for p in others)
+    assert any(mine.name in r.getMessage() for r in caplog.records)
+    assert sorted(p.name for p in tmp_path.glob(".stormlane-gunzip-*")) == sorted(p.name for p in others)

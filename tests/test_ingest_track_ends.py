@@ -168,7 +168,8 @@ def test_plain_copies_made_ahead_load_the_same_and_leave_nothing(tmp_path, monke
     threads = []
     copy = stage_mod.plain_copy
     monkeypatch.setattr(stage_mod, "plain_copy",
-                        lambda f, folder: threads.append((f.path.name, threading.current_thread().name)) or copy(f, folder))
+                        lambda f, folder, prefix: threads.append((f.path.name, threading.current_thread().name))
+                        or copy(f, folder, prefix))
     (tmp_path / "ahead").mkdir()
     (tmp_path / "one").mkdir()
     s = ingest_paths(paths, tmp_path / "ahead" / "ws.duckdb")
