@@ -40,12 +40,14 @@ GZIP_PLAIN_MIN_BYTES = 4 << 20
 
 
 def wants_plain_copy(f: AisFile) -> bool:
-    """Whether :func:`plain_copy` is the way to stage ``f``: a large gzip DMA/NOAA CSV file, and
-    every zip archive's or zstd file (the readers take plain files and gzip streams)."""
+    """Whether :func:`plain_copy` is the way to stage ``f``: a large gzip DMA/NOAA CSV, NMEA or
+    Parquet file, and every zip archive's or zstd file (the readers take plain files and gzip
+    streams)."""
     large_gzip_csv = f.gzip and f.format in ("dma", "noaa") and f.size_bytes >= GZIP_PLAIN_MIN_BYTES
-    # a large gzip NMEA file: its plain copy's size decides whether it is read in groups
-    large_gzip_nmea = f.gzip and f.format == "nmea" and f.size_bytes >= GZIP_PLAIN_MIN_BYTES
-    return bool(f.staged_from_plain_copy or (large_gzip_csv and FAST_CSV_ENGINES) or large_gzip_nmea)
+    # a large gzip NMEA or Parquet file: its plain copy's size (rows) decides whether it is
+    # committed in groups (pipelines.ingest_groups.wants_groups)
+    large_gzip_other = f.gzip and f.format in ("nmea", "parquet") and f.size_bytes >= GZIP_PLAIN_MIN_BYTES
+    return bool(f.staged_from_plain_copy or (large_gzip_csv and FAST_CSV_ENGINES) or large_gzip_other)
 
 
 def done_future(value):

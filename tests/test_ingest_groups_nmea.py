@@ -177,3 +177,19 @@ def test_partitioned_ingest_commits_a_large_nmea_file_in_groups(tmp_path, monkey
         assert list(spool.iterdir()) == [] and path.exists()
     assert _state(dbs["part"]) == _state(dbs["whole"])
     assert not list(tmp_path.glob("**/.stormlane-groups-*"))
+
+
+def test_a_file_of_ignored_lines_only_counts_them_in_groups(tmp_path, monkeypatch):
+    """No AIS item at all (blank lines, other sentences): one empty group counts the ignored
+    lines, as the whole file's ingest does."""
+    lines = ["", "$PSTT,30A,20131112,120000*6D", "", "$PGHP,1,2025,1,1,0,0,5,0,219,,2190067,1,00*00"] * 5
+    path = _write(tmp_path / "f.nmea", lines)
+    monkeypatch.setattr(nmea_chunks, "CHUNK_BYTES", 40)
+    got = {}
+    for side, min_bytes in (("whole", 1 << 62), ("split", 0)):
+        monkeypatch.setattr(groups_mod, "NMEA_GROUP_MIN_BYTES", min_bytes)
+        with open_workspace(tmp_path / f"{side}.duckdb") as ws:
+            c = ingest_file(ws, path)
+        got[side] = (c["read"], c["ignored"], c["loaded"])
+        assert (c["staging"] == "groups") == (side == "split")
+    assert got["split"] == got["whole"] == (0, 15, 0)

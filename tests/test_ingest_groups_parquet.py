@@ -191,3 +191,32 @@ def test_small_or_unreadable_parquet_files_are_committed_whole(tmp_path, rows):
         assert groups_mod.wants_groups(f) == (rows > 4)
     finally:
         groups_mod.PARQUET_GROUP_MIN_ROWS = old
+
+
+def test_a_large_gzip_parquet_file_is_inflated_and_committed_in_groups(tmp_path, monkeypatch):
+    """A gzip Parquet file from GZIP_PLAIN_MIN_BYTES on is inflated once to a plain copy beside
+    the workspace, whose rows decide the groups: the workspace of the gzip stream read whole
+    (its decompressed temporary copy, every row's text staged), and no copy left."""
+    import gzip
+
+    from pipelines import ingest_stage
+
+    table = fleet_table(21, 700, 1_735_689_600, "text", "words", geometry=True)
+    plain = tmp_path / "x.parquet"
+    pq.write_table(table, plain, row_group_size=64)
+    monkeypatch.setattr(P, "ROW_GROUP_ROWS", 40)
+    dbs = {}
+    for side, min_gz, min_rows in (("stream", 1 << 40, 1 << 62), ("groups", 0, 100)):
+        monkeypatch.setattr(ingest_stage, "GZIP_PLAIN_MIN_BYTES", min_gz)
+        monkeypatch.setattr(groups_mod, "PARQUET_GROUP_MIN_ROWS", min_rows)
+        monkeypatch.setattr(groups_mod, "PARQUET_GROUP_ROWS", 150)
+        (tmp_path / side).mkdir()
+        gz = tmp_path / side / "in" / "x.parquet.gz"
+        gz.parent.mkdir()
+        gz.write_bytes(gzip.compress(plain.read_bytes()))
+        dbs[side] = tmp_path / side / "w.duckdb"
+        with open_workspace(dbs[side]) as ws:
+            counts = ingest_file(ws, gz)
+        assert counts["staging"] == ("groups" if side == "groups" else "parquet")
+        assert sorted(p.name for p in (tmp_path / side).iterdir()) == ["in", "w.duckdb", "w.parquet"]
+    assert _state(dbs["groups"]) == _state(dbs["stream"])

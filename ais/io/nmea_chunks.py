@@ -128,8 +128,11 @@ def _deal(spills: list[Path], bounds: np.ndarray, folder: Path, ignored: int) ->
     sinks, writers = [None] * n, [None] * n
     louts = [open(p, "wb") for p in line_files]
     try:
-        for spill in spills:
+        for k, spill in enumerate(spills):
             table = _read_ipc(spill)
+            if k == 0:  # the first group's file always (it counts the ignored lines)
+                sinks[0] = pa.OSFile(str(names[0]), "wb")
+                writers[0] = pa.ipc.new_file(sinks[0], table.schema)
             keys = pc.fill_null(table.column("mmsi"), -1).to_numpy()
             group = np.where(keys < 0, 0, np.searchsorted(bounds, keys, side="right"))
             order = np.argsort(group, kind="stable")
@@ -155,7 +158,7 @@ def _deal(spills: list[Path], bounds: np.ndarray, folder: Path, ignored: int) ->
             f.close()
     groups = []
     for g in range(n):
-        if counts[g]:
+        if counts[g] or (g == 0 and not counts.any()):  # no row at all: the ignored lines' group
             npy = line_files[g].with_suffix(".npy")
             np.save(npy, np.sort(np.fromfile(line_files[g], dtype=np.int64)))
             groups.append(NmeaGroup(names[g], npy, int(counts[g]), ignored if not groups else 0))
