@@ -28,8 +28,12 @@ def test_line_index_offsets_and_flags(tmp_path):
         assert ix.quote_lines.tolist() == [3]
         assert not ix.stray_cr
         assert ix.text([5, 1, 3, 2]) == ["e+f", "ab", 'c"d', ""]
+        assert ix.text_array([5, 1, 3, 2]).to_pylist() == ["e+f", "ab", 'c"d', ""]
+        assert ix.text_array([]).to_pylist() == []
         with pytest.raises(IndexError):
             ix.text([6])
+        with pytest.raises(IndexError):
+            ix.text_array([0])
 
 
 def test_line_index_stray_cr_empty_file_and_bad_utf8(tmp_path):
@@ -43,9 +47,10 @@ def test_line_index_stray_cr_empty_file_and_bad_utf8(tmp_path):
     p.write_bytes(b"")
     with LineIndex(p) as ix:
         assert ix.n_lines == 0 and len(ix.blank_lines) == 0
-    p.write_bytes(b"N\xd8RD\n")
-    with LineIndex(p) as ix:
-        assert ix.n_lines == 1 and ix.text([1]) == ["N\ufffdRD"]
+    p.write_bytes("ÆØ\nN\xd8RD\n".encode("latin-1").replace(b"\xc6\xd8", "ÆØ".encode()))
+    with LineIndex(p) as ix:  # UTF-8 kept; a byte that is none replaced, on both readers
+        assert ix.n_lines == 2 and ix.text([2, 1]) == ["N\ufffdRD", "ÆØ"]
+        assert ix.text_array([2, 1]).to_pylist() == ["N\ufffdRD", "ÆØ"] and ix.text_array([1]).to_pylist() == ["ÆØ"]
 
 
 # --- both staging paths give the same workspace ----------------------------------------------

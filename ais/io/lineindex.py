@@ -19,6 +19,7 @@ from __future__ import annotations
 import mmap
 from pathlib import Path
 
+import numba
 import numpy as np
 
 _CHUNK = 1 << 24  # bytes per vectorised step (bounded temporary memory)
@@ -33,6 +34,15 @@ def _positions(buf: np.ndarray, mm: mmap.mmap, byte: int) -> np.ndarray:
     parts = [np.flatnonzero(buf[i:i + _CHUNK] == byte) + i
              for i in range(first - first % _CHUNK, len(buf), _CHUNK)]
     return np.concatenate(parts).astype(np.int64, copy=False)
+
+
+@numba.njit(nogil=True, cache=True)
+def _gather(buf, starts, ends, offsets, out):
+    """Each line's bytes ``buf[starts[k]:ends[k]]`` to ``out[offsets[k]:]``."""
+    for k in range(len(starts)):
+        a = offsets[k]
+        for j in range(ends[k] - starts[k]):
+            out[a + j] = buf[starts[k] + j]
 
 
 class LineIndex:
@@ -132,6 +142,29 @@ class LineIndex:
         mm = self._mm
         return [mm[s:e].decode("utf-8", errors="replace")
                 for s, e in zip(self.starts[lines - 1].tolist(), self.ends[lines - 1].tolist())]
+
+    def text_array(self, lines):
+        """:meth:`text` of the 1-based ``lines`` as one Arrow ``large_string`` array, copied
+        straight from the map (no Python string per line: a file of 2.9 M quarantined lines took
+        10.8 s and 4.3 GB in its quarantine step with :meth:`text`, issue 23). Lines that are not
+        valid UTF-8 take :meth:`text` (their bytes replaced)."""
+        import pyarrow as pa
+
+        lines = np.asarray(lines, dtype=np.int64)
+        if len(lines) and (lines.min() < 1 or lines.max() > self.n_lines):
+            raise IndexError(f"{self.path}: line out of range 1..{self.n_lines}")
+        starts, ends = self.starts[lines - 1], self.ends[lines - 1]
+        offsets = np.zeros(len(lines) + 1, dtype=np.int64)
+        np.cumsum(ends - starts, out=offsets[1:])
+        data = np.empty(int(offsets[-1]), dtype=np.uint8)
+        if len(data):
+            _gather(np.frombuffer(self._mm, dtype=np.uint8), starts, ends, offsets, data)
+        raw = pa.LargeBinaryArray.from_buffers(pa.large_binary(), len(lines),
+                                               [None, pa.py_buffer(offsets), pa.py_buffer(data)])
+        try:
+            return raw.cast(pa.large_string())  # checks the UTF-8
+        except pa.ArrowInvalid:
+            return pa.array(self.text(lines), pa.large_string())
 
     def close(self) -> None:
         if self._mm is not None:

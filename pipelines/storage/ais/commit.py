@@ -284,8 +284,8 @@ def _insert_quarantine(con, meta: dict, file_id: int) -> None:
         return
     need = np.asarray(con.execute("SELECT line FROM ais_q WHERE raw IS NULL ORDER BY line").fetchnumpy()["line"],
                       dtype=np.int64)
-    texts = _line_index(con, meta).text(need) if len(need) else []
-    con.register("ais_raw_df", pa.table({"line": need, "raw": pa.array(texts, pa.string())}))
+    texts = _line_index(con, meta).text_array(need) if len(need) else pa.array([], pa.large_string())
+    con.register("ais_raw_df", pa.table({"line": need, "raw": texts}))
     try:
         con.execute(insert.format(raw="ais_raw_df"), [file_id])
     finally:
