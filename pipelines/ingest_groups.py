@@ -76,7 +76,7 @@ def parquet_rows(path) -> int:
 
 
 def split_file(f, scratch, prefix: str = ".stormlane-groups-") -> tuple[Path, list]:
-    """Split ``f`` (a DMA/NOAA CSV file, or a Parquet file) into groups in a new folder (named
+    """Split ``f`` (a DMA/NOAA CSV, Parquet or NMEA file) into groups in a new folder (named
     ``prefix...``) under ``scratch`` (None: the temporary folder); returns (folder, groups). The
     caller removes the folder."""
     from ais.io.csv_buckets import split_by_mmsi
@@ -134,17 +134,16 @@ def parquet_keys(path, out: Path):
 
 
 def commit_in_groups(ws, source, meta: dict, max_speed_kn: float, before_commit=None, scratch=None) -> dict:
-    """Split the plain CSV file ``source`` (an :class:`ais.io.files.AisFile`) in ``scratch`` and
+    """Split the plain file ``source`` (an :class:`ais.io.files.AisFile`) in ``scratch`` and
     commit its groups in one transaction; ``meta`` as for
     :func:`pipelines.storage.ais.classify_and_commit` (the file's fingerprint, path, format, size).
     Returns the file's counts; the groups' folder is removed."""
     import time
 
+    from pipelines.ingest_stage import leftover_prefix, remove_leftovers
     from pipelines.storage import ais as store
 
     t0 = time.perf_counter()
-    from pipelines.ingest_stage import leftover_prefix, remove_leftovers
-
     for p in remove_leftovers(ws, "groups"):
         log.warning("removed %s, left by an ingest into this workspace that did not finish", p)
     folder, groups = split_file(source, scratch, leftover_prefix(ws, "groups"))

@@ -117,8 +117,9 @@ def stage_to_spool(path: str, fmt: str | None, spool_dir: str, run_tag: str = ""
 
 
 def _plain_to_spool(f, source, fp: str, folder: Path, spool_dir, suffix: str) -> dict:
-    """A file above ``pipelines.ingest_groups.GROUP_MIN_BYTES``: the worker only inflates and
-    hashes it; the committing process splits it and commits its groups
+    """A file committed in groups (``pipelines.ingest_groups.wants_groups``: a large CSV, Parquet
+    or NMEA file): the worker only inflates and hashes it; the committing process splits it and
+    commits its groups
     (:func:`pipelines.ingest_groups.commit_in_groups`), whose memory is one group's. Spooled as
     the plain file: the input itself, or its inflated copy moved to ``<spool>/<name>.plain/``."""
     from ais.io.files import quick_key
