@@ -167,20 +167,14 @@ def remove_leftovers(ws, kind: str) -> list[Path]:
     """Remove what a killed ingest into ``ws`` left beside it (:func:`leftover_prefix`: a plain
     copy or a group folder, about the size of its input). Safe: only the process holding the
     workspace's write lock makes them. Returns what was removed."""
-    import shutil
+    from pipelines.storage.ais.spool import remove_paths
 
     scratch = scratch_folder(ws)
     if scratch is None:
         return []
     prefix = leftover_prefix(ws, kind)
     # the rest of the name is tempfile's random part (no "-"): not workspace w-2's beside w
-    gone = sorted(p for p in Path(scratch).glob(prefix + "*") if "-" not in p.name[len(prefix):])
-    for p in gone:
-        if p.is_dir():
-            shutil.rmtree(p, ignore_errors=True)
-        else:
-            p.unlink(missing_ok=True)
-    return gone
+    return remove_paths(sorted(p for p in Path(scratch).glob(prefix + "*") if "-" not in p.name[len(prefix):]))
 
 
 def skipped_counts(path, fmt: str, file_id: int) -> dict:

@@ -193,7 +193,6 @@ def test_a_failed_commit_leaves_nothing_of_the_groups(tmp_path, monkeypatch, whe
 def test_partitioned_ingest_commits_a_large_file_in_groups(tmp_path, monkeypatch, gz):
     """On the partitioned path a large file is only inflated and hashed where it is staged; the
     committing process splits it and commits its groups: the sequential whole-file workspace."""
-    from pipelines.ingest_partitioned import commit_spooled, plan_files, stage_to_spool
     from test_ingest_partitioned import dirty_dma_file
 
     path = dirty_dma_file(tmp_path, gz, vessels=9, mmsi_step=7919)
@@ -201,6 +200,15 @@ def test_partitioned_ingest_commits_a_large_file_in_groups(tmp_path, monkeypatch
     whole_db, _ = _ingest_paths(tmp_path / "whole", path, 1 << 62, monkeypatch)
     monkeypatch.setattr(groups_mod, "GROUP_MIN_BYTES", 5000)
     monkeypatch.setattr(groups_mod, "GROUP_BYTES", 5000)
+    assert _state(commit_partitioned(tmp_path, path)) == _state(whole_db)
+
+
+def commit_partitioned(tmp_path, path):
+    """``path`` staged as the partitioned ingest's worker does (into ``tmp_path/spool``) and
+    committed in groups into ``tmp_path/part/w.duckdb``: the spool empty after, the input kept,
+    no group folder left. Returns the workspace."""
+    from pipelines.ingest_partitioned import commit_spooled, plan_files, stage_to_spool
+
     spool = tmp_path / "spool"
     spool.mkdir()
     part_db = tmp_path / "part" / "w.duckdb"
@@ -211,9 +219,9 @@ def test_partitioned_ingest_commits_a_large_file_in_groups(tmp_path, monkeypatch
         assert staged["spool_kind"] == "plain"
         counts = commit_spooled(ws, staged)
     assert counts["staging"] == "groups" and counts["loaded"] > 0
-    assert _state(part_db) == _state(whole_db)
     assert list(spool.iterdir()) == [] and path.exists()
     assert not list(part_db.parent.glob(".stormlane-groups-*"))
+    return part_db
 
 
 def _ingest_paths(folder, path, group_min_bytes, monkeypatch):

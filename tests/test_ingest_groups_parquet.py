@@ -25,7 +25,7 @@ from ais.io import parquet_buckets
 from pipelines.ingest import ingest_file
 from pipelines.storage import open_workspace
 from pipelines.storage.ais import parquet as P
-from test_ingest_groups import _state
+from test_ingest_groups import _state, commit_partitioned
 
 VESSELS = (219000001, 219000002, 230000017, 244000321, 265111222, 311000999)
 WORDS = ("Under way using engine", "moored", "At anchor", "Engaged in fishing", "not a status")
@@ -148,27 +148,12 @@ def test_the_split_keeps_every_row_once_in_order_with_the_inputs_schema(tmp_path
 def test_partitioned_ingest_commits_a_large_parquet_file_in_groups(tmp_path, monkeypatch):
     """The worker hands the Parquet file over as it is; the committing process splits it and
     commits its groups: the sequential whole-file workspace, the input kept."""
-    from pipelines.ingest_partitioned import commit_spooled, plan_files, stage_to_spool
-
     table = fleet_table(11, 900, 1_735_689_600, "int64", "int", geometry=False)
     monkeypatch.setattr(P, "ROW_GROUP_ROWS", 50)
     whole_db, _ = _ingest(tmp_path, "whole", [(table, 100)], 1 << 62, monkeypatch)
     monkeypatch.setattr(groups_mod, "PARQUET_GROUP_MIN_ROWS", 200)
     monkeypatch.setattr(groups_mod, "PARQUET_GROUP_ROWS", 200)
-    path = tmp_path / "whole" / "in-0.parquet"
-    spool = tmp_path / "spool"
-    spool.mkdir()
-    part_db = tmp_path / "part" / "w.duckdb"
-    part_db.parent.mkdir()
-    with open_workspace(part_db) as ws:
-        todo, _ = plan_files(ws, [str(path)], None)
-        staged = stage_to_spool(todo[0], None, str(spool))
-        assert staged["spool_kind"] == "plain"
-        counts = commit_spooled(ws, staged)
-    assert counts["staging"] == "groups" and counts["loaded"] > 0
-    assert _state(part_db) == _state(whole_db)
-    assert list(spool.iterdir()) == [] and path.exists()
-    assert not list(part_db.parent.glob(".stormlane-groups-*"))
+    assert _state(commit_partitioned(tmp_path, tmp_path / "whole" / "in-0.parquet")) == _state(whole_db)
 
 
 @pytest.mark.parametrize("rows", [0, 5])

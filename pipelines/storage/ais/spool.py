@@ -55,13 +55,17 @@ def remove_run_leftovers(spool_dir, run_tag: str) -> list[Path]:
     whose process was killed mid-write never reached its own clean-up. Other runs' (a spool
     shared by several workspaces) are kept. Returns what was removed."""
     spool = Path(spool_dir)
-    gone = sorted([*spool.glob(f".stage-{run_tag}-*.part"), *spool.glob(f"*.{run_tag}-*.part")])
-    for p in gone:
+    return remove_paths(sorted([*spool.glob(f".stage-{run_tag}-*.part"), *spool.glob(f"*.{run_tag}-*.part")]))
+
+
+def remove_paths(paths: list[Path]) -> list[Path]:
+    """Remove each of ``paths`` (a folder with what it holds); returns them."""
+    for p in paths:
         if p.is_dir():
             shutil.rmtree(p, ignore_errors=True)
         else:
             p.unlink(missing_ok=True)
-    return gone
+    return paths
 
 
 def write_ipc(tbl, path: Path) -> None:
