@@ -243,6 +243,8 @@ def read_lines(path) -> list[str]:
 
 #: ASCII white space trimmed around every field (the set DuckDB's casts ignore).
 WS = " \t\n\r\x0b\x0c"
+#: Python's white space that is not :data:`WS` (``\s`` less the ASCII white space).
+_OTHER_SPACE = r"[^\S \t\n\r\x0b\x0c]"
 #: The MMSI text: nine ASCII digits, white space around allowed.
 MMSI_RE = "[ \t\n\r\x0b\x0c]*[0-9]{9}[ \t\n\r\x0b\x0c]*"
 _TRIM = WS
@@ -294,6 +296,11 @@ def type_fields(fields: pd.DataFrame, spec: CsvSpec) -> pd.DataFrame:
         todo = parsed.isna() & (t != "")
         if todo.any():
             parsed[todo] = pd.to_datetime(t[todo], format=fmt, errors="coerce")
+    # pandas' strptime takes a space of the format as any Unicode white space (Python's \s, also
+    # \x1c-\x1f, \x85, \xa0, ...); the SQL stages and the compiled scan take only ASCII white
+    # space (C's isspace, :data:`WS`) there: a time holding another kind is no time on every path
+    # (found by `make fuzz`, 2026-11-28: "01/01/2025\x1f00:00:00").
+    parsed[t.str.contains(_OTHER_SPACE, regex=True).to_numpy(dtype=bool)] = pd.NaT
     # strptime's %S takes 60 and 61; in AIS a second of 60-63 means "time stamp not available"
     # (ITU-R M.1371-5, Annex 2, Table 45, "Time stamp"), so such a time is not a time.
     sec = pd.to_numeric(t.str.extract(r":(\d+)$", expand=False), errors="coerce")
