@@ -176,7 +176,6 @@ def _install(ws, f, group, folder: Path) -> dict:
     from pipelines.storage import ais as store
     from pipelines.storage.ais import spool
 
-    gf = inspect(group.path, f.format, with_fingerprint=False) if f.format != "nmea" else None
     mem = _Scratch(duckdb.connect(config={"threads": os.cpu_count() or 1}))
     info: dict = {}
     got: dict = {}
@@ -186,7 +185,7 @@ def _install(ws, f, group, folder: Path) -> dict:
 
             info = {**store.stage_frame(mem, read_group(group)), "ignored": group.ignored}
         else:
-            info = stage_file(mem, gf)
+            info = stage_file(mem, inspect(group.path, f.format, with_fingerprint=False))
         if info.get("staging") == "scan":
             out = spool.write_scan(mem.con, info, spool.new_folder(folder), group.path.stem)
             info.pop("scan_table")

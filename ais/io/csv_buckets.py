@@ -233,6 +233,19 @@ def mmsi_bounds(mmsi: np.ndarray, rows: np.ndarray, n_groups: int, no_key_rows: 
     return np.asarray(bounds, dtype=np.int64)
 
 
+def group_of(keys: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """The group of each key: its MMSI range of :func:`mmsi_bounds`, the first for no key (< 0)."""
+    return np.where(keys < 0, 0, np.searchsorted(bounds, keys, side="right")).astype(np.int64)
+
+
+def by_group(keys: np.ndarray, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(order, cuts): the rows of ``keys`` ordered by group (:func:`group_of`), each group's in
+    their input order, group ``g`` being ``order[cuts[g]:cuts[g + 1]]``."""
+    group = group_of(keys, bounds)
+    order = np.argsort(group, kind="stable")
+    return order, np.searchsorted(group[order], np.arange(len(bounds) + 2))
+
+
 def _add_counts(mmsi: np.ndarray, rows: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct-MMSI row counts with ``keys`` added (memory grows with vessels, not rows)."""
     u, c = np.unique(keys, return_counts=True)
@@ -299,7 +312,7 @@ def _write_groups(buf: np.ndarray, mm: mmap.mmap, head: int, col: int, bounds: n
             np.asarray([1], dtype=np.int64).tofile(lo)
         line = 2
         for starts, stops, keys in _steps(buf, head, col, mm=mm):
-            group = np.where(keys < 0, 0, np.searchsorted(bounds, keys, side="right")).astype(np.int64)
+            group = group_of(keys, bounds)
             out = np.empty(int(stops[-1] - starts[0]) + len(starts), dtype=np.uint8)
             lines = np.empty(len(starts), dtype=np.int64)
             nbytes, nlines = _scatter(buf, starts, stops, group, n, line, out, lines)

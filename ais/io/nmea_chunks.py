@@ -28,7 +28,8 @@ from typing import Iterator
 import numpy as np
 import pandas as pd
 
-from ais.io.csv_buckets import Group, _add_counts, mmsi_bounds
+from ais.io.csv_buckets import Group, _add_counts, by_group, mmsi_bounds
+from ais.io.ipc import read_ipc, write_ipc
 
 #: Bytes of NMEA text decoded at a time (about 0.3 M messages of DMA's framing).
 CHUNK_BYTES = 32 << 20
@@ -109,7 +110,7 @@ def split_nmea(path, group_rows: int, folder, chunk_bytes: int = CHUNK_BYTES) ->
         mmsi, rows = _add_counts(mmsi, rows, stage["mmsi"].to_numpy()[ok].astype(np.int64))
         no_key += int((~ok).sum())
         spills.append(folder / f"chunk-{k:05d}.arrow")
-        _write_ipc(_arrow(stage), spills[-1])
+        write_ipc(_arrow(stage), spills[-1])
         del stage
     total = int(rows.sum()) + no_key
     bounds = mmsi_bounds(mmsi, rows, max(1, -(-total // max(1, int(group_rows)))), no_key)
@@ -129,14 +130,11 @@ def _deal(spills: list[Path], bounds: np.ndarray, folder: Path, ignored: int) ->
     louts = [open(p, "wb") for p in line_files]
     try:
         for k, spill in enumerate(spills):
-            table = _read_ipc(spill)
+            table = read_ipc(spill)
             if k == 0:  # the first group's file always (it counts the ignored lines)
                 sinks[0] = pa.OSFile(str(names[0]), "wb")
                 writers[0] = pa.ipc.new_file(sinks[0], table.schema)
-            keys = pc.fill_null(table.column("mmsi"), -1).to_numpy()
-            group = np.where(keys < 0, 0, np.searchsorted(bounds, keys, side="right"))
-            order = np.argsort(group, kind="stable")
-            cuts = np.searchsorted(group[order], np.arange(n + 1))
+            order, cuts = by_group(pc.fill_null(table.column("mmsi"), -1).to_numpy(), bounds)
             lines = table.column("line").to_numpy()
             for g in range(n):
                 at = order[cuts[g]:cuts[g + 1]]
@@ -171,7 +169,7 @@ def read_group(group: NmeaGroup) -> pd.DataFrame:
     them back), the duplicate payloads marked (:func:`mark_duplicates`)."""
     from ais.clean import conform_stage
 
-    stage = _read_ipc(group.path).to_pandas()
+    stage = read_ipc(group.path).to_pandas()
     stage = stage.sort_values("line", kind="stable").reset_index(drop=True)
     stage["line"] = np.arange(1, len(stage) + 1, dtype=np.int64)
     payload = stage.pop("dup_payload")
@@ -191,16 +189,3 @@ def _arrow(stage: pd.DataFrame):
              "datetime64[ns, UTC]": pa.timestamp("ns", tz="UTC")}
     schema = pa.schema([(c, kinds[t]) for c, t in STAGE_COLUMNS.items()] + [("dup_payload", pa.string())])
     return pa.Table.from_pandas(stage[schema.names], schema=schema, preserve_index=False)
-
-
-def _write_ipc(table, path: Path) -> None:
-    import pyarrow as pa
-
-    with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, table.schema) as w:
-        w.write_table(table)
-
-
-def _read_ipc(path: Path):
-    import pyarrow as pa
-
-    return pa.ipc.open_file(pa.memory_map(str(path), "r")).read_all()

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ais.io.csv_buckets import Group, _add_counts, mmsi_bounds
+from ais.io.csv_buckets import Group, _add_counts, by_group, mmsi_bounds
 
 #: Rows read per batch (the split's working memory: about 0.2 KB each for AIS columns).
 BATCH_ROWS = 1 << 17
@@ -63,10 +63,7 @@ def split_by_keys(path, keys: np.ndarray, n_groups: int, folder) -> list[Group]:
         try:
             start = 0
             for batch in pf.iter_batches(batch_size=BATCH_ROWS, use_threads=True):
-                k = np.asarray(keys[start:start + batch.num_rows])
-                group = np.where(k < 0, 0, np.searchsorted(bounds, k, side="right"))
-                order = np.argsort(group, kind="stable")  # each group's rows in input order
-                cuts = np.searchsorted(group[order], np.arange(n + 1))
+                order, cuts = by_group(np.asarray(keys[start:start + batch.num_rows]), bounds)
                 for g in range(n):
                     rows = order[cuts[g]:cuts[g + 1]]
                     if len(rows):

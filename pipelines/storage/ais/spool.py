@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ais.io.ipc import read_ipc, write_ipc
+
 #: The spool folder's files (see the module docstring).
 SCAN_ARROW, EXACT_ARROW, FIXES_ARROW, LINES_NPZ, PLAIN_CSV, META_JSON = (
     "scan.arrow", "exact.arrow", "fixes.arrow", "lines.npz", "lines.csv", "stage.json")
@@ -66,20 +68,6 @@ def remove_paths(paths: list[Path]) -> list[Path]:
         else:
             p.unlink(missing_ok=True)
     return paths
-
-
-def write_ipc(tbl, path: Path) -> None:
-    import pyarrow as pa
-
-    with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, tbl.schema) as writer:
-        writer.write_table(tbl)
-
-
-def read_ipc(path: Path):
-    """The table of an IPC file, memory-mapped (its buffers are the file's pages)."""
-    import pyarrow as pa
-
-    return pa.ipc.open_file(pa.memory_map(str(path), "r")).read_all()
 
 
 def write_scan(con, info: dict, folder: Path, name: str) -> Path:
